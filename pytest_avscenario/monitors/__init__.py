@@ -1,0 +1,42 @@
+"""Monitors: what turns a recorded trajectory into verdicts.
+
+Every monitor returns a robustness value ``rho`` (``rho >= 0`` holds, ``rho < 0`` violated,
+``|rho|`` by how much, in the metric's unit) plus where and when the worst value happened and
+against which agent (:class:`MonitorResult`). Monitors read only
+:class:`~pytest_avscenario.sim.trajectory.Trajectory` (build one from plain numpy arrays with
+``Trajectory.from_arrays(t, agents={"ego": {"x": ..., "y": ...}, "lead": {...}})``), never
+the simulator, and are vectorized over steps and agents.
+
+* the paper's four metrics: :func:`distance`, :func:`ttc`, :func:`progress`,
+  :func:`lane_keeping`; beside them :func:`collision`, :func:`time_headway`,
+  :func:`off_road`, :func:`reaches`;
+* signal temporal logic over signals of the trajectory: :func:`always`, :func:`eventually`,
+  :func:`until`, :func:`and_`, :func:`or_`, :func:`not_`, :func:`implies` with signal
+  builders such as :func:`ego_speed` and :func:`gap`;
+* :func:`as_monitor` makes a plain function ``trajectory -> float`` a monitor;
+* :class:`MonitorSet` evaluates several into a :class:`Verdict` and carries their priority;
+* :func:`rho_to_json` / :func:`rho_from_json` / :func:`rho_to_str` / :func:`rho_from_str`
+  write ``±inf`` explicitly in every report.
+"""
+
+from .base import FunctionMonitor, Monitor, MonitorError, MonitorResult, as_monitor
+from .metrics import (
+    collision,
+    distance,
+    lane_keeping,
+    off_road,
+    progress,
+    reaches,
+    time_headway,
+    ttc,
+)
+from .serialize import rho_from_json, rho_from_str, rho_to_json, rho_to_str
+from .sets import MonitorSet, Verdict
+
+__all__ = [
+    "Monitor", "MonitorError", "MonitorResult", "FunctionMonitor", "as_monitor",
+    "distance", "ttc", "progress", "lane_keeping",
+    "collision", "time_headway", "off_road", "reaches",
+    "MonitorSet", "Verdict",
+    "rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str",
+]

@@ -1,0 +1,499 @@
+"""The safety metrics: the paper's four (distance, TTC, progress, lane keeping) and the ones
+AV teams expect beside them (collision, time headway, off-road, reaching a place).
+
+Each factory validates its arguments (a :class:`MonitorError` at construction, which becomes
+a collection error) and returns a :class:`Monitor` whose robustness is computed with numpy
+over the whole ``(agents, steps)`` grid at once. The ego is agent 0; "other agents" are all
+the rest. A step where an agent is absent (``present`` False) is ignored: it can neither
+satisfy nor violate a requirement. Exact definitions: /work/shared/DESIGN.md, "The paper's
+definitions".
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..sim.trajectory import Trajectory
+from .base import (
+    Monitor,
+    MonitorError,
+    MonitorResult,
+    check_positive,
+    check_present_finite,
+    check_threshold,
+    factory,
+    fmt_t,
+)
+
+__all__ = [
+    "distance", "ttc", "progress", "lane_keeping",
+    "collision", "time_headway", "off_road", "reaches",
+    "pairwise_distance", "pairwise_ttc", "footprint_gap", "footprint_separation",
+]
+
+
+# -- vectorized kernels (also used by the STL signal builders) --------------------------------
+
+def _pair_mask(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)``: ego and other agent both present."""
+    return traj.present[0][None, :] & traj.present[1:]
+
+
+def pairwise_distance(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)`` centre distance [m] from the ego to each other agent; +inf where either
+    is absent (absent agents are infinitely far, so they never decide a minimum)."""
+    dx = traj.x[1:] - traj.x[0]
+    dy = traj.y[1:] - traj.y[0]
+    return np.where(_pair_mask(traj), np.hypot(dx, dy), np.inf)
+
+
+def pairwise_ttc(traj: Trajectory, radius: float) -> np.ndarray:
+    """``(A-1, T)`` time to collision [s] of each other agent with the ego.
+
+    Constant-velocity extrapolation of both: the relative position ``dp + dv t`` reaches the
+    circle of ``radius`` [m] at the roots ``t1 <= t2`` of ``|dv|² t² + 2 dp·dv t + |dp|² - r² = 0``.
+    Already inside (``|dp| <= r``) gives 0; no real root, or both roots ``<= 0`` (receding),
+    gives +inf; otherwise ``t1``. Absent pairs are +inf.
+    """
+    dpx = traj.x[1:] - traj.x[0]
+    dpy = traj.y[1:] - traj.y[0]
+    dvx = traj.vx[1:] - traj.vx[0]
+    dvy = traj.vy[1:] - traj.vy[0]
+    a = dvx * dvx + dvy * dvy
+    b = 2.0 * (dpx * dvx + dpy * dvy)
+    c = dpx * dpx + dpy * dpy - radius * radius
+    disc = b * b - 4.0 * a * c
+    # Outside the circle (c > 0) both roots have the sign of -b/a, so a finite TTC needs an
+    # approaching pair (b < 0) and a real root (disc >= 0); then t1 = 2c / (-b + sqrt(disc)),
+    # the cancellation-free form of (-b - sqrt(disc)) / 2a (it also covers a -> 0).
+    approaching = (c > 0) & (b < 0) & (disc >= 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t1 = 2.0 * c / (-b + np.sqrt(np.where(approaching, disc, 0.0)))
+    out = np.where(approaching, t1, np.inf)
+    out = np.where(c <= 0, 0.0, out)
+    # NaN kinematics while present must surface as NaN (an error), not as "no collision".
+    bad = np.isnan(c) | np.isnan(b)
+    out = np.where(bad, np.nan, out)
+    return np.where(_pair_mask(traj), out, np.inf)
+
+
+def _corners(traj: Trajectory) -> np.ndarray:
+    """``(A, T, 4, 2)`` footprint corners [m] (NaN where absent)."""
+    c, s = np.cos(traj.heading), np.sin(traj.heading)
+    hl = (traj.length / 2)[:, None]
+    hw = (traj.width / 2)[:, None]
+    out = np.empty(traj.x.shape + (4, 2))
+    for i, (sl, sw) in enumerate(((1, 1), (1, -1), (-1, -1), (-1, 1))):  # 4 corners, not steps
+        out[..., i, 0] = traj.x + sl * hl * c - sw * hw * s
+        out[..., i, 1] = traj.y + sl * hl * s + sw * hw * c
+    return out
+
+
+def footprint_gap(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)`` Euclidean gap [m] between the ego's footprint rectangle and each other
+    agent's (0 when they touch or overlap; +inf where either is absent). Uses shapely's
+    vectorized distance."""
+    import shapely
+
+    mask = _pair_mask(traj)
+    out = np.full(mask.shape, np.inf)
+    if not mask.any():
+        return out
+    corners = _corners(traj)
+    ego = shapely.polygons(corners[0])  # (T,)
+    others_idx, steps = np.nonzero(mask)
+    other = shapely.polygons(corners[1:][others_idx, steps])
+    out[others_idx, steps] = shapely.distance(ego[steps], other)
+    return out
+
+
+def footprint_separation(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)`` signed separation [m] of the ego's footprint from each other agent's by
+    the separating-axis test: the largest gap of the two rectangles' projections over their
+    four edge normals. Positive: apart (a lower bound of the gap, equal to it side by side);
+    zero: touching; negative: overlapping, by minus the penetration depth (the shortest
+    push that separates them). +inf where either agent is absent."""
+    h0 = traj.heading[0]
+    ha = traj.heading[1:]
+    # unit axes of each rectangle: along (u) and across (w) its heading
+    u0 = np.stack([np.cos(h0), np.sin(h0)], -1)[None]          # (1, T, 2)
+    w0 = np.stack([-np.sin(h0), np.cos(h0)], -1)[None]
+    ua = np.stack([np.cos(ha), np.sin(ha)], -1)                # (A-1, T, 2)
+    wa = np.stack([-np.sin(ha), np.cos(ha)], -1)
+    d = np.stack([traj.x[1:] - traj.x[0], traj.y[1:] - traj.y[0]], -1)
+    l0, w0h = traj.length[0] / 2, traj.width[0] / 2
+    la = (traj.length[1:] / 2)[:, None]
+    wah = (traj.width[1:] / 2)[:, None]
+    axes = np.stack(np.broadcast_arrays(u0, w0, ua, wa), 0)    # (4, A-1, T, 2)
+
+    def proj(v: np.ndarray) -> np.ndarray:
+        return np.abs(np.sum(axes * v[None], -1))
+
+    gap = (np.abs(np.sum(axes * d[None], -1))
+           - l0 * proj(u0) - w0h * proj(w0) - la * proj(ua) - wah * proj(wa))
+    return np.where(_pair_mask(traj), gap.max(0), np.inf)
+
+
+def _argmin_2d(values: np.ndarray) -> tuple[int, int]:
+    """(agent row, step) of the smallest value, earliest step first on ties."""
+    flat = int(np.argmin(values.T))
+    step, row = divmod(flat, values.shape[0])
+    return row, step
+
+
+# -- the paper's four --------------------------------------------------------------------------
+
+class _PairwiseMin(Monitor):
+    """rho = min over steps and other agents of (value - threshold)."""
+
+    _what = ""
+    _unit = ""
+
+    def _values(self, traj: Trajectory) -> np.ndarray:
+        raise NotImplementedError
+
+    def _fields(self) -> tuple[str, ...]:
+        return ("x", "y")
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, self._fields())
+        vals = self._values(traj)
+        if vals.size == 0 or np.all(vals == np.inf):
+            who = "no other agent" if traj.n_agents == 1 else "no agent came near"
+            return MonitorResult(self.name, math.inf, self.threshold, None, None,
+                                 f"{who}: {self._what} infinite")
+        row, step = _argmin_2d(vals)
+        v = float(vals[row, step])
+        who = traj.names[row + 1]
+        return MonitorResult(
+            self.name, v - self.threshold, self.threshold, fmt_t(traj, step), who,
+            f"min {self._what} {v:.3g} {self._unit} to {who} at t={traj.t[step]:.2f} s "
+            f"(required >= {self.threshold:g} {self._unit})",
+        )
+
+
+class DistanceMonitor(_PairwiseMin):
+    """Always ``distance(ego, other) >= threshold`` [m] for every other agent."""
+
+    _unit = "m"
+
+    def __init__(self, threshold: float = 5.0, *, footprint: bool = False, name: str = "distance"):
+        self.threshold = check_threshold(name, threshold)
+        self.footprint = bool(footprint)
+        self.name = name
+        self._what = "footprint gap" if self.footprint else "centre distance"
+
+    def _fields(self) -> tuple[str, ...]:
+        return ("x", "y", "heading") if self.footprint else ("x", "y")
+
+    def _values(self, traj: Trajectory) -> np.ndarray:
+        return footprint_gap(traj) if self.footprint else pairwise_distance(traj)
+
+
+class TTCMonitor(_PairwiseMin):
+    """Always ``TTC(ego, other) >= threshold`` [s] for every other agent."""
+
+    _what = "TTC"
+    _unit = "s"
+
+    def __init__(self, threshold: float = 2.0, *, radius: float = 5.0, name: str = "ttc"):
+        self.threshold = check_threshold(name, threshold)
+        self.radius = check_positive(name, radius, "radius")
+        self.name = name
+
+    def _fields(self) -> tuple[str, ...]:
+        return ("x", "y", "vx", "vy")
+
+    def _values(self, traj: Trajectory) -> np.ndarray:
+        return pairwise_ttc(traj, self.radius)
+
+
+@factory
+def distance(threshold: float = 5.0, *, footprint: bool = False, name: str = "distance") -> Monitor:
+    """The paper's distance metric: rho = min over steps and other agents of
+    (centre distance - ``threshold``) [m]. With ``footprint=True`` the gap between the
+    vehicles' rectangles is used instead of the centre distance (0 when they overlap).
+    No other agent present: rho = +inf."""
+    return DistanceMonitor(threshold, footprint=footprint, name=name)
+
+
+@factory
+def ttc(threshold: float = 2.0, *, radius: float = 5.0, name: str = "ttc") -> Monitor:
+    """The paper's time-to-collision metric: rho = min over steps and other agents of
+    (TTC - ``threshold``) [s], TTC from constant-velocity extrapolation reaching the
+    ``radius`` [m] circle (see :func:`pairwise_ttc`); +inf when no agent is on a
+    collision course."""
+    return TTCMonitor(threshold, radius=radius, name=name)
+
+
+class ProgressMonitor(Monitor):
+    def __init__(self, threshold: float = 11.0, *, name: str = "progress"):
+        self.threshold = check_threshold(name, threshold)
+        self.name = name
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        present = np.flatnonzero(traj.present[0])
+        if present.size == 0:
+            raise MonitorError(f"monitor {self.name!r}: the ego is never present")
+        check_present_finite(traj, self.name, ("x", "y"), [0])
+        first, last = present[0], present[-1]
+        d = float(np.hypot(traj.x[0, last] - traj.x[0, first], traj.y[0, last] - traj.y[0, first]))
+        return MonitorResult(
+            self.name, d - self.threshold, self.threshold, fmt_t(traj, last), traj.names[0],
+            f"ego moved {d:.3g} m from t={traj.t[first]:.2f} s to t={traj.t[last]:.2f} s "
+            f"(required >= {self.threshold:g} m)",
+        )
+
+
+@factory
+def progress(threshold: float = 11.0, *, name: str = "progress") -> Monitor:
+    """The paper's progress metric: rho = ||X_1 - X_N|| - ``threshold`` [m], X the ego's
+    centre at its first and last present step (straight-line displacement, not path
+    length)."""
+    return ProgressMonitor(threshold, name=name)
+
+
+class LaneKeepingMonitor(Monitor):
+    def __init__(self, threshold: float = 0.5, *, name: str = "lane_keeping"):
+        self.threshold = check_threshold(name, threshold)
+        self.name = name
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        present = traj.present[0]
+        off = traj.lane_offset[0]
+        known = np.isfinite(off)
+        # A present step with a lane id but no offset is a broken recording; a step without
+        # any lane (off the map) has no centre line to measure from and is left to off_road().
+        broken = present & ~known & (traj.lane[0] != "")
+        if broken.any():
+            k = int(np.flatnonzero(broken)[0])
+            raise MonitorError(
+                f"monitor {self.name!r}: ego lane_offset is {off[k]} at t={traj.t[k]:.3f} s "
+                f"on lane {traj.lane[0, k]!r}"
+            )
+        use = present & known
+        if not use.any():
+            raise MonitorError(
+                f"monitor {self.name!r}: the trajectory has no lane offset for the ego at any "
+                "step; record lane/lane_offset (Trajectory.from_arrays(..., lane_offset=...))"
+            )
+        absoff = np.abs(np.where(use, off, 0.0))
+        mean = float(absoff.sum() / use.sum())
+        k = int(np.argmax(absoff))
+        return MonitorResult(
+            self.name, self.threshold - mean, self.threshold, fmt_t(traj, k), traj.names[0],
+            f"mean |lane offset| {mean:.3g} m over {int(use.sum())} steps, max "
+            f"{absoff[k]:.3g} m at t={traj.t[k]:.2f} s (required <= {self.threshold:g} m)",
+        )
+
+
+@factory
+def lane_keeping(threshold: float = 0.5, *, name: str = "lane_keeping") -> Monitor:
+    """The paper's lane-keeping metric: rho = ``threshold`` - mean over steps of the ego's
+    distance [m] to the centre line of its current lane (``|lane_offset|``). Steps where the
+    ego is absent, or on no lane at all, are left out of the mean."""
+    return LaneKeepingMonitor(threshold, name=name)
+
+
+# -- the ones AV teams expect beside them ----------------------------------------------------
+
+class CollisionMonitor(Monitor):
+    threshold = 0.0
+    #: robustness [m] charged for a recorded crash flag without a visible overlap (e.g. the
+    #: simulator's crash with a static object that is not in the trajectory)
+    FLAG_RHO = -0.01
+
+    def __init__(self, *, use_crash_flag: bool = True, name: str = "collision"):
+        self.use_crash_flag = bool(use_crash_flag)
+        self.name = name
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y", "heading"))
+        sep = footprint_separation(traj)
+        if sep.size and np.isfinite(sep).any():
+            row, step = _argmin_2d(sep)
+            v = float(sep[row, step])
+            who = traj.names[row + 1]
+            what = (f"overlap {-v:.3g} m deep with {who}" if v < 0
+                    else f"min footprint separation {v:.3g} m to {who}")
+            res = MonitorResult(self.name, v, 0.0, fmt_t(traj, step), who,
+                                f"{what} at t={traj.t[step]:.2f} s")
+        else:
+            res = MonitorResult(self.name, math.inf, 0.0, None, None, "no other agent present")
+        if self.use_crash_flag and res.rho >= 0:
+            flagged = traj.crashed[0] & traj.present[0]
+            if flagged.any():
+                k = int(np.argmax(flagged))
+                res = MonitorResult(self.name, self.FLAG_RHO, 0.0, fmt_t(traj, k), None,
+                                    f"simulator reports an ego crash at t={traj.t[k]:.2f} s "
+                                    "with nothing in the trajectory")
+        return res
+
+
+@factory
+def collision(*, use_crash_flag: bool = True, name: str = "collision") -> Monitor:
+    """No footprint overlap between the ego and any other agent, ever.
+
+    rho [m] = min over steps and agents of the separating-axis separation of the two
+    rectangles: positive apart, negative by the penetration depth when overlapping. With
+    ``use_crash_flag`` a crash the simulator recorded for the ego without any overlap in the
+    trajectory (e.g. with a static object) also fails, with rho = -0.01 m."""
+    return CollisionMonitor(use_crash_flag=use_crash_flag, name=name)
+
+
+class TimeHeadwayMonitor(Monitor):
+    def __init__(self, seconds: float = 1.0, *, min_speed: float = 0.1, name: str = "time_headway"):
+        self.threshold = check_positive(name, seconds, "seconds", allow_zero=True)
+        self.min_speed = check_positive(name, min_speed, "min_speed")
+        self.name = name
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y", "heading", "speed"))
+        thw = headway(traj, self.min_speed)
+        if thw.size == 0 or not np.isfinite(thw).any():
+            return MonitorResult(self.name, math.inf, self.threshold, None, None,
+                                 "no vehicle ahead in the ego's lane")
+        row, step = _argmin_2d(thw)
+        v = float(thw[row, step])
+        who = traj.names[row + 1]
+        return MonitorResult(
+            self.name, v - self.threshold, self.threshold, fmt_t(traj, step), who,
+            f"min time headway {v:.3g} s behind {who} at t={traj.t[step]:.2f} s "
+            f"(required >= {self.threshold:g} s)",
+        )
+
+
+def headway(traj: Trajectory, min_speed: float = 0.1) -> np.ndarray:
+    """``(A-1, T)`` time headway [s] of the ego behind each other agent: bumper-to-bumper gap
+    along the ego's heading divided by the ego's speed. Only agents ahead and in the ego's
+    lane count (same lane id when both are known, else overlapping lateral corridors); others
+    and absent ones are +inf. A gap <= 0 gives 0; an ego slower than ``min_speed`` [m/s] has
+    infinite headway."""
+    h = traj.heading[0]
+    dx = traj.x[1:] - traj.x[0]
+    dy = traj.y[1:] - traj.y[0]
+    lon = dx * np.cos(h) + dy * np.sin(h)
+    lat = -dx * np.sin(h) + dy * np.cos(h)
+    lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
+    same_lane = traj.lane[1:] == traj.lane[0][None, :]
+    corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
+    ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
+    gap = lon - (traj.length[0] + traj.length[1:, None]) / 2
+    speed = traj.speed[0][None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        thw = np.where(speed > min_speed, gap / speed, np.inf)
+    thw = np.where(gap <= 0, 0.0, thw)
+    return np.where(ahead, thw, np.inf)
+
+
+@factory
+def time_headway(seconds: float = 1.0, *, min_speed: float = 0.1,
+                 name: str = "time_headway") -> Monitor:
+    """Always keep ``seconds`` [s] of time headway to the vehicle ahead in the ego's lane:
+    rho = min over steps of (headway - ``seconds``) [s] (see :func:`headway`); +inf when
+    nothing is ever ahead."""
+    return TimeHeadwayMonitor(seconds, min_speed=min_speed, name=name)
+
+
+class OffRoadMonitor(Monitor):
+    threshold = 0.0
+
+    def __init__(self, *, name: str = "off_road"):
+        self.name = name
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        off = traj.present[0] & ~traj.on_road[0]
+        if not off.any():
+            return MonitorResult(self.name, 0.0, 0.0, None, traj.names[0], "ego always on the road")
+        k = int(np.argmax(off))
+        n = int(off.sum())
+        dt = traj.dt
+        dur = n * dt if dt > 0 else float(n)
+        unit = "s" if dt > 0 else "steps"
+        return MonitorResult(self.name, -dur, 0.0, fmt_t(traj, k), traj.names[0],
+                             f"ego off the road for {dur:.3g} {unit}, first at t={traj.t[k]:.2f} s")
+
+
+@factory
+def off_road(*, name: str = "off_road") -> Monitor:
+    """The ego's centre stays on some lane (the recorded ``on_road`` flag) at every step.
+    rho = 0 when it holds, else minus the time spent off the road [s] (steps × dt)."""
+    return OffRoadMonitor(name=name)
+
+
+class ReachesMonitor(Monitor):
+    threshold = 0.0
+
+    def __init__(self, place: Any, radius: float | None = None, *, name: str = "reaches"):
+        self.name = name
+        self.place, self.radius, self._desc = _parse_place(name, place, radius)
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y"), [0])
+        present = traj.present[0]
+        d = signed_distance_to(self.place, traj.x[0], traj.y[0])
+        margin = np.where(present, self.radius - d, -np.inf)
+        if not present.any():
+            raise MonitorError(f"monitor {self.name!r}: the ego is never present")
+        k = int(np.argmax(margin))
+        v = float(margin[k])
+        return MonitorResult(
+            self.name, v, 0.0, fmt_t(traj, k), traj.names[0],
+            f"ego {'reached' if v >= 0 else 'came within'} {max(d[k], 0.0):.3g} m of "
+            f"{self._desc} at t={traj.t[k]:.2f} s",
+        )
+
+
+def _parse_place(name: str, place: Any, radius: float | None) -> tuple[Any, float, str]:
+    try:
+        import shapely
+        is_geom = isinstance(place, shapely.Geometry)
+    except ImportError:  # pragma: no cover - shapely is a dependency
+        is_geom = False
+    if is_geom:
+        if place.is_empty:
+            raise MonitorError(f"{name}: the place geometry is empty")
+        r = 0.0 if radius is None else check_positive(name, radius, "radius", allow_zero=True)
+        return place, r, f"{place.geom_type} place"
+    try:
+        xy = np.asarray(place, dtype=float)
+    except (TypeError, ValueError):
+        xy = None
+    if xy is None or xy.shape != (2,) or not np.isfinite(xy).all():
+        raise MonitorError(
+            f"{name}: place must be an (x, y) point [m] with a radius, or a shapely geometry; "
+            f"got {place!r:.80}"
+        )
+    if radius is None:
+        raise MonitorError(f"{name}: a point place needs a radius [m], e.g. reaches((x, y), radius=3.0)")
+    r = check_positive(name, radius, "radius")
+    return (float(xy[0]), float(xy[1])), r, f"({xy[0]:g}, {xy[1]:g})"
+
+
+def signed_distance_to(place: Any, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Distance [m] from each point to ``place`` (a point tuple or shapely geometry), negative
+    inside a polygon by the distance to its boundary. NaN where x/y are NaN."""
+    if isinstance(place, tuple):
+        return np.hypot(x - place[0], y - place[1])
+    import shapely
+
+    ok = np.isfinite(x) & np.isfinite(y)
+    xs, ys = np.where(ok, x, 0.0), np.where(ok, y, 0.0)
+    pts = shapely.points(xs, ys)
+    d = shapely.distance(place, pts)
+    if place.area > 0:
+        inside = shapely.contains_xy(place, xs, ys)
+        d = np.where(inside, -shapely.distance(place.boundary, pts), d)
+    return np.where(ok, d, np.nan)
+
+
+@factory
+def reaches(place: Any, radius: float | None = None, *, name: str = "reaches") -> Monitor:
+    """Eventually the ego's centre reaches ``place``: an ``(x, y)`` point [m] with a
+    ``radius`` [m], or a shapely geometry (optionally grown by ``radius``). rho = max over
+    steps of (radius - signed distance to the place) [m]: positive by how deep the ego got,
+    negative by how far its closest approach stayed."""
+    return ReachesMonitor(place, radius, name=name)

@@ -1,0 +1,63 @@
+"""Robustness values in reports: ±inf written out explicitly, and read back exactly.
+
+JSON has no infinity (Python's ``json`` would write the non-standard ``Infinity``), CSV and
+JUnit properties are strings. Every report writes rho through these functions so ``+inf``
+(e.g. TTC when nothing is on a collision course) and ``-inf`` (an empty ``eventually``
+window) survive a round trip. Finite values are written so they parse back bit-identical.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from typing import Any
+
+__all__ = ["rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str"]
+
+_POS = ("inf", "+inf", "infinity", "+infinity")
+_NEG = ("-inf", "-infinity")
+
+
+def rho_to_json(x: float) -> float | str:
+    """A JSON-safe value: finite floats as numbers, ``"inf"``/``"-inf"``/``"nan"`` as strings."""
+    x = _as_float(x)
+    return x if math.isfinite(x) else rho_to_str(x)
+
+
+def rho_from_json(x: Any) -> float:
+    """Inverse of :func:`rho_to_json` (also accepts numbers and the usual inf spellings)."""
+    if isinstance(x, str):
+        return rho_from_str(x)
+    return _as_float(x)
+
+
+def rho_to_str(x: float) -> str:
+    """Text for CSV and JUnit properties: ``repr`` of finite floats (exact round trip),
+    ``"inf"``, ``"-inf"`` or ``"nan"``."""
+    x = _as_float(x)
+    if math.isnan(x):
+        return "nan"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return repr(x)
+
+
+def rho_from_str(s: str) -> float:
+    """Inverse of :func:`rho_to_str`; raises ValueError for text that is not a number."""
+    t = s.strip().lower()
+    if t in _POS:
+        return math.inf
+    if t in _NEG:
+        return -math.inf
+    if t == "nan":
+        return math.nan
+    try:
+        return float(t)
+    except ValueError:
+        raise ValueError(f"not a robustness value: {s!r} (expected a number, 'inf' or '-inf')") from None
+
+
+def _as_float(x: Any) -> float:
+    if isinstance(x, bool) or not isinstance(x, numbers.Real):
+        raise TypeError(f"robustness must be a real number, got {type(x).__name__}: {x!r}")
+    return float(x)
