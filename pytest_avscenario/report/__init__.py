@@ -1,0 +1,49 @@
+"""The run's report: error table, ε-coverage, the paper's summary table, JUnit, plots, HTML.
+
+Everything here takes plain data (row dicts, numpy arrays, summary rows) and produces files
+or strings; nothing imports pytest, and importing this package pulls in neither matplotlib
+nor scipy (they load inside the functions that draw or search). The plugin wires it into
+pytest's hooks: :mod:`.table` writes rows as cases finish, :mod:`.summary` computes the
+terminal table and JUnit suite properties, :mod:`.junit` adds properties to the XML,
+:mod:`.plots` and :mod:`.html` draw the pictures and the static ``index.html``.
+"""
+
+from .coverage import covering_radius, covering_radius_bounds, epsilon_coverage, fraction_within
+from .summary import SummaryRow, TestInfo, format_pointer, format_table, suite_properties, summarize
+from .table import (
+    ErrorTable,
+    atomic_write_bytes,
+    atomic_write_text,
+    file_slug,
+    normalize_row,
+    prepare_report_dir,
+    read_rows,
+    rho_from_json,
+    rho_to_json,
+    row_from_json,
+    row_to_json,
+)
+
+__all__ = [
+    "epsilon_coverage",
+    "covering_radius",
+    "covering_radius_bounds",
+    "fraction_within",
+    "ErrorTable",
+    "read_rows",
+    "normalize_row",
+    "row_to_json",
+    "row_from_json",
+    "rho_to_json",
+    "rho_from_json",
+    "atomic_write_text",
+    "atomic_write_bytes",
+    "prepare_report_dir",
+    "file_slug",
+    "TestInfo",
+    "SummaryRow",
+    "summarize",
+    "format_table",
+    "format_pointer",
+    "suite_properties",
+]
