@@ -30,6 +30,25 @@ from .metrics import (
     time_headway,
     ttc,
 )
+from .stl import (
+    Formula,
+    Signal,
+    always,
+    and_,
+    ego_acceleration,
+    ego_speed,
+    eventually,
+    gap,
+    headway_to,
+    implies,
+    lane_offset,
+    not_,
+    or_,
+    predicate,
+    signal,
+    ttc_to,
+    until,
+)
 from .serialize import rho_from_json, rho_from_str, rho_to_json, rho_to_str
 from .sets import MonitorSet, Verdict
 
@@ -37,6 +56,9 @@ __all__ = [
     "Monitor", "MonitorError", "MonitorResult", "FunctionMonitor", "as_monitor",
     "distance", "ttc", "progress", "lane_keeping",
     "collision", "time_headway", "off_road", "reaches",
+    "Formula", "Signal", "always", "eventually", "until", "and_", "or_", "not_", "implies",
+    "ego_speed", "ego_acceleration", "lane_offset", "gap", "ttc_to", "headway_to", "signal",
+    "predicate",
     "MonitorSet", "Verdict",
     "rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str",
 ]
