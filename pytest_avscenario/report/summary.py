@@ -1,0 +1,314 @@
+"""The paper's results table, computed from the error table's rows.
+
+After a falsification run an AV team wants one line per scenario test and sampler: how many
+cases were sampled, how many violated each metric, how well the samples cover the continuous
+parameter space (ε), how many counterexamples were found and minimized, and what the
+simulations cost. :func:`summarize` computes those :class:`SummaryRow` s from plain row
+dicts (see :mod:`.table`) and per-test declarations (:class:`TestInfo`);
+:func:`format_table` renders the terminal section, :func:`suite_properties` the JUnit
+suite-level properties, :func:`summary_to_json` the ``summary.json`` of the report
+directory. Counting rules:
+
+* ``samples`` and the per-metric violations count cases with origin ``"sampled"`` only (as
+  in the paper), so replayed database entries and ``@example`` cases do not inflate them;
+* ``counterexamples`` counts failing cases of every origin except shrink candidates;
+* ``minimized`` counts counterexamples whose shrinking produced a failing candidate
+  (a shrink row's ``item`` names the counterexample it shrinks) or whose row says
+  ``"minimized"``;
+* ``sim_time_s`` is all simulation time of the test and sampler, shrinking included;
+* ε is :func:`.coverage.epsilon_coverage` over the sampled cases' continuous parameters in
+  the unit cube, ``None`` (shown "—") without continuous parameters or samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+from .coverage import DEFAULT_TOL
+
+__all__ = [
+    "TestInfo",
+    "SummaryRow",
+    "summarize",
+    "format_table",
+    "format_pointer",
+    "suite_properties",
+    "summary_to_json",
+    "metric_columns",
+    "DASH",
+]
+
+DASH = "—"
+
+
+@dataclass(frozen=True)
+class TestInfo:
+    """What the summary needs to know about one scenario test beyond its rows.
+
+    ``metrics`` in declaration order (the table's column order); ``space`` is the test's
+    :class:`~pytest_avscenario.space.FeatureSpace` or anything with ``continuous`` (names),
+    ``continuous_mask()`` and ``to_unit(params)``; without it ε is "—".
+    """
+
+    __test__ = False  # not a pytest test class, despite its name
+
+    metrics: tuple[str, ...] = ()
+    space: Any = None
+
+
+@dataclass(frozen=True)
+class SummaryRow:
+    """One line of the paper's table: one scenario test with one sampler."""
+
+    __test__ = False
+
+    test: str
+    sampler: str
+    metrics: tuple[str, ...]
+    samples: int
+    violations: dict[str, int]
+    epsilon: float | None
+    covering_radius: float | None
+    fraction_within: float | None
+    within_radius: float | None
+    continuous: tuple[str, ...]
+    counterexamples: int
+    minimized: int
+    errors: int
+    cases: int
+    shrink_sims: int
+    sim_time_s: float
+    failed_items: tuple[str, ...] = field(default=())
+
+
+def _unit_points(rows: Sequence[Mapping[str, Any]], space: Any):
+    import numpy as np
+
+    mask = np.asarray(space.continuous_mask(), dtype=bool)
+    pts = []
+    for r in rows:
+        try:
+            u = np.asarray(space.to_unit(r["params"]), dtype=float)[mask]
+        except (KeyError, ValueError, TypeError):
+            # A row whose parameters do not fit the space (hand-written, or from an older
+            # declaration) cannot be placed; it still counts as a sample, just not for ε.
+            continue
+        pts.append(u)
+    if not pts:
+        return None
+    return np.clip(np.vstack(pts), 0.0, 1.0)
+
+
+def summarize(
+    rows: Iterable[Mapping[str, Any]],
+    tests: Mapping[str, TestInfo] | None = None,
+    *,
+    tol: float = DEFAULT_TOL,
+    within_radius: float | None = 0.1,
+    cross_check: bool = True,
+) -> list[SummaryRow]:
+    """Summary rows per (test, sampler), tests in the order of ``tests`` (collection order),
+    then any others in order of first appearance; samplers in order of first appearance.
+
+    ``rows`` may mix main-table and shrink rows. ``tol`` is ε's binary-search tolerance;
+    ``within_radius`` the radius for the covered-fraction figure (None to skip);
+    ``cross_check`` also computes the mesh covering radius.
+    """
+    from . import coverage
+
+    tests = dict(tests or {})
+    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((str(r["test"]), str(r["sampler"])), []).append(r)
+    order = {t: i for i, t in enumerate(tests)}
+    keys = sorted(groups, key=lambda k: (order.get(k[0], len(order)), 0))
+    # sorted() is stable, so within a test the samplers keep their first-appearance order.
+
+    out = []
+    for test, sampler in keys:
+        group = groups[(test, sampler)]
+        info = tests.get(test, TestInfo())
+        main = [r for r in group if r.get("origin") != "shrink"]
+        shrink = [r for r in group if r.get("origin") == "shrink"]
+        sampled = [r for r in main if r.get("origin") == "sampled"]
+        metrics = list(info.metrics)
+        for r in group:  # metrics seen but not declared still get a column, after the declared
+            for m in r.get("rho", {}):
+                if m not in metrics:
+                    metrics.append(m)
+        violations = {
+            m: sum(1 for r in sampled if _violated(r.get("rho", {}).get(m))) for m in metrics
+        }
+        failing = [r for r in main if r.get("verdict") == "fail"]
+        failing_items = {str(r.get("item") or r["test"]) for r in failing}
+        shrunk = {str(r.get("item")) for r in shrink if r.get("verdict") == "fail"}
+        shrunk |= {str(r.get("item") or r["test"]) for r in failing if r.get("minimized")}
+        space = info.space
+        continuous = tuple(getattr(space, "continuous", ()) or ()) if space is not None else ()
+        eps = cover = frac = None
+        if continuous and sampled:
+            pts = _unit_points(sampled, space)
+            if pts is not None and pts.shape[1] > 0:
+                eps = coverage.epsilon_coverage(pts, tol=tol)
+                if cross_check:
+                    cover = coverage.covering_radius(pts, _summary_resolution(pts.shape[1]))
+                if within_radius is not None:
+                    frac = coverage.fraction_within(pts, within_radius, n_probe=1 << 14)
+        out.append(
+            SummaryRow(
+                test=test,
+                sampler=sampler,
+                metrics=tuple(metrics),
+                samples=len(sampled),
+                violations=violations,
+                epsilon=eps,
+                covering_radius=cover,
+                fraction_within=frac,
+                within_radius=within_radius if frac is not None else None,
+                continuous=continuous,
+                counterexamples=len(failing),
+                minimized=len(shrunk & failing_items),
+                errors=sum(1 for r in main if r.get("verdict") == "error"),
+                cases=len(main),
+                shrink_sims=len(shrink),
+                sim_time_s=float(sum(float(r.get("sim_time_s") or 0.0) for r in group)),
+                failed_items=tuple(sorted(failing_items)),
+            )
+        )
+    return out
+
+
+def _summary_resolution(d: int) -> int:
+    # About 2^18 mesh nodes: a cross-check that costs well under a second per test even in
+    # 6-D, where a finer mesh would dominate the end of the run.
+    return max(2, int(math.floor((1 << 18) ** (1.0 / d) + 1e-9)))
+
+
+def _violated(rho: Any) -> bool:
+    return rho is not None and not (isinstance(rho, float) and math.isnan(rho)) and float(rho) < 0
+
+
+def metric_columns(summary: Sequence[SummaryRow]) -> list[str]:
+    """All metrics in declaration order, tests in table order (first seen wins)."""
+    cols: list[str] = []
+    for s in summary:
+        for m in s.metrics:
+            if m not in cols:
+                cols.append(m)
+    return cols
+
+
+def _fmt_eps(value: float | None) -> str:
+    return DASH if value is None else f"{value:.3f}"
+
+
+def _fmt_time(seconds: float) -> str:
+    return f"{seconds:.1f}" if seconds < 1000 else f"{seconds:.0f}"
+
+
+def _metric_title(name: str) -> str:
+    # The paper's columns read "Progress, Distance, TTC, Lane": capitalize plain lower-case
+    # names, keep anything the user spelled with capitals (TTC) as written.
+    return name[:1].upper() + name[1:] if name.islower() and len(name) > 3 else (
+        name.upper() if name.islower() else name
+    )
+
+
+def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str]]]:
+    """Header and body cells of the paper's table (shared by terminal and HTML)."""
+    metrics = metric_columns(summary)
+    show_errors = any(s.errors for s in summary)
+    header = ["test", "sampler", "samples", *(_metric_title(m) for m in metrics), "ε"]
+    header += ["cex", "min"] + (["errors"] if show_errors else []) + ["sim s"]
+    body = []
+    for s in summary:
+        line = [s.test, s.sampler, str(s.samples)]
+        line += [str(s.violations[m]) if m in s.violations else DASH for m in metrics]
+        line += [_fmt_eps(s.epsilon), str(s.counterexamples), str(s.minimized)]
+        line += [str(s.errors)] if show_errors else []
+        line += [_fmt_time(s.sim_time_s)]
+        body.append(line)
+    return header, body
+
+
+def format_table(summary: Sequence[SummaryRow]) -> str:
+    """The terminal table: aligned columns, text left, numbers right; "—" where not
+    applicable. Returns "" for an empty summary (the caller then prints nothing)."""
+    if not summary:
+        return ""
+    header, body = table_cells(summary)
+    widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
+    left = {0, 1}  # test id and sampler are text
+
+    def line(cells: Sequence[str]) -> str:
+        parts = [c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))]
+        return "  ".join(parts).rstrip()
+
+    rule = "  ".join("-" * w for w in widths)
+    return "\n".join([line(header), rule, *(line(r) for r in body)])
+
+
+def format_pointer(directory: Any) -> str:
+    """The one line after the table that says where the full report is."""
+    import os
+
+    d = os.fspath(directory)
+    return f"avscenario report: {os.path.join(d, 'index.html')} (error table: {os.path.join(d, 'errors.jsonl')})"
+
+
+def _prop_value(value: Any) -> str:
+    if value is None:
+        return DASH
+    if isinstance(value, float):
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return f"{value:.6g}"
+    return str(value)
+
+
+def suite_properties(
+    summary: Sequence[SummaryRow],
+    *,
+    seed: Any = None,
+    versions: Mapping[str, Any] | None = None,
+) -> dict[str, str]:
+    """The JUnit suite-level properties, as an ordered ``{name: value}`` of strings.
+
+    ``avs.seed``, ``avs.version.<package>`` for each entry of ``versions`` (e.g.
+    ``{"pytest-avscenario": "0.1.0", "highway-env": "1.12.1"}``), then per test and sampler
+    ``avs.test[<test>][<sampler>].samples`` / ``.violations.<metric>`` / ``.epsilon`` /
+    ``.counterexamples`` / ``.minimized`` / ``.sim_time_s``. Brackets delimit the ids because
+    node ids themselves contain dots and colons.
+    """
+    props: dict[str, str] = {}
+    if seed is not None:
+        props["avs.seed"] = str(seed)
+    for name, version in (versions or {}).items():
+        props[f"avs.version.{name}"] = _prop_value(version)
+    for s in summary:
+        key = f"avs.test[{s.test}][{s.sampler}]"
+        props[f"{key}.samples"] = str(s.samples)
+        for m in s.metrics:
+            props[f"{key}.violations.{m}"] = str(s.violations.get(m, 0))
+        props[f"{key}.epsilon"] = _prop_value(s.epsilon)
+        props[f"{key}.counterexamples"] = str(s.counterexamples)
+        props[f"{key}.minimized"] = str(s.minimized)
+        props[f"{key}.sim_time_s"] = f"{s.sim_time_s:.3f}"
+    return props
+
+
+def summary_to_json(summary: Sequence[SummaryRow]) -> list[dict[str, Any]]:
+    """JSON-safe dicts of the summary rows (for ``summary.json``)."""
+    out = []
+    for s in summary:
+        d = asdict(s)
+        for k in ("epsilon", "covering_radius", "fraction_within", "within_radius"):
+            v = d[k]
+            d[k] = None if v is None else float(v)
+        d["metrics"] = list(s.metrics)
+        d["continuous"] = list(s.continuous)
+        d["failed_items"] = list(s.failed_items)
+        out.append(d)
+    return out

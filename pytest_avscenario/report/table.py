@@ -1,0 +1,460 @@
+"""The error table: one row per simulated case, on disk the moment the case ends.
+
+An AV engineer opens the error table after (or during) a falsification run to see which
+parameter combinations violated which metric and by how much. :class:`ErrorTable` appends
+each row to JSON Lines and CSV files and flushes (and by default fsyncs) before returning,
+so a run killed half-way leaves every finished case readable.
+
+Layout under the report directory (``--avs-report``, default ``avs-report/``)::
+
+    errors.jsonl            every sampled / replay / example case of every test (lossless)
+    shrink.jsonl            shrinking candidates, kept apart so errors.jsonl counts samples
+    tables/<slug>.csv       the same rows for one test, one column per parameter and metric
+    tables/<slug>.shrink.csv
+
+Why one CSV per test plus a combined JSONL: tests have different parameters and metrics,
+and a CSV has one header. A CSV per test gives real columns (``param.gap``,
+``rho.distance``) that a spreadsheet or ``csv.DictReader`` reads without decoding JSON
+cells; the combined JSONL keeps exact types (±inf, ints, strings) for programs, and is what
+:func:`read_rows` loads back. If a later row of a test brings a column the CSV header lacks,
+the CSV is rewritten atomically with the wider header (rare: all cases of a test share their
+parameters and metrics).
+
+A row is a plain dict::
+
+    {"test": nodeid of the function, "item": full item id, "sampler": str, "index": int,
+     "seed": int | None, "origin": "sampled" | "replay" | "example" | "shrink",
+     "params": {name: value}, "rho": {metric: float}, "verdict": "pass" | "fail" | "error",
+     "sim_time_s": float, "error": str | None}
+
+Robustness values may be ±inf (a metric that holds trivially); they are written as the
+strings ``"inf"`` / ``"-inf"`` (and ``"nan"``) in JSON and CSV and read back as floats, with
+the monitors' serializer (:mod:`pytest_avscenario.monitors.serialize`).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import os
+import re
+import shutil
+import tempfile
+import threading
+import warnings
+from pathlib import Path
+from typing import Any, Iterable, Iterator, Mapping
+
+from ..monitors import serialize as _serialize
+
+__all__ = [
+    "ErrorTable",
+    "read_rows",
+    "read_csv_rows",
+    "normalize_row",
+    "row_to_json",
+    "row_from_json",
+    "rho_to_json",
+    "rho_from_json",
+    "atomic_write_text",
+    "atomic_write_bytes",
+    "prepare_report_dir",
+    "file_slug",
+    "MAIN_JSONL",
+    "SHRINK_JSONL",
+    "TABLES_DIR",
+    "ORIGINS",
+    "VERDICTS",
+]
+
+MAIN_JSONL = "errors.jsonl"
+SHRINK_JSONL = "shrink.jsonl"
+TABLES_DIR = "tables"
+ORIGINS = ("sampled", "replay", "example", "shrink")
+VERDICTS = ("pass", "fail", "error")
+
+# Fixed leading CSV columns, in the order an engineer scans them.
+_CSV_FIXED = ("test", "item", "sampler", "index", "seed", "origin", "verdict", "sim_time_s", "error")
+_REQUIRED = ("test", "sampler", "index", "origin", "params", "rho", "verdict")
+
+
+# --------------------------------------------------------------------------- values
+
+
+def rho_to_json(value: Any) -> float | str | None:
+    """A robustness value as JSON-safe data: finite floats stay numbers, ±inf/nan strings.
+
+    Delegates to :mod:`pytest_avscenario.monitors.serialize` (one encoding for every report)
+    and adds ``None`` for a metric that was not evaluated (an errored case).
+    """
+    if value is None:
+        return None
+    return _serialize.rho_to_json(value)
+
+
+def rho_from_json(value: Any) -> float | None:
+    """Inverse of :func:`rho_to_json`; also reads CSV cells (numbers as text, "" = None)."""
+    if value is None or value == "":
+        return None
+    return _serialize.rho_from_json(value)
+
+
+def _jsonable(value: Any) -> Any:
+    """Parameter values as JSON data: numpy scalars unwrapped, non-finite floats as strings."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return value if math.isfinite(value) else rho_to_json(value)
+    item = getattr(value, "item", None)
+    if callable(item) and getattr(value, "shape", None) == ():  # numpy scalar / 0-d array
+        return _jsonable(item())
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
+        seq = value.tolist() if hasattr(value, "tolist") else value
+        return [_jsonable(v) for v in seq]
+    # Anything else (an enum, a custom object) is shown, not lost.
+    return repr(value)
+
+
+def normalize_row(row: Mapping[str, Any]) -> dict[str, Any]:
+    """Check a row and return a copy with canonical types (rho as floats, defaults filled).
+
+    Raises ValueError naming the missing or bad key, so a wiring mistake surfaces at the first
+    case instead of as an unreadable table.
+    """
+    missing = [k for k in _REQUIRED if k not in row]
+    if missing:
+        raise ValueError(f"error-table row lacks {missing}; got keys {sorted(row)}")
+    if row["origin"] not in ORIGINS:
+        raise ValueError(f"row origin must be one of {ORIGINS}, got {row['origin']!r}")
+    if row["verdict"] not in VERDICTS:
+        raise ValueError(f"row verdict must be one of {VERDICTS}, got {row['verdict']!r}")
+    if not isinstance(row["params"], Mapping) or not isinstance(row["rho"], Mapping):
+        raise ValueError("row 'params' and 'rho' must be mappings {name: value}")
+    out = dict(row)
+    out["test"] = str(row["test"])
+    out["item"] = str(row.get("item") or row["test"])
+    out["sampler"] = str(row["sampler"])
+    out["index"] = int(row["index"])
+    out["seed"] = None if row.get("seed") is None else int(row["seed"])
+    out["params"] = dict(row["params"])
+    out["rho"] = {str(k): rho_from_json(rho_to_json(v)) for k, v in row["rho"].items()}
+    out["sim_time_s"] = float(row.get("sim_time_s") or 0.0)
+    out["error"] = None if row.get("error") is None else str(row["error"])
+    return out
+
+
+def row_to_json(row: Mapping[str, Any]) -> dict[str, Any]:
+    """A row as JSON-safe data (what goes on one JSONL line, or across an xdist channel)."""
+    r = normalize_row(row)
+    out = {k: _jsonable(v) for k, v in r.items() if k not in ("rho", "params")}
+    out["params"] = _jsonable(r["params"])
+    out["rho"] = {k: rho_to_json(v) for k, v in r["rho"].items()}
+    return out
+
+
+def row_from_json(data: Mapping[str, Any]) -> dict[str, Any]:
+    """Inverse of :func:`row_to_json`: rho values back to floats (±inf included)."""
+    out = dict(data)
+    out["rho"] = {k: rho_from_json(v) for k, v in data.get("rho", {}).items()}
+    return out
+
+
+# --------------------------------------------------------------------------- files
+
+
+def _fsync_dir(directory: Path) -> None:
+    # Makes the rename itself durable; not possible (nor needed) on every platform.
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
+
+    Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
+    the target (atomic on POSIX and Windows within one file system).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    _fsync_dir(path.parent)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
+    """:func:`atomic_write_bytes` for text."""
+    atomic_write_bytes(path, text.encode(encoding))
+
+
+def file_slug(test: str, max_len: int = 80) -> str:
+    """A file-name-safe, unique, readable name for a test node id.
+
+    ``tests/test_x.py::test_follow[halton]`` → ``test_x.py-test_follow-halton-1a2b3c4d``:
+    the readable part is truncated, the hash of the full id keeps two tests apart.
+    """
+    tail = test.split("/")[-1]
+    readable = re.sub(r"[^A-Za-z0-9._-]+", "-", tail).strip("-.") or "test"
+    digest = hashlib.sha1(test.encode("utf-8")).hexdigest()[:8]
+    return f"{readable[:max_len]}-{digest}"
+
+
+def prepare_report_dir(directory: str | os.PathLike) -> Path:
+    """Create the report directory and remove what a previous run of ours left in it.
+
+    Only our own files go (the tables, plots, index, summary); anything else a user keeps
+    there is untouched.
+    """
+    root = Path(directory)
+    root.mkdir(parents=True, exist_ok=True)
+    for name in (MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"):
+        try:
+            (root / name).unlink()
+        except FileNotFoundError:
+            pass
+    for sub in (TABLES_DIR, "plots"):
+        shutil.rmtree(root / sub, ignore_errors=True)
+    return root
+
+
+def _csv_cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        # repr keeps every digit, so a CSV value round-trips to the exact simulated float.
+        return repr(value) if math.isfinite(value) else rho_to_json(value)
+    if isinstance(value, (str, int)):
+        return value
+    return json.dumps(value, sort_keys=True)
+
+
+class _CsvFile:
+    """One per-test CSV: header fixed at the first row, widened by an atomic rewrite."""
+
+    def __init__(self, path: Path, columns: list[str], fsync: bool):
+        self.path = path
+        self.columns = columns
+        self.fsync = fsync
+        self.fh = open(path, "w", newline="", encoding="utf-8")
+        self.writer = csv.DictWriter(self.fh, fieldnames=columns, extrasaction="raise")
+        self.writer.writeheader()
+        self._sync()
+
+    def _sync(self) -> None:
+        self.fh.flush()
+        if self.fsync:
+            os.fsync(self.fh.fileno())
+
+    def write(self, cells: dict[str, Any]) -> None:
+        new = [c for c in cells if c not in self.columns]
+        if new:
+            self._widen(new)
+        self.writer.writerow(cells)
+        self._sync()
+
+    def _widen(self, new: list[str]) -> None:
+        self.fh.close()
+        with open(self.path, newline="", encoding="utf-8") as fh:
+            old = list(csv.DictReader(fh))
+        # Parameters before metrics keeps the "inputs, then outputs" reading order.
+        self.columns = _order_columns(self.columns + new)
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, fieldnames=self.columns, restval="")
+        w.writeheader()
+        w.writerows(old)
+        atomic_write_text(self.path, buf.getvalue())
+        self.fh = open(self.path, "a", newline="", encoding="utf-8")
+        self.writer = csv.DictWriter(self.fh, fieldnames=self.columns, restval="")
+
+    def close(self) -> None:
+        if not self.fh.closed:
+            self.fh.close()
+
+
+def _order_columns(columns: Iterable[str]) -> list[str]:
+    seen = list(dict.fromkeys(columns))
+    fixed = [c for c in _CSV_FIXED if c in seen]
+    params = [c for c in seen if c.startswith("param.")]
+    rhos = [c for c in seen if c.startswith("rho.")]
+    rest = [c for c in seen if c not in fixed and c not in params and c not in rhos]
+    return fixed + params + rhos + rest
+
+
+def _csv_cells(row: Mapping[str, Any]) -> dict[str, Any]:
+    cells = {k: _csv_cell(row.get(k)) for k in _CSV_FIXED}
+    for name, value in row["params"].items():
+        cells[f"param.{name}"] = _csv_cell(_jsonable(value))
+    for name, value in row["rho"].items():
+        cells[f"rho.{name}"] = _csv_cell(rho_to_json(value))
+    return cells
+
+
+class ErrorTable:
+    """Incremental writer of the error table under one report directory.
+
+    ``append(row)`` validates the row, writes it to the JSONL and the test's CSV and flushes
+    both (fsync too unless ``fsync=False``; it costs ~0.1 ms per file here) before
+    returning. Rows with ``origin == "shrink"`` go to the shrink table. Thread-safe; meant
+    for one writing process (under xdist: the controller, fed by the workers' reports).
+    Opening truncates the tables of a previous run (use :func:`prepare_report_dir` to clear
+    plots and pages too). Use as a context manager or call :meth:`close`.
+    """
+
+    def __init__(self, directory: str | os.PathLike, *, fsync: bool = True):
+        self.directory = Path(directory)
+        self.fsync = fsync
+        (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._jsonl = {
+            False: open(self.directory / MAIN_JSONL, "w", encoding="utf-8"),
+            True: open(self.directory / SHRINK_JSONL, "w", encoding="utf-8"),
+        }
+        self._csv: dict[tuple[str, bool], _CsvFile] = {}
+        self.counts = {"main": 0, "shrink": 0}
+
+    @property
+    def main_path(self) -> Path:
+        return self.directory / MAIN_JSONL
+
+    @property
+    def shrink_path(self) -> Path:
+        return self.directory / SHRINK_JSONL
+
+    def csv_path(self, test: str, shrink: bool = False) -> Path:
+        """Where the CSV of ``test`` (or its shrink candidates) lives."""
+        suffix = ".shrink.csv" if shrink else ".csv"
+        return self.directory / TABLES_DIR / f"{file_slug(test)}{suffix}"
+
+    def tables(self) -> dict[str, list[Path]]:
+        """``{test: [csv paths]}`` of every CSV written so far (for the index page)."""
+        out: dict[str, list[Path]] = {}
+        for (test, _), f in self._csv.items():
+            out.setdefault(test, []).append(f.path)
+        return out
+
+    def append(self, row: Mapping[str, Any]) -> dict[str, Any]:
+        """Write one finished case; returns the normalized row. On disk when this returns."""
+        data = row_to_json(row)
+        line = json.dumps(data, allow_nan=False, ensure_ascii=False) + "\n"
+        shrink = data["origin"] == "shrink"
+        cells = _csv_cells(row_from_json(data))
+        with self._lock:
+            fh = self._jsonl[shrink]
+            fh.write(line)
+            fh.flush()
+            if self.fsync:
+                os.fsync(fh.fileno())
+            key = (data["test"], shrink)
+            f = self._csv.get(key)
+            if f is None:
+                f = self._csv[key] = _CsvFile(
+                    self.csv_path(data["test"], shrink), _order_columns(cells), self.fsync
+                )
+            f.write(cells)
+            self.counts["shrink" if shrink else "main"] += 1
+        return row_from_json(data)
+
+    def close(self) -> None:
+        with self._lock:
+            for fh in self._jsonl.values():
+                if not fh.closed:
+                    fh.close()
+            for f in self._csv.values():
+                f.close()
+
+    def __enter__(self) -> "ErrorTable":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _iter_jsonl(path: Path) -> Iterator[dict[str, Any]]:
+    with open(path, encoding="utf-8") as fh:
+        lines = fh.readlines()
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            yield row_from_json(json.loads(line))
+        except json.JSONDecodeError:
+            # Only the very last line can be torn (a process killed mid-write); anything
+            # earlier is real corruption and must not be skipped silently.
+            if n == len(lines) and not line.endswith("\n"):
+                warnings.warn(f"{path}: ignoring a truncated last line (interrupted write)")
+                return
+            raise ValueError(f"{path}:{n}: not a JSON row: {line[:80]!r}") from None
+
+
+def read_rows(source: str | os.PathLike, *, shrink: bool = False) -> list[dict[str, Any]]:
+    """Load rows back: from a report directory (its ``errors.jsonl``, or ``shrink.jsonl``
+    with ``shrink=True``) or from a ``.jsonl`` file. rho values come back as floats."""
+    path = Path(source)
+    if path.is_dir():
+        path = path / (SHRINK_JSONL if shrink else MAIN_JSONL)
+    if not path.exists():
+        return []
+    return list(_iter_jsonl(path))
+
+
+def read_csv_rows(path: str | os.PathLike) -> list[dict[str, Any]]:
+    """Load a per-test CSV back into row dicts (``params`` values stay strings, except
+    numbers; ``rho`` values become floats)."""
+    rows = []
+    with open(path, newline="", encoding="utf-8") as fh:
+        for rec in csv.DictReader(fh):
+            row: dict[str, Any] = {"params": {}, "rho": {}}
+            for col, cell in rec.items():
+                if col.startswith("param."):
+                    row["params"][col[6:]] = _parse_number(cell)
+                elif col.startswith("rho."):
+                    row["rho"][col[4:]] = rho_from_json(cell)
+                else:
+                    row[col] = cell if cell != "" else None
+            for col in ("index", "seed"):
+                if row.get(col) is not None:
+                    row[col] = int(row[col])
+            row["sim_time_s"] = float(row.get("sim_time_s") or 0.0)
+            rows.append(row)
+    return rows
+
+
+def _parse_number(cell: str) -> Any:
+    if cell == "":
+        return None
+    try:
+        return int(cell)
+    except ValueError:
+        pass
+    try:
+        return float(cell)
+    except ValueError:
+        return cell

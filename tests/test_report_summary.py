@@ -1,0 +1,153 @@
+"""The paper's table: counts per test and sampler, ε, the terminal text, suite properties."""
+
+import math
+
+import numpy as np
+import pytest
+
+from pytest_avscenario.report.coverage import epsilon_coverage
+from pytest_avscenario.report.summary import (
+    TestInfo,
+    format_pointer,
+    format_table,
+    suite_properties,
+    summarize,
+    summary_to_json,
+)
+from pytest_avscenario.space import Choice, FeatureSpace, Uniform
+
+FOLLOW = "tests/test_follow.py::test_vehicle_following"
+PARK = "tests/test_park.py::test_parallel_park"
+METRICS = ("progress", "distance", "ttc", "lane")
+
+
+def follow_space():
+    return FeatureSpace({"gap": Uniform(10.0, 40.0), "speed": Uniform(5.0, 15.0), "weather": Choice(["dry", "wet"])})
+
+
+def row(test, sampler, i, rho, origin="sampled", verdict=None, sim=0.5, item=None, **params):
+    if verdict is None:
+        verdict = "fail" if any(v < 0 for v in rho.values()) else "pass"
+    return {
+        "test": test, "item": item or f"{test}[{sampler}-{i}]", "sampler": sampler, "index": i,
+        "seed": 1, "origin": origin, "params": params, "rho": rho, "verdict": verdict,
+        "sim_time_s": sim, "error": None,
+    }
+
+
+@pytest.fixture
+def rows():
+    rng = np.random.default_rng(0)
+    out = []
+    # halton on vehicle following: 6 samples; case 1 violates distance and ttc, case 4 lane.
+    for i in range(6):
+        rho = {"progress": 3.0, "distance": 1.0, "ttc": math.inf, "lane": 0.2}
+        if i == 1:
+            rho.update(distance=-0.5, ttc=-1.0)
+        if i == 4:
+            rho.update(lane=-0.1)
+        g, s = rng.uniform(10, 40), rng.uniform(5, 15)
+        out.append(row(FOLLOW, "halton", i, rho, gap=g, speed=s, weather="dry"))
+    # an @example that fails must not count as a sample, but is a counterexample
+    out.append(row(FOLLOW, "halton", 6, {"progress": -2.0, "distance": 1.0, "ttc": 1.0, "lane": 0.1},
+                   origin="example", gap=10.0, speed=5.0, weather="wet"))
+    # shrinking of case 1: two candidates, one still failing
+    for j, d in enumerate((0.3, -0.1)):
+        out.append(row(FOLLOW, "halton", j, {"progress": 3.0, "distance": d, "ttc": 1.0, "lane": 0.2},
+                       origin="shrink", item=f"{FOLLOW}[halton-1]", sim=0.25, gap=30.0, speed=10.0, weather="dry"))
+    # the bandit on the same test: 3 samples, one distance violation, never shrunk
+    for i in range(3):
+        d = -1.0 if i == 2 else 2.0
+        out.append(row(FOLLOW, "mab", i, {"progress": 3.0, "distance": d, "ttc": 5.0, "lane": 0.3},
+                       gap=12.0 + i, speed=6.0, weather="dry"))
+    # parking: no continuous parameters, only two metrics
+    for i in range(2):
+        out.append(row(PARK, "random", i, {"distance": 0.5 - i, "collision": 1.0}, side="left"))
+    return out
+
+
+@pytest.fixture
+def tests_info():
+    return {
+        FOLLOW: TestInfo(metrics=METRICS, space=follow_space()),
+        PARK: TestInfo(metrics=("distance", "collision"), space=FeatureSpace({"side": Choice(["left", "right"])})),
+    }
+
+
+def test_counts_follow_the_papers_rules(rows, tests_info):
+    summary = summarize(rows, tests_info)
+    assert [(s.test, s.sampler) for s in summary] == [(FOLLOW, "halton"), (FOLLOW, "mab"), (PARK, "random")]
+    halton, mab, park = summary
+    assert halton.samples == 6  # the example and the shrink candidates are not samples
+    assert halton.violations == {"progress": 0, "distance": 1, "ttc": 1, "lane": 1}
+    assert halton.counterexamples == 3  # cases 1 and 4 and the failing example
+    assert halton.minimized == 1 and halton.shrink_sims == 2
+    assert halton.sim_time_s == pytest.approx(7 * 0.5 + 2 * 0.25)
+    assert mab.violations["distance"] == 1 and mab.minimized == 0
+    assert park.metrics == ("distance", "collision") and park.violations == {"distance": 1, "collision": 0}
+
+
+def test_epsilon_is_the_coverage_of_the_sampled_continuous_parameters(rows, tests_info):
+    halton = summarize(rows, tests_info)[0]
+    space = follow_space()
+    pts = np.array([space.to_unit(r["params"])[:2] for r in rows
+                    if r["sampler"] == "halton" and r["origin"] == "sampled"])
+    assert halton.continuous == ("gap", "speed")
+    assert halton.epsilon == epsilon_coverage(pts)
+    assert halton.covering_radius is not None and 0 < halton.fraction_within < 1
+    park = summarize(rows, tests_info)[2]
+    assert park.epsilon is None and park.covering_radius is None
+
+
+def test_terminal_table_text(rows, tests_info):
+    text = format_table(summarize(rows, tests_info))
+    lines = text.splitlines()
+    header = lines[0].split()
+    # The paper's metric order (as declared), then the extra metric of the second test.
+    assert header == ["test", "sampler", "samples", "Progress", "Distance", "TTC", "Lane",
+                      "Collision", "ε", "cex", "min", "sim", "s"]
+    assert set(lines[1]) == {"-", " "}
+    halton, mab, park = (line.split() for line in lines[2:])
+    assert halton == [FOLLOW, "halton", "6", "0", "1", "1", "1", "—", halton[8], "3", "1", "4.0"]
+    assert float(halton[8]) == pytest.approx(summarize(rows, tests_info)[0].epsilon, abs=5e-4)
+    # A metric a test does not declare, and ε without continuous parameters, are "—".
+    assert park == [PARK, "random", "2", "—", "1", "—", "—", "0", "—", "1", "0", "1.0"]
+    # Columns line up: every numeric column ends at the same offset on every line.
+    eps_end = lines[0].index("ε") + 1
+    assert all(line[eps_end - 1] != " " for line in lines[2:])
+
+
+def test_errors_column_appears_only_when_a_case_errored(rows, tests_info):
+    assert "errors" not in format_table(summarize(rows, tests_info))
+    rows.append(row(PARK, "random", 9, {}, verdict="error"))
+    summary = summarize(rows, tests_info)
+    assert summary[2].errors == 1 and summary[2].samples == 3
+    assert "errors" in format_table(summary).splitlines()[0]
+
+
+def test_undeclared_tests_and_metrics_still_show(rows):
+    summary = summarize(rows)  # no declarations at all: no ε, metrics in order seen
+    assert summary[0].metrics == METRICS and summary[0].epsilon is None
+    assert format_table([]) == ""
+
+
+def test_suite_properties(rows, tests_info):
+    props = suite_properties(summarize(rows, tests_info), seed=42,
+                             versions={"pytest-avscenario": "0.1.0", "highway-env": "1.12.1"})
+    assert list(props)[:3] == ["avs.seed", "avs.version.pytest-avscenario", "avs.version.highway-env"]
+    key = f"avs.test[{FOLLOW}][halton]"
+    assert props[f"{key}.samples"] == "6"
+    assert props[f"{key}.violations.distance"] == "1"
+    assert float(props[f"{key}.epsilon"]) > 0
+    assert props[f"avs.test[{PARK}][random].epsilon"] == "—"
+    assert all(isinstance(v, str) for v in props.values())
+
+
+def test_summary_json_and_pointer(rows, tests_info, tmp_path):
+    import json
+
+    data = summary_to_json(summarize(rows, tests_info))
+    json.dumps(data, allow_nan=False)
+    assert data[0]["violations"]["ttc"] == 1 and data[2]["epsilon"] is None
+    assert format_pointer(tmp_path).startswith("avscenario report: ")
+    assert str(tmp_path / "index.html") in format_pointer(tmp_path)
