@@ -52,6 +52,26 @@ class Distribution:
     """
 
     kind: str = "continuous"
+    #: why the arguments were invalid (None when valid); see :meth:`check`
+    error: str | None = None
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        # Invalid arguments do not raise here: the declaration sits at module level above a
+        # test, where a raise would become an import traceback without the test's name. The
+        # feature space (and so the plugin, at collection) raises with the parameter's name.
+        self._args = (args, kwargs)
+        try:
+            self._setup(*args, **kwargs)
+        except SpaceError as exc:
+            self.error = str(exc)
+
+    def _setup(self, *args: Any, **kwargs: Any) -> None:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def check(self) -> None:
+        """Raise :class:`SpaceError` if the distribution was declared with bad arguments."""
+        if self.error is not None:
+            raise SpaceError(self.error)
 
     @property
     def nominal(self) -> Any:  # pragma: no cover - every subclass defines it
@@ -75,6 +95,10 @@ class Distribution:
         raise NotImplementedError
 
     def __repr__(self) -> str:
+        if self.error is not None:
+            a, kw = self._args
+            parts = [repr(x) for x in a] + [f"{k}={v!r}" for k, v in kw.items()]
+            return f"{type(self).__name__}({', '.join(parts)})"
         args = ", ".join(f"{k}={v!r}" for k, v in self.describe().items() if k != "type")
         return f"{type(self).__name__}({args})"
 
@@ -84,7 +108,7 @@ class Uniform(Distribution):
 
     kind = "continuous"
 
-    def __init__(self, lo: float, hi: float, nominal: float | None = None):
+    def _setup(self, lo: float, hi: float, nominal: float | None = None) -> None:
         self.lo = _finite_number(lo, "Uniform lo")
         self.hi = _finite_number(hi, "Uniform hi")
         if not self.lo < self.hi:
@@ -124,7 +148,7 @@ class Normal(Distribution):
 
     kind = "continuous"
 
-    def __init__(self, mean: float, sd: float, lo: float, hi: float):
+    def _setup(self, mean: float, sd: float, lo: float, hi: float) -> None:
         self.mean = _finite_number(mean, "Normal mean")
         self.sd = _finite_number(sd, "Normal sd")
         self.lo = _finite_number(lo, "Normal lo")
@@ -169,7 +193,7 @@ class IntRange(Distribution):
 
     kind = "integer"
 
-    def __init__(self, lo: int, hi: int, nominal: int | None = None):
+    def _setup(self, lo: int, hi: int, nominal: int | None = None) -> None:
         for name, v in (("lo", lo), ("hi", hi)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
                 raise SpaceError(f"IntRange {name} must be an int, got {v!r}")
@@ -217,7 +241,7 @@ class Choice(Distribution):
 
     kind = "categorical"
 
-    def __init__(self, options: Sequence[Any], weights: Sequence[float] | None = None):
+    def _setup(self, options: Sequence[Any], weights: Sequence[float] | None = None) -> None:
         if isinstance(options, (str, bytes)) or not isinstance(options, Iterable):
             raise SpaceError(f"Choice options must be a list of values, got {options!r}")
         self.options = tuple(options)
@@ -293,7 +317,7 @@ class Constant(Distribution):
 
     kind = "constant"
 
-    def __init__(self, value: Any):
+    def _setup(self, value: Any) -> None:
         try:
             json.dumps(value)
         except (TypeError, ValueError):
@@ -325,13 +349,13 @@ def as_distribution(name: str, value: Any) -> Distribution:
         return value
     if isinstance(value, type) and issubclass(value, Distribution):
         raise SpaceError(f"parameter {name!r}: {value.__name__} must be called with its arguments")
-    try:
-        return Constant(value)
-    except SpaceError:
+    const = Constant(value)
+    if const.error is not None:
         raise SpaceError(
             f"parameter {name!r}: {value!r} is neither a distribution "
             "(Uniform, Normal, IntRange, Choice, Constant) nor a plain constant"
-        ) from None
+        )
+    return const
 
 
 @dataclass(frozen=True)
@@ -351,9 +375,12 @@ class FeatureSpace:
     """
 
     def __init__(self, parameters: Mapping[str, Any]):
-        self.parameters: dict[str, Distribution] = {
-            str(k): as_distribution(str(k), v) for k, v in parameters.items()
-        }
+        self.parameters: dict[str, Distribution] = {}
+        for k, v in parameters.items():
+            dist = as_distribution(str(k), v)
+            if dist.error is not None:
+                raise SpaceError(f"parameter {k!r}: {dist.error}")
+            self.parameters[str(k)] = dist
         self.dims: tuple[Dimension, ...] = tuple(
             Dimension(n, d.kind, getattr(d, "n_values", None))
             for n, d in self.parameters.items()

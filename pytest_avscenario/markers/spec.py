@@ -1,0 +1,112 @@
+"""What ``@scenario`` and ``@example`` record on a test function (plain data only)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+import pytest
+
+#: spec keywords of @scenario; every other keyword is a scenario parameter
+SPEC_KEYWORDS = (
+    "samples",
+    "sampler",
+    "seed",
+    "monitors",
+    "priority",
+    "sampler_options",
+    "shrink_budget",
+    "time_budget",
+    "case_timeout",
+)
+
+_UNSET: Any = object()
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """The raw declaration of one scenario test, exactly as written (validated at collection)."""
+
+    parameters: Mapping[str, Any]
+    samples: Any = None
+    sampler: Any = None
+    seed: Any = None
+    monitors: Any = None
+    priority: Any = None
+    sampler_options: Any = None
+    shrink_budget: Any = None
+    time_budget: Any = None
+    case_timeout: Any = None
+    #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
+    given: frozenset[str] = field(default_factory=frozenset)
+
+
+def scenario(
+    samples: int = _UNSET,
+    sampler: str | Sequence[str] = _UNSET,
+    seed: int | None = _UNSET,
+    monitors: Sequence[Any] | None = _UNSET,
+    priority: Sequence[Any] | None = _UNSET,
+    sampler_options: Mapping[str, Any] | None = _UNSET,
+    shrink_budget: int | None = _UNSET,
+    time_budget: str | float | None = _UNSET,
+    case_timeout: float | None = _UNSET,
+    **parameters: Any,
+) -> pytest.MarkDecorator:
+    """Declare an abstract scenario on a test; returns a ``pytest.mark.scenario`` mark.
+
+    Every keyword that is not one of the settings below is a scenario parameter: a
+    distribution (``Uniform``, ``Normal``, ``IntRange``, ``Choice``, ``Constant``) or a plain
+    constant. The test requests the ``case`` fixture to read the concrete values.
+
+    :param samples: how many concrete cases to run (default 20; ``--avs-samples`` overrides).
+    :param sampler: ``"halton"`` (default), ``"random"``, an active sampler (``"mab"``, ...), or
+        a list of names to run the scenario once per sampler (``--avs-sampler`` overrides).
+    :param seed: fixes this test's seed regardless of ``--avs-seed``.
+    :param monitors: monitors judged on the recorded trajectory after the test body.
+    :param priority: priority order between the monitors (names, highest first, or
+        ``(higher, lower)`` edges), used by multi-objective samplers.
+    :param sampler_options: keyword options for the sampler.
+    :param shrink_budget: simulations allowed to minimize each failure (0 disables).
+    :param time_budget: wall-time cap for this test's campaign (``"30m"``, ``"90s"``, seconds).
+    :param case_timeout: seconds one case may run before it is ended as an error.
+    """
+    given = {
+        k
+        for k, v in dict(
+            samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
+            sampler_options=sampler_options, shrink_budget=shrink_budget,
+            time_budget=time_budget, case_timeout=case_timeout,
+        ).items()
+        if v is not _UNSET
+    }
+    values = {
+        k: (None if v is _UNSET else v)
+        for k, v in dict(
+            samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
+            sampler_options=sampler_options, shrink_budget=shrink_budget,
+            time_budget=time_budget, case_timeout=case_timeout,
+        ).items()
+    }
+    spec = ScenarioSpec(parameters=dict(parameters), given=frozenset(given), **values)
+    return pytest.mark.scenario.with_args(spec)
+
+
+def example(**params: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Pin a concrete case of a scenario test; pinned examples run first and are never shrunk.
+
+    Paste the line a minimized failure prints above the test to keep it as a regression::
+
+        @example(gap=12.5, lead_speed=9.75, brake_at=2.0)
+        @scenario(gap=Uniform(10, 40), ...)
+        def test_follow(case, world): ...
+    """
+
+    def deco(fn: Callable[..., Any]) -> Callable[..., Any]:
+        pins = list(getattr(fn, "_avs_examples", ()))
+        # decorators apply bottom-up; keep the order in which they are written
+        pins.insert(0, dict(params))
+        fn._avs_examples = pins  # type: ignore[attr-defined]
+        return fn
+
+    return deco

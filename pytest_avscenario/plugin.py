@@ -1,0 +1,470 @@
+"""The pytest plugin: options, the ``scenario`` marker, expansion into cases, judging.
+
+Loaded through the ``pytest11`` entry point ``avscenario`` (``-p no:avscenario`` disables it).
+Loading it imports only numpy and the plugin's light modules: highway-env, scipy, matplotlib
+and the rest are imported when a scenario test is collected or run.
+
+A test marked with ``@scenario`` becomes one item per concrete case (``test_x[halton-007]``).
+Passive samplers fix every case at collection, identically on every machine for one seed;
+active samplers are asked for item k's parameters when it runs and told its robustness when
+it ends. After the body, the declared monitors judge the recorded trajectory; a violation
+fails the item with every metric, the parameters and a command that re-runs just that case.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import secrets
+from dataclasses import dataclass, field
+from typing import Any
+
+import pytest
+
+from .case import RESERVED, Case, stable_seed
+from .markers.spec import ScenarioSpec
+from .runner import CaseOutcome, run_case
+from .space import FeatureSpace, SpaceError
+
+DEFAULT_SAMPLES = 20
+DEFAULT_SAMPLER = "halton"
+
+plans_key = pytest.StashKey[dict[str, "ScenarioPlan"]]()
+seed_key = pytest.StashKey[int]()
+
+
+# --------------------------------------------------------------------------- options
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("avscenario", "scenario-based AV testing (pytest-avscenario)")
+
+    def add(name: str, ini_help: str, ini_type: str = "string", **kw: Any) -> None:
+        group.addoption(f"--avs-{name}", dest=f"avs_{name.replace('-', '_')}", **kw)
+        parser.addini(f"avs_{name.replace('-', '_')}", ini_help, type=ini_type, default=None)
+
+    add("seed", "seed of the run (an integer); default: a fresh one each run",
+        metavar="N|last", default=None,
+        help="seed for sampling and simulation; 'last' reuses the previous run's seed "
+             "(default: a fresh seed, printed in the header)")
+    add("samples", "cases per scenario test when the marker does not say",
+        metavar="N", default=None, type=int,
+        help="override the number of cases of every scenario test (e.g. 5 for a smoke run)")
+    add("sampler", "sampler for scenario tests whose marker does not name one",
+        metavar="NAME", default=None,
+        help="override the sampler of every scenario test (halton, random, mab, ce, sa, bo)")
+    add("driver", "built-in driver of the ego (autopilot or idm) when avs_driver is not overridden",
+        metavar="NAME", default=None,
+        help="built-in driver of the ego: 'autopilot' (default) or 'idm'; a conftest "
+             "`avs_driver` fixture overrides this")
+    group.addoption(
+        "--avs-params", dest="avs_params", metavar="JSON", default=None,
+        help="run the selected scenario cases with these parameter values "
+             "(a JSON object; missing parameters take their nominal value)",
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "scenario(**parameters, samples=N, sampler='halton', seed=None, monitors=[...]): "
+        "an abstract driving scenario expanded into N concrete cases (pytest-avscenario). "
+        "Use the @scenario decorator from pytest_avscenario rather than the bare mark.",
+    )
+    config.stash[plans_key] = {}
+    config.stash[seed_key] = _session_seed(config)
+    if config.pluginmanager.hasplugin("xdist"):
+        config.pluginmanager.register(_XdistHooks(), "avscenario-xdist")
+
+
+def _session_seed(config: pytest.Config) -> int:
+    workerinput = getattr(config, "workerinput", None)
+    if workerinput is not None and "avs_seed" in workerinput:
+        return int(workerinput["avs_seed"])  # the controller's seed: identical collections
+    raw = config.getoption("avs_seed")
+    if raw is None:
+        raw = config.getini("avs_seed")
+    if raw in (None, ""):
+        seed = secrets.randbelow(2**31)
+    elif str(raw).strip() == "last":
+        cache = getattr(config, "cache", None)
+        cached = cache.get("avscenario/seed", None) if cache is not None else None
+        if cached is None:
+            raise pytest.UsageError("--avs-seed=last: no previous run's seed is cached yet")
+        seed = int(cached)
+    else:
+        try:
+            seed = int(str(raw).strip())
+        except ValueError:
+            raise pytest.UsageError(
+                f"--avs-seed / avs_seed must be an integer or 'last', got {raw!r}"
+            ) from None
+        if seed < 0:
+            raise pytest.UsageError(f"--avs-seed / avs_seed must be >= 0, got {seed}")
+    cache = getattr(config, "cache", None)  # absent with -p no:cacheprovider
+    if cache is not None and workerinput is None:
+        cache.set("avscenario/seed", seed)
+    return seed
+
+
+class _XdistHooks:
+    """Registered only when pytest-xdist is installed: ship the seed to the workers."""
+
+    def pytest_configure_node(self, node: Any) -> None:
+        node.workerinput["avs_seed"] = node.config.stash[seed_key]
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    seed = config.stash[seed_key]
+    return f"avscenario: seed={seed} (replay with --avs-seed={seed})"
+
+
+# --------------------------------------------------------------------------- expansion
+@dataclass
+class CaseSlot:
+    """What collection fixes about one item: its index, origin and (if passive) its values."""
+
+    sampler: str
+    index: int
+    seed: int
+    origin: str = "sampled"
+    params: dict[str, Any] | None = None  # None: asked from an active sampler at run time
+
+    @property
+    def id(self) -> str:
+        return f"{self.sampler}-{self.index:03d}" if self.origin == "sampled" else f"{self.origin}-{self.index}"
+
+
+@dataclass
+class ScenarioPlan:
+    """A scenario test's resolved declaration (one per test function)."""
+
+    test: str
+    space: FeatureSpace
+    samplers: list[str]
+    samples: int
+    seed: int
+    monitor_set: Any
+    sampler_options: dict[str, Any]
+    active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
+
+    def make_sampler(self, name: str) -> Any:
+        from . import samplers
+
+        opts = dict(self.sampler_options)
+        if samplers.base.is_active(name) and self.monitor_set is not None:
+            opts.setdefault("metrics", list(self.monitor_set.names))
+            if getattr(self.monitor_set, "priority", None):
+                opts.setdefault("priority", self.monitor_set.priority)
+        return samplers.make(name, self.space, seed=stable_seed(self.seed, name), **opts)
+
+
+class DeclarationError(Exception):
+    pass
+
+
+def _fail_collection(test: str, message: str) -> None:
+    raise pytest.Collector.CollectError(f"{test}: {message}")
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    marker = metafunc.definition.get_closest_marker("scenario")
+    if marker is None:
+        return
+    test = metafunc.definition.nodeid
+    try:
+        plan, slots = _plan(metafunc, marker)
+    except (DeclarationError, SpaceError, ValueError) as exc:
+        _fail_collection(test, str(exc))
+    metafunc.config.stash[plans_key][test] = plan
+    metafunc.parametrize("case", slots, ids=[s.id for s in slots], indirect=True)
+
+
+def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan, list[CaseSlot]]:
+    config = metafunc.config
+    test = metafunc.definition.nodeid
+    if len(marker.args) != 1 or not isinstance(marker.args[0], ScenarioSpec) or marker.kwargs:
+        raise DeclarationError(
+            "use the @scenario(...) decorator from pytest_avscenario, not a bare "
+            "@pytest.mark.scenario"
+        )
+    spec: ScenarioSpec = marker.args[0]
+    if "case" not in metafunc.fixturenames:
+        raise DeclarationError(
+            "a @scenario test must request the `case` fixture (add `case` to its arguments) "
+            "to read the concrete parameter values"
+        )
+
+    # parameters: their distributions, and names that would shadow something
+    if not spec.parameters:
+        raise DeclarationError("@scenario declares no parameters; give at least one, e.g. gap=Uniform(10, 40)")
+    fm = metafunc.definition.session._fixturemanager
+    for name in spec.parameters:
+        if name in RESERVED:
+            raise DeclarationError(
+                f"parameter {name!r} clashes with the case attribute of the same name; rename it"
+            )
+        if fm.getfixturedefs(name, metafunc.definition):
+            raise DeclarationError(
+                f"parameter {name!r} clashes with the fixture {name!r}; rename the parameter "
+                "(read values as case.<name>, fixtures stay available as arguments)"
+            )
+    space = FeatureSpace(spec.parameters)
+
+    samples = _setting_int(config, spec, "samples", DEFAULT_SAMPLES, minimum=1)
+    sampler_names = _samplers(config, spec)
+
+    if spec.seed is not None:
+        if isinstance(spec.seed, bool) or not isinstance(spec.seed, int) or spec.seed < 0:
+            raise DeclarationError(f"seed must be a non-negative int, got {spec.seed!r}")
+        seed = stable_seed("marker", spec.seed)
+    else:
+        seed = stable_seed(config.stash[seed_key], test)
+
+    monitor_set = None
+    if spec.monitors:
+        from .monitors import MonitorSet
+
+        try:
+            monitor_set = MonitorSet(list(spec.monitors), priority=spec.priority)
+        except ValueError as exc:
+            raise DeclarationError(f"monitors: {exc}") from None
+    elif spec.priority:
+        raise DeclarationError("priority= is given but no monitors= to order")
+
+    opts = spec.sampler_options or {}
+    if not isinstance(opts, dict):
+        raise DeclarationError(f"sampler_options must be a dict, got {opts!r}")
+    plan = ScenarioPlan(test=test, space=space, samplers=sampler_names, samples=samples,
+                        seed=seed, monitor_set=monitor_set, sampler_options=dict(opts))
+
+    pinned = _pinned_params(config, space)
+    slots: list[CaseSlot] = []
+    from .samplers import SamplerError
+
+    for name in sampler_names:
+        try:
+            sampler = plan.make_sampler(name)
+        except SamplerError as exc:
+            raise DeclarationError(str(exc)) from None
+        if pinned is not None:
+            values: list[dict[str, Any] | None] = [dict(pinned)] * samples
+        elif sampler.active:
+            values = [None] * samples
+        else:
+            pts = sampler.sample_unit(samples)
+            values = [space.from_unit(p) for p in pts]
+        for k, params in enumerate(values):
+            slots.append(CaseSlot(name, k, stable_seed(seed, name, k),
+                                  origin="sampled", params=params))
+    return plan, slots
+
+
+def _setting_int(config: pytest.Config, spec: ScenarioSpec, key: str, default: int,
+                 minimum: int) -> int:
+    cli = config.getoption(f"avs_{key}")
+    if cli is not None:
+        value, source = cli, f"--avs-{key}"
+    elif key in spec.given:
+        value, source = getattr(spec, key), f"@scenario({key}=...)"
+    elif config.getini(f"avs_{key}") not in (None, ""):
+        value, source = config.getini(f"avs_{key}"), f"ini avs_{key}"
+    else:
+        return default
+    try:
+        if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
+            raise ValueError
+        value = int(value)
+    except (TypeError, ValueError):
+        raise DeclarationError(f"{key} must be an integer, got {value!r} (from {source})") from None
+    if value < minimum:
+        raise DeclarationError(f"{key} must be >= {minimum}, got {value} (from {source})")
+    return value
+
+
+def _samplers(config: pytest.Config, spec: ScenarioSpec) -> list[str]:
+    from .samplers import base
+
+    cli = config.getoption("avs_sampler")
+    if cli:
+        raw: Any = [s.strip() for s in cli.split(",") if s.strip()]
+        source = "--avs-sampler"
+    elif "sampler" in spec.given:
+        raw, source = spec.sampler, "@scenario(sampler=...)"
+    elif config.getini("avs_sampler"):
+        raw, source = config.getini("avs_sampler"), "ini avs_sampler"
+    else:
+        raw, source = DEFAULT_SAMPLER, "default"
+    names = [raw] if isinstance(raw, str) else list(raw) if isinstance(raw, (list, tuple)) else None
+    if not names or not all(isinstance(n, str) for n in names):
+        raise DeclarationError(f"sampler must be a name or a list of names, got {raw!r} (from {source})")
+    for n in names:
+        if n not in base.available():
+            raise DeclarationError(
+                f"unknown sampler {n!r} (from {source}); available: {', '.join(base.available())}"
+            )
+    if len(set(names)) != len(names):
+        raise DeclarationError(f"sampler list names a sampler twice: {names!r}")
+    return names
+
+
+def _pinned_params(config: pytest.Config, space: FeatureSpace) -> dict[str, Any] | None:
+    raw = config.getoption("avs_params")
+    if not raw:
+        return None
+    try:
+        given = json.loads(raw)
+    except json.JSONDecodeError as exc:
+        raise DeclarationError(f"--avs-params is not valid JSON: {exc}") from None
+    if not isinstance(given, dict):
+        raise DeclarationError("--avs-params must be a JSON object of parameter values")
+    params = {**space.nominal(), **given}
+    space.validate(params)
+    return params
+
+
+# --------------------------------------------------------------------------- fixtures
+@pytest.fixture
+def case(request: pytest.FixtureRequest) -> Case:
+    """The concrete case of a ``@scenario`` test: ``case.<parameter>``, ``case.seed``, ``case.rng``."""
+    slot: CaseSlot | None = getattr(request, "param", None)
+    if not isinstance(slot, CaseSlot):
+        raise pytest.UsageError(
+            f"{request.node.nodeid}: the `case` fixture is only available to tests decorated "
+            "with @scenario(...)"
+        )
+    plan = _plan_of(request.node)
+    params = slot.params
+    if params is None:
+        params = _active_sampler(plan, slot.sampler).ask()
+    return Case(params, index=slot.index, seed=slot.seed, sampler=slot.sampler,
+                origin=slot.origin if request.config.getoption("avs_params") is None else "pinned",
+                test=request.node.nodeid)
+
+
+@pytest.fixture
+def avs_driver(request: pytest.FixtureRequest) -> Any:
+    """The AV under test driving the ego: override this fixture in conftest.py with your stack.
+
+    Return a callable ``policy(observation) -> (acceleration, steering)``, an object with
+    ``act(observation)`` or ``predict(observation)``, or a built-in name (``"autopilot"``,
+    ``"idm"``). The default is ``--avs-driver`` / ini ``avs_driver`` or ``"autopilot"``.
+    """
+    name = request.config.getoption("avs_driver") or request.config.getini("avs_driver")
+    return name or "autopilot"
+
+
+@pytest.fixture
+def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
+    """A fresh simulated world for this case, seeded from it, with ``avs_driver`` as the ego's."""
+    return _make_world(case, avs_driver, request.node.nodeid)
+
+
+def _make_world(case: Case, driver: Any, name: str) -> Any:
+    from .sim import World
+
+    return World(seed=case.seed, rng=case.rng, driver=driver, name=name)
+
+
+def _plan_of(item: pytest.Item) -> ScenarioPlan:
+    return item.config.stash[plans_key][_function_id(item)]
+
+
+def _function_id(item: pytest.Item) -> str:
+    nodeid = item.nodeid
+    return nodeid[: nodeid.index("[")] if "[" in nodeid else nodeid
+
+
+def _active_sampler(plan: ScenarioPlan, name: str) -> Any:
+    if name not in plan.active:
+        plan.active[name] = plan.make_sampler(name)
+    return plan.active[name]
+
+
+# --------------------------------------------------------------------------- running
+@pytest.hookimpl(tryfirst=True)
+def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
+    if pyfuncitem.get_closest_marker("scenario") is None or "case" not in pyfuncitem.funcargs:
+        return None
+    plan = _plan_of(pyfuncitem)
+    case_obj: Case = pyfuncitem.funcargs["case"]
+    argnames = tuple(pyfuncitem._fixtureinfo.argnames)
+    outcome = run_case(pyfuncitem.obj, argnames, pyfuncitem.funcargs, case_obj,
+                       plan.monitor_set, make_world=None)
+    slot: CaseSlot = pyfuncitem.callspec.params["case"]
+    if slot.params is None and case_obj.origin == "sampled":
+        _active_sampler(plan, slot.sampler).tell(
+            outcome.params, None if outcome.verdict == "error" else dict(outcome.rho) or _body_rho(outcome)
+        )
+    _record_properties(pyfuncitem, case_obj, outcome)
+    if outcome.verdict == "pass":
+        return True
+    if outcome.exc is not None and not (outcome.verdict == "error" and outcome.error and outcome.error.startswith("MonitorError")):
+        # let pytest show the body's own traceback, with our summary as a report section
+        pyfuncitem.add_report_section("call", "avscenario", failure_message(pyfuncitem, case_obj, outcome))
+        raise outcome.exc
+    pytest.fail(failure_message(pyfuncitem, case_obj, outcome), pytrace=False)
+
+
+def _body_rho(outcome: CaseOutcome) -> float:
+    # no monitors: a failing assertion is a violation, a pass is neutral
+    return -1.0 if outcome.verdict == "fail" else 0.0
+
+
+def _fmt_rho(v: float) -> str:
+    if math.isinf(v):
+        return "+inf" if v > 0 else "-inf"
+    return f"{v:+.3f}"
+
+
+def _fmt_value(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return repr(v)
+
+
+def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome) -> str:
+    """The text a failing case shows: metrics, parameters, and how to re-run just it."""
+    lines = []
+    if outcome.verdict == "fail" and outcome.violated:
+        lines.append(f"scenario violated: {', '.join(outcome.violated)}")
+    elif outcome.verdict == "fail":
+        lines.append(f"scenario failed: {outcome.error}")
+    else:
+        lines.append(f"scenario case could not be judged: {outcome.error}")
+    if outcome.results:
+        lines.append("  metric            rho    threshold  verdict   worst")
+        for name, res in outcome.results.items():
+            thr = "" if res.threshold is None else f"{res.threshold:g}"
+            verdict = "VIOLATED" if res.rho < 0 else "ok"
+            lines.append(f"  {name:<12} {_fmt_rho(res.rho):>9}  {thr:>9}  {verdict:<8}  {res.detail}")
+    params = ", ".join(f"{k}={_fmt_value(v)}" for k, v in case.params.items())
+    lines.append(f"  parameters: {params}")
+    lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
+                 f"simulated in {outcome.sim_time_s:.3f} s")
+    lines.append(f"  re-run only this case: {rerun_command(item, case)}")
+    return "\n".join(lines)
+
+
+def rerun_command(item: pytest.Item, case: Case) -> str:
+    seed = item.config.stash[seed_key]
+    cmd = f"pytest '{item.nodeid}' --avs-seed={seed}"
+    plan = _plan_of(item)
+    slot: CaseSlot = item.callspec.params["case"]
+    if slot.params is None or item.config.getoption("avs_params"):
+        # an active sampler's case depends on the cases before it: pin its values instead
+        pinned = json.dumps({k: v for k, v in case.params.items() if k in plan.space.parameters})
+        cmd += f" --avs-params '{pinned}'"
+    for opt in ("avs_samples", "avs_sampler", "avs_driver"):
+        val = item.config.getoption(opt)
+        if val is not None:
+            cmd += f" --{opt.replace('_', '-')}={val}"
+    return cmd
+
+
+def _record_properties(item: pytest.Item, case: Case, outcome: CaseOutcome) -> None:
+    props = item.user_properties
+    props.append(("avs.params", json.dumps(case.params, sort_keys=False, default=repr)))
+    for name, rho in outcome.rho.items():
+        props.append((f"avs.rho.{name}", _fmt_rho(rho).lstrip("+")))
+    props.append(("avs.verdict", outcome.verdict))
+    props.append(("avs.seed", str(case.seed)))

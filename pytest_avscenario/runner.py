@@ -1,0 +1,127 @@
+"""Running one concrete case of a scenario test and judging it.
+
+The plugin calls :func:`run_case` for every scenario item (and again for each candidate
+while shrinking): it calls the test function with the case's ``case`` and ``world``,
+takes the trajectory the test recorded (``world.trajectory``, or one the test returned),
+evaluates the declared monitors and returns a :class:`CaseOutcome` — plain data, no pytest
+report objects. A test body that raises ``AssertionError`` is a failure like a violated
+monitor; any other exception (a driver that raised, a bad scene) makes the case an error.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+from .case import Case
+
+
+@dataclass
+class CaseOutcome:
+    """What one run of a case produced.
+
+    ``verdict`` is ``"pass"``, ``"fail"`` (a monitor violated or the body's assertion failed)
+    or ``"error"`` (the case could not be judged: an exception, no trajectory, NaN).
+    ``signature`` identifies *which* failure it is, so shrinking keeps to the same bug: the
+    sorted violated metrics, or the exception type and the line it came from.
+    """
+
+    params: dict[str, Any]
+    verdict: str
+    rho: dict[str, float] = field(default_factory=dict)
+    results: dict[str, Any] = field(default_factory=dict)
+    violated: list[str] = field(default_factory=list)
+    exc: BaseException | None = None
+    error: str | None = None
+    sim_time_s: float = 0.0
+    trajectory: Any = None
+
+    @property
+    def signature(self) -> tuple[Any, ...]:
+        if self.exc is not None:
+            tb = traceback.extract_tb(self.exc.__traceback__)
+            where = (tb[-1].filename, tb[-1].lineno) if tb else ("?", 0)
+            return ("exception", type(self.exc).__name__, *where)
+        return ("monitors", *sorted(self.violated))
+
+    @property
+    def failed(self) -> bool:
+        return self.verdict == "fail"
+
+    @property
+    def worst_rho(self) -> float | None:
+        vals = [v for v in self.rho.values() if not math.isnan(v)]
+        return min(vals) if vals else None
+
+
+def run_case(
+    func: Callable[..., Any],
+    argnames: tuple[str, ...],
+    fixtures: Mapping[str, Any],
+    case: Case,
+    monitor_set: Any,
+    make_world: Callable[[Case], Any] | None,
+) -> CaseOutcome:
+    """Call the test body for ``case`` and judge what it recorded.
+
+    ``fixtures`` holds the values of the test's other fixtures; ``case`` replaces the
+    ``case`` argument and, when the test requests ``world``, ``make_world(case)`` builds a
+    fresh one (``None`` means: use ``fixtures["world"]`` as it is).
+    """
+    from .sim.trajectory import Trajectory
+
+    args = dict(fixtures)
+    args["case"] = case
+    world = None
+    if "world" in argnames:
+        world = make_world(case) if make_world is not None else args["world"]
+        args["world"] = world
+    outcome = CaseOutcome(params=dict(case.params), verdict="pass")
+    t0 = time.perf_counter()
+    ret = None
+    try:
+        ret = func(**{a: args[a] for a in argnames})
+    except AssertionError as exc:
+        outcome.verdict, outcome.exc = "fail", exc
+        outcome.error = _one_line(exc)
+    except Exception as exc:  # the body, the driver or the scene failed: an error, not a pass
+        outcome.verdict, outcome.exc = "error", exc
+        outcome.error = f"{type(exc).__name__}: {_one_line(exc)}"
+    finally:
+        outcome.sim_time_s = time.perf_counter() - t0
+
+    traj = ret if isinstance(ret, Trajectory) else getattr(world, "trajectory", None)
+    outcome.trajectory = traj
+    if monitor_set is None or not monitor_set.names:
+        return outcome
+    if traj is None:
+        if outcome.exc is None:
+            outcome.verdict = "error"
+            outcome.error = (
+                "the scenario declares monitors but produced no trajectory: request the "
+                "`world` fixture and call world.run(...), or return a Trajectory"
+            )
+        return outcome
+    from .monitors import MonitorError
+
+    try:
+        verdict = monitor_set.evaluate(traj)
+    except MonitorError as exc:
+        if outcome.exc is None:
+            outcome.verdict, outcome.exc = "error", exc
+            outcome.error = f"MonitorError: {exc}"
+        return outcome
+    outcome.results = dict(verdict.results)
+    outcome.rho = {k: float(v) for k, v in verdict.rho.items()}
+    outcome.violated = list(verdict.violated)
+    if outcome.verdict == "pass" and outcome.violated:
+        outcome.verdict = "fail"
+    return outcome
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
