@@ -29,6 +29,10 @@ class SamplerError(ValueError):
 _REGISTRY: dict[str, Any] = {
     "random": "pytest_avscenario.samplers.random:RandomSampler",
     "halton": "pytest_avscenario.samplers.halton:HaltonSampler",
+    "mab": "pytest_avscenario.samplers.mab:MultiArmedBanditSampler",
+    "ce": "pytest_avscenario.samplers.ce:CrossEntropySampler",
+    "sa": "pytest_avscenario.samplers.sa:SimulatedAnnealingSampler",
+    "bo": "pytest_avscenario.samplers.bo:BayesianOptimizationSampler",
 }
 
 
@@ -69,16 +73,20 @@ def make(name: str, space: FeatureSpace | Mapping[str, Any], seed: int | np.rand
 
 
 def scalar_rho(rho: Rho) -> float | None:
-    """The worst (smallest) robustness of a feedback value; None for an invalid case."""
+    """The worst (smallest) robustness of a feedback value; None for an invalid case.
+
+    Any NaN makes the whole case invalid (``min`` over a list holding NaN would otherwise
+    depend on the order of the metrics). Infinite values are kept: a metric that holds
+    trivially (TTC with no conflict) legitimately reports ``+inf``.
+    """
     if rho is None:
         return None
     if isinstance(rho, Mapping):
         vals = [float(v) for v in rho.values()]
-        if not vals:
+        if not vals or any(math.isnan(v) for v in vals):
             return None
-        v = min(vals)
-    else:
-        v = float(rho)
+        return min(vals)
+    v = float(rho)
     return None if math.isnan(v) else v
 
 
@@ -101,6 +109,7 @@ class Sampler:
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         self.n_asked = 0
         self.n_told = 0
+        self._conv = _compile(self.space)
 
     @property
     def d(self) -> int:
@@ -114,10 +123,40 @@ class Sampler:
         self.n_told += 1
 
     def ask(self) -> dict[str, Any]:
-        return self.space.from_unit(self.ask_unit())
+        """The next case as ``{parameter: value}`` (constants included)."""
+        return self._params(self.ask_unit())
 
     def tell(self, params: Mapping[str, Any], rho: Rho) -> None:
-        self.tell_unit(self.space.to_unit(params), rho)
+        """Feedback for an evaluated case: a float, ``{metric: float}``, or None if invalid."""
+        if not self.active:
+            # passive samplers learn nothing; skip the conversion (it is the whole cost)
+            self.n_told += 1
+            return
+        self.tell_unit(self._unit(params), rho)
+
+    # The plugin asks once per case, but the benchmark and users outside pytest call these
+    # in tight loops: FeatureSpace.from_unit/to_unit cost more than a bandit step, so the
+    # conversion is precompiled per parameter. It computes exactly what FeatureSpace does.
+    def _params(self, u: Any) -> dict[str, Any]:
+        it = iter(u.tolist() if isinstance(u, np.ndarray) else u)
+        out: dict[str, Any] = {}
+        for name, kind, a, w, dist in self._conv:
+            if kind == 0:
+                out[name] = a
+                continue
+            x = next(it)
+            x = 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
+            out[name] = a + x * w if kind == 1 else dist.from_unit(x)
+        return out
+
+    def _unit(self, params: Mapping[str, Any]) -> np.ndarray:
+        vals = []
+        for name, kind, a, w, dist in self._conv:
+            if kind == 1:
+                vals.append((float(params[name]) - a) / w)
+            elif kind == 2:
+                vals.append(dist.to_unit(params[name]))
+        return np.array(vals, dtype=float)
 
     def sample_unit(self, n: int) -> np.ndarray:
         """``n`` points at once (passive samplers override this with a vectorized draw)."""
@@ -133,6 +172,21 @@ class Sampler:
         self.n_asked = int(state["n_asked"])
         self.n_told = int(state["n_told"])
         self.rng.bit_generator.state = _rng_from_json(state["rng"])
+
+
+def _compile(space: FeatureSpace) -> list[tuple[str, int, Any, float, Any]]:
+    """Per parameter: (name, kind 0=constant/1=uniform/2=other, offset, width, distribution)."""
+    from ..space import Uniform
+
+    conv: list[tuple[str, int, Any, float, Any]] = []
+    for name, dist in space.parameters.items():
+        if dist.kind == "constant":
+            conv.append((name, 0, dist.nominal, 0.0, dist))
+        elif type(dist) is Uniform:
+            conv.append((name, 1, dist.lo, dist.hi - dist.lo, dist))
+        else:
+            conv.append((name, 2, 0.0, 0.0, dist))
+    return conv
 
 
 def _rng_state(rng: np.random.Generator) -> dict[str, Any]:
@@ -156,3 +210,82 @@ def _rng_from_json(x: Any) -> Any:
             return np.array(x["__ndarray__"], dtype=x["dtype"])
         return {k: _rng_from_json(v) for k, v in x.items()}
     return x
+
+
+class ActiveSampler(Sampler):
+    """Base of the samplers that learn from feedback.
+
+    Every active sampler takes ``metrics=[names]`` (the monitor set's metrics, so feedback
+    and the priority order can be checked against them) and ``priority=`` (metric names
+    highest first, or ``(higher, lower)`` pairs), so the plugin can pass both uniformly;
+    samplers without a multi-objective mode validate the priority and otherwise ignore it.
+    Feedback is reduced to the worst metric (``scalar_rho``) unless a sampler reads the
+    mapping itself. ``None`` (or any NaN) is an invalid case: counted in ``n_invalid`` and
+    never treated as a pass.
+    """
+
+    active = True
+    options: tuple[str, ...] = ("metrics", "priority")
+
+    def __init__(self, space: FeatureSpace, seed: int | np.random.Generator = 0,
+                 metrics: Any = None, priority: Any = None, **options: Any):
+        super().__init__(space, seed=seed, **options)
+        from .priority import PriorityOrder
+
+        self.order = PriorityOrder.parse(priority, metrics)
+        self.known_metrics = None if metrics is None else frozenset(self.order.metrics)
+        self.multi = bool(self.order.edges)
+        self.n_invalid = 0
+
+    def _check_metrics(self, rho: Rho) -> None:
+        if self.known_metrics is not None and isinstance(rho, Mapping):
+            unknown = [k for k in rho if k not in self.known_metrics]
+            if unknown:
+                raise SamplerError(
+                    f"feedback names unknown metric(s) {unknown}; declared metrics: "
+                    f"{sorted(self.known_metrics)}"
+                )
+
+    def tell_unit(self, u: np.ndarray, rho: Rho) -> None:
+        self.n_told += 1
+        self._check_metrics(rho)
+        r = scalar_rho(rho)
+        if r is None:
+            self.n_invalid += 1
+        self._learn(np.asarray(u, dtype=float), r, rho)
+
+    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    def state(self) -> dict[str, Any]:
+        st = super().state()
+        st["n_invalid"] = self.n_invalid
+        return st
+
+    def restore(self, state: Mapping[str, Any]) -> None:
+        if state.get("name") != self.name:
+            raise SamplerError(f"state of sampler {state.get('name')!r} given to {self.name!r}")
+        super().restore(state)
+        self.n_invalid = int(state.get("n_invalid", 0))
+
+
+def check_int(value: Any, what: str, lo: int = 1) -> int:
+    """An integer option >= lo, or a SamplerError saying what was wrong."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise SamplerError(f"{what} must be an integer >= {lo}, got {value!r}")
+    return int(value)
+
+
+def check_float(value: Any, what: str, lo: float = 0.0, hi: float = math.inf,
+                lo_open: bool = False, hi_open: bool = False) -> float:
+    """A finite float option in [lo, hi] (ends optionally open), or a SamplerError."""
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+    v = float(value) if ok else math.nan
+    if ok and math.isfinite(v):
+        ok = (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+    else:
+        ok = False
+    if not ok:
+        rng = f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
+        raise SamplerError(f"{what} must be a number in {rng}, got {value!r}")
+    return v

@@ -1,0 +1,182 @@
+"""The multi-armed bandit sampler (``mab``): the active sampler the paper ran beside Halton.
+
+Each coordinate of the unit cube is cut into buckets (arms, see :mod:`._buckets`). To propose a
+case, every dimension independently plays the UCB1 rule — the bucket with the highest
+empirical reward plus ``exploration * sqrt(2 ln t / n_bucket)`` — and the case is drawn
+uniformly inside the chosen buckets. A case's reward is 1 for a counterexample and, unlike the
+reference, ``near_miss * exp(-rho / scale)`` otherwise, with ``scale`` the running mean of
+``|rho|``: the bandit climbs towards failures from the first sample instead of being uniform
+random until it stumbles on one.
+
+Multi-objective mode (a ``priority`` order over the metrics; Viswanadha et al., RV'21): a
+case's violation pattern is the set of metrics it violates; the sampler keeps the patterns
+that no other pattern seen so far dominates under the priority order
+(:class:`.priority.PriorityOrder`) and a bucket's counterexample reward is the number of its
+cases whose pattern is currently maximal, so arms that produced what is now a lesser failure
+lose that credit. Near misses are scored per metric, weighted ``2**-level`` by rank.
+Patterns are sets of metric names, never traversal positions.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import numpy as np
+
+from ._buckets import Buckets
+from .base import ActiveSampler, Rho, check_float, check_int
+from .priority import Pattern
+
+_SINGLE = "rho"  # the pattern name of a counterexample in single-objective mode
+
+
+class MultiArmedBanditSampler(ActiveSampler):
+    """UCB1 bandit over per-dimension buckets.
+
+    Options: ``buckets`` (per continuous dimension, default 5 like VerifAI), ``exploration``
+    (the UCB constant, default 0.3; VerifAI's rule is ``exploration=1``), ``near_miss``
+    (weight of the near-miss reward in [0, 1], default 0.5; 0 gives the reference's 0/1
+    reward), ``jitter`` (default 0.05: UCB values closer than this count as tied and are
+    chosen between at random), plus ``metrics`` and ``priority``.
+
+    Why the jitter: every dimension sees the same reward for a case, so with a deterministic
+    argmax the dimensions' statistics stay permutations of one another and they move in
+    lock-step through ``buckets`` cells of the whole grid — with near-miss rewards the
+    bandit then never reaches a failure off that diagonal. Randomized near-ties decouple them.
+    """
+
+    name = "mab"
+    options = ActiveSampler.options + ("buckets", "exploration", "near_miss", "jitter")
+
+    def __init__(self, space, seed=0, buckets: int = 5, exploration: float = 0.3,
+                 near_miss: float = 0.5, jitter: float = 0.05, **options: Any):
+        super().__init__(space, seed=seed, **options)
+        self.n_buckets = check_int(buckets, "mab buckets")
+        self.exploration = check_float(exploration, "mab exploration")
+        self.near_miss = check_float(near_miss, "mab near_miss", 0.0, 1.0)
+        self.jitter = check_float(jitter, "mab jitter")
+        self.grid = Buckets(self.space, self.n_buckets)
+        n = self.grid.d * self.grid.B
+        self._valid = self.grid.valid.ravel()
+        # arrays over flat arms i * B + j; pulls start at 1: one pseudo-pull with reward 0
+        # per arm (as VerifAI) keeps the UCB term finite. Padding arms are never chosen.
+        self.pulls = np.where(self._valid, 1.0, np.inf)
+        self.nm_sum = np.zeros(n)  # near-miss (and invalid-case) rewards
+        self.ce_sum = np.zeros(n)  # pulls whose violation pattern is currently maximal
+        self.patterns: dict[Pattern, np.ndarray] = {}
+        self.maximal: set[Pattern] = set()
+        self.scale: dict[str, list[float]] = {}  # metric -> [sum |rho|, count] (finite rho)
+        self._nr = n + self.grid.d
+        self._refresh()
+
+    # -- proposing ----------------------------------------------------------------------
+    def _refresh(self) -> None:
+        # cached per arm so that ask is a few array operations
+        self._mean = np.where(self._valid, (self.ce_sum + self.nm_sum) / self.pulls, -np.inf)
+        self._rsqrt = np.sqrt(2.0 / self.pulls)
+
+    def ask_unit(self) -> np.ndarray:
+        self.n_asked += 1
+        g = self.grid
+        n = g.d * g.B
+        k = self.exploration * math.sqrt(math.log(self.n_told + 1))
+        r = self.rng.random(self._nr)
+        ucb = self._mean + k * self._rsqrt + (self.jitter + 1e-9) * r[:n]
+        fi = ucb.reshape(g.d, g.B).argmax(1) + g.row_offset
+        return g.flat_lo[fi] + r[n:] * g.flat_width[fi]
+
+    def arm_values(self) -> np.ndarray:
+        """Each arm's empirical reward, shape ``(d, B)`` (-inf for padding arms)."""
+        return self._mean.reshape(self.grid.d, self.grid.B).copy()
+
+    # -- learning -----------------------------------------------------------------------
+    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
+        fi = self.grid.flat_index(u)
+        pulls = self.pulls[fi] + 1.0
+        self.pulls[fi] = pulls
+        if r is None:
+            # an invalid case: visited (so the arm is not replayed forever) but no evidence
+            # either way; adding the arm's current mean leaves the mean unchanged
+            self.nm_sum[fi] += self._mean[fi]
+        else:
+            pattern, score = self._judge(r, rho)
+            if pattern:
+                counts = self.patterns.get(pattern)
+                if counts is None:
+                    counts = self.patterns[pattern] = np.zeros_like(self.nm_sum)
+                    counts[fi] += 1.0
+                    self._update_maximal()
+                else:
+                    counts[fi] += 1.0
+                    if pattern in self.maximal:
+                        self.ce_sum[fi] += 1.0
+                if pattern not in self.maximal:
+                    self.nm_sum[fi] += self.near_miss * score
+            elif score > 0.0:
+                self.nm_sum[fi] += self.near_miss * score
+        self._mean[fi] = (self.ce_sum[fi] + self.nm_sum[fi]) / pulls
+        self._rsqrt[fi] = np.sqrt(2.0 / pulls)
+
+    def _update_maximal(self) -> None:
+        new = set(self.order.maximal(self.patterns)) if self.multi else set(self.patterns)
+        self.maximal = new
+        self.ce_sum = np.zeros_like(self.nm_sum)
+        for p in new:
+            self.ce_sum += self.patterns[p]
+        self._refresh()
+
+    def _judge(self, r: float, rho: Rho) -> tuple[Pattern, float]:
+        """Violation pattern of one valid case and its near-miss score in [0, 1]."""
+        if not (self.multi and isinstance(rho, Mapping)):
+            if self.multi and _SINGLE not in self.order.level:
+                self.order = self.order.with_metric(_SINGLE)
+            return (frozenset((_SINGLE,)) if r < 0 else frozenset()), self._closeness(_SINGLE, r)
+        for m in rho:
+            if m not in self.order.level:
+                self.order = self.order.with_metric(m)  # unranked metric seen first here
+        violated = frozenset(m for m, v in rho.items() if float(v) < 0)
+        num = den = 0.0
+        for m, v in rho.items():
+            w = 2.0 ** -self.order.level[m]
+            num += w * self._closeness(m, float(v))
+            den += w
+        return violated, num / den
+
+    def _closeness(self, metric: str, v: float) -> float:
+        """exp(-rho/scale) for rho >= 0: 1 at the boundary, -> 0 far from it."""
+        acc = self.scale.get(metric)
+        if math.isfinite(v):
+            if acc is None:
+                acc = self.scale[metric] = [0.0, 0]
+            acc[0] += abs(v)
+            acc[1] += 1
+        if v <= 0:
+            return 1.0
+        if not math.isfinite(v) or acc is None or acc[0] <= 0:
+            return 0.0
+        return math.exp(-v * acc[1] / acc[0])
+
+    # -- state --------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        st = super().state()
+        st.update(
+            pulls=np.where(self._valid, self.pulls, -1.0).tolist(),
+            nm_sum=self.nm_sum.tolist(),
+            patterns=[[sorted(p), c.tolist()] for p, c in self.patterns.items()],
+            scale=self.scale,
+            metrics=list(self.order.metrics),
+        )
+        return st
+
+    def restore(self, state: Mapping[str, Any]) -> None:
+        super().restore(state)
+        pulls = np.array(state["pulls"], dtype=float)
+        self.pulls = np.where(pulls < 0, np.inf, pulls)
+        self.nm_sum = np.array(state["nm_sum"], dtype=float)
+        for m in state.get("metrics", ()):
+            if m not in self.order.level:
+                self.order = self.order.with_metric(m)
+        self.patterns = {frozenset(p): np.array(c, dtype=float) for p, c in state["patterns"]}
+        self.scale = {k: [float(v[0]), int(v[1])] for k, v in state["scale"].items()}
+        self._update_maximal()
