@@ -1,0 +1,212 @@
+"""Geometry the built-in autopilot plans on: the route as one resampled centre line.
+
+The simulator hands the autopilot its route as a tuple of highway-env lane objects. Calling
+``lane.position`` per query costs microseconds each, far too much inside a 50-µs control
+step, so :class:`RoutePath` samples the whole route once, at a uniform arc-length spacing,
+into flat numpy arrays (and Python lists for scalar look-ups). Every per-step question the
+autopilot asks — where is the point L metres ahead, which route point is nearest to these
+agents, how curved is the road ahead — is then an index computation or one small vectorized
+numpy expression. Also here: the two-arc parallel-parking path (pure geometry, no state).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+__all__ = ["RoutePath", "bicycle_steering", "parking_path", "pursuit_steering"]
+
+_ARC_SAMPLE_M = 1.0  # [m] sampling step for curved lanes before resampling (chord error ds²/8R)
+
+
+def bicycle_steering(curvature: float, length: float, max_steering: float) -> float:
+    """Front-wheel angle [rad] making highway-env's bicycle model drive a given curvature.
+
+    highway-env moves the vehicle *centre* along heading + beta with beta =
+    arctan(tan(delta)/2) and turns the heading at v sin(beta) / (length/2), so the centre's
+    path curvature is 2 sin(beta) / length [1/m]. Inverted here and clipped to
+    ``max_steering`` [rad].
+    """
+    sin_beta = max(-0.999, min(0.999, 0.5 * curvature * length))
+    beta = math.asin(sin_beta)
+    delta = math.atan(2.0 * math.tan(beta))
+    return max(-max_steering, min(max_steering, delta))
+
+
+def pursuit_steering(
+    dx: float, dy: float, heading: float, length: float, max_steering: float, forward: bool = True
+) -> float:
+    """Pure-pursuit front-wheel angle [rad] toward a target (dx, dy) [m] from the centre.
+
+    highway-env's centre moves along heading + beta, and beta is set by *this* command, so
+    the arc to the target must be tangent to heading + beta rather than to the heading: with
+    A the target's bearing from the heading and k = length / distance, sin(beta) =
+    k sin(A - beta), i.e. tan(beta) = k sin(A) / (1 + k cos(A)). (Using the previous step's
+    beta instead closes a loop of gain ~k through beta that oscillates at every step when the
+    look-ahead is shorter than the car.)
+    """
+    dist = math.hypot(dx, dy)
+    if dist < 1e-6:
+        return 0.0
+    k = length / dist
+    a = math.atan2(dy, dx) - heading
+    den = 1.0 + k * math.cos(a)
+    if den <= 1e-6:  # target behind: turn toward it as hard as allowed
+        return max_steering if math.sin(a) >= 0 else -max_steering
+    tan_beta = k * math.sin(a) / den
+    delta = math.atan(2.0 * tan_beta)
+    return max(-max_steering, min(max_steering, delta))
+
+
+def _is_straight(lane: Any) -> bool:
+    # Duck-typed: a straight lane exposes start/end and a constant heading. Checking the
+    # class by name keeps highway-env out of this module's imports.
+    return type(lane).__name__ == "StraightLane"
+
+
+class RoutePath:
+    """The route's centre line resampled every ``ds`` metres, extended straight at both ends.
+
+    Arc length ``S`` [m] is counted from the start of ``route[0]``; lane ``k`` of the route
+    starts at ``offsets[k]``, so a point at longitudinal ``s`` on lane ``k`` sits at
+    ``offsets[k] + s``. Arrays (all of one length): ``S``, ``x``, ``y`` [m], unit tangent
+    ``tx``, ``ty``, and ``curvature`` [1/m] (signed, left positive).
+    """
+
+    def __init__(self, route: Sequence[Any], ds: float = 1.0, extension: float = 150.0):
+        if not route:
+            raise ValueError("the autopilot needs a route with at least one lane")
+        self.ds = float(ds)
+        knots_s: list[np.ndarray] = []
+        knots_xy: list[np.ndarray] = []
+        offsets: list[float] = []
+        acc = 0.0
+        for lane in route:
+            length = float(lane.length)
+            offsets.append(acc)
+            n = 1 if _is_straight(lane) else max(2, int(math.ceil(length / _ARC_SAMPLE_M)))
+            ss = np.linspace(0.0, length, n + 1)
+            xy = np.array([lane.position(float(s), 0.0) for s in ss], dtype=float)
+            # Consecutive lanes share their junction point; drop the duplicate knot so the
+            # interpolation below sees strictly increasing arc length.
+            if knots_s:
+                ss, xy = ss[1:], xy[1:]
+            knots_s.append(acc + ss)
+            knots_xy.append(xy)
+            acc += length
+        self.offsets = tuple(offsets)
+        self.route_length = acc
+        ks = np.concatenate(knots_s)
+        kxy = np.concatenate(knots_xy)
+        # Straight extensions so look-ahead, prediction and projection never run off the
+        # route's ends (the ego keeps driving after its last lane, and may start behind it).
+        h0 = float(route[0].heading_at(0.0))
+        h1 = float(route[-1].heading_at(float(route[-1].length)))
+        pre = kxy[0] - extension * np.array([math.cos(h0), math.sin(h0)])
+        post = kxy[-1] + extension * np.array([math.cos(h1), math.sin(h1)])
+        ks = np.concatenate([[-extension], ks, [acc + extension]])
+        kxy = np.vstack([pre, kxy, post])
+        self.S0 = -extension
+        grid = np.arange(-extension, acc + extension + 0.5 * self.ds, self.ds)
+        self.S = grid
+        self.x = np.interp(grid, ks, kxy[:, 0])
+        self.y = np.interp(grid, ks, kxy[:, 1])
+        dx = np.gradient(self.x)
+        dy = np.gradient(self.y)
+        norm = np.hypot(dx, dy)
+        norm[norm == 0.0] = 1.0
+        self.tx = dx / norm
+        self.ty = dy / norm
+        heading = np.unwrap(np.arctan2(self.ty, self.tx))
+        curv = np.gradient(heading) / self.ds
+        # A 5-m moving average: the resampled polyline's kinks would otherwise show up as
+        # curvature spikes and spurious curve-speed limits.
+        k = max(1, int(round(5.0 / self.ds)))
+        self.curvature = np.convolve(curv, np.ones(k) / k, mode="same")
+        self.max_abs_curvature = float(np.max(np.abs(self.curvature)))
+        self.n = len(grid)
+        self._xl = self.x.tolist()
+        self._yl = self.y.tolist()
+        self._txl = self.tx.tolist()
+        self._tyl = self.ty.tolist()
+
+    # -- scalar look-ups (plain Python floats: numpy scalars are slow in scalar math) ------
+    def index(self, s: float) -> int:
+        """Index of the grid point at or just before arc length ``s`` [m] (clamped)."""
+        i = int((s - self.S0) / self.ds)
+        return 0 if i < 0 else (self.n - 2 if i > self.n - 2 else i)
+
+    def point(self, s: float) -> tuple[float, float]:
+        """Centre-line point (x, y) [m] at arc length ``s`` [m], linear between samples."""
+        i = self.index(s)
+        f = (s - self.S0) / self.ds - i
+        f = 0.0 if f < 0.0 else (1.0 if f > 1.0 else f)
+        xl, yl = self._xl, self._yl
+        return xl[i] + f * (xl[i + 1] - xl[i]), yl[i] + f * (yl[i + 1] - yl[i])
+
+    def tangent(self, s: float) -> tuple[float, float]:
+        """Unit tangent (cos, sin of the heading) at arc length ``s`` [m]."""
+        i = self.index(s)
+        return self._txl[i], self._tyl[i]
+
+    def window(self, s_from: float, s_to: float) -> slice:
+        """Slice of grid indices covering arc lengths [s_from, s_to] [m]."""
+        i0 = self.index(s_from)
+        i1 = min(self.n, self.index(s_to) + 2)
+        return slice(i0, i1)
+
+    def project(self, x: float, y: float) -> tuple[float, float]:
+        """Arc length and signed lateral offset [m] of a world point, over the whole path."""
+        d2 = (self.x - x) ** 2 + (self.y - y) ** 2
+        j = int(np.argmin(d2))
+        dx, dy = x - self._xl[j], y - self._yl[j]
+        tx, ty = self._txl[j], self._tyl[j]
+        return float(self.S[j]) + dx * tx + dy * ty, tx * dy - ty * dx
+
+
+def parking_path(
+    start_x: float,
+    lateral: float,
+    end_x: float,
+    radius: float,
+    step: float = 0.2,
+) -> np.ndarray:
+    """Reverse parking path in the slot frame, as points (x, y, heading) [m, m, rad].
+
+    Slot frame: origin on the slot's centre line, +x along the traffic direction, the
+    driving lane at +y (``lateral`` [m] > 0 from the slot's centre line). The car starts at
+    (``start_x``, ``lateral``) heading 0 and ends at (``end_x``, 0) heading 0, reversing all
+    the way: a straight part if the start is further forward than needed, then an arc of
+    ``radius`` [m] swinging the tail toward the kerb, then the mirrored counter-steer arc.
+    Two equal opposite arcs of turn angle phi shift the car by 2R(1 - cos phi) sideways over
+    2R sin phi lengthwise. When the start is too close for ``radius`` the arcs are tightened
+    to fit (the caller picks a start that makes this a small correction).
+    """
+    if lateral <= 0.0:
+        raise ValueError("parking_path expects the car on the +y side of the slot")
+    span = start_x - end_x
+    phi = math.acos(max(-1.0, 1.0 - lateral / (2.0 * radius)))
+    need = 2.0 * radius * math.sin(phi)
+    if span < need:
+        # Fit the arcs into the available length: tan(phi/2) = lateral / span.
+        phi = 2.0 * math.atan2(lateral, max(span, 1e-3))
+        radius = span / (2.0 * math.sin(phi))
+        need = span
+    pts: list[tuple[float, float, float]] = []
+    xa = end_x + need  # where the arcs begin
+    n_straight = max(1, int(math.ceil((start_x - xa) / step)))
+    for k in range(n_straight + 1):
+        pts.append((start_x - (start_x - xa) * k / n_straight, lateral, 0.0))
+    n_arc = max(4, int(math.ceil(radius * phi / step)))
+    c1x, c1y = xa, lateral - radius
+    for k in range(1, n_arc + 1):
+        a = math.pi / 2 + phi * k / n_arc
+        pts.append((c1x + radius * math.cos(a), c1y + radius * math.sin(a), a - math.pi / 2))
+    a1 = math.pi / 2 + phi
+    c2x, c2y = c1x + 2 * radius * math.cos(a1), c1y + 2 * radius * math.sin(a1)
+    for k in range(1, n_arc + 1):
+        g = 1.5 * math.pi + phi * (1 - k / n_arc)
+        pts.append((c2x + radius * math.cos(g), c2y + radius * math.sin(g), g - 1.5 * math.pi))
+    return np.array(pts)

@@ -1,0 +1,554 @@
+"""The built-in autopilot: the default "AV under test" that the example suite falsifies.
+
+It is meant to be a credible but imperfect driver, the kind of baseline stack an AV team
+would start from, so that falsification finds real corners rather than a strawman's or an
+oracle's. Per step it (1) follows its route with pure pursuit on the route's centre line,
+(2) controls speed with the Intelligent Driver Model toward the cruise speed, capped on
+curves by a lateral-acceleration limit, behind the nearest agent found on its path, (3) stops
+at stop lines (full stop, then goes once no conflict is predicted) and for a school bus with
+its stop arm out, (4) predicts every other agent at constant velocity over a finite horizon
+against its own path and yields when it could not clear a predicted conflict zone with a time
+margin, and (5) parallel parks with two reverse arcs when its observation carries a parking
+goal. Its weaknesses are deliberate and realistic: perception reports agents with a latency
+(and a new agent only once that latency has passed), braking builds up at a finite jerk,
+prediction is constant-velocity and blind beyond its horizon and sensor range, a conflict it
+can no longer stop for is driven through, and there is no right-of-way negotiation.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from pytest_avscenario.sim.drivers._geometry import (
+    RoutePath,
+    parking_path,
+    pursuit_steering,
+)
+
+__all__ = ["Autopilot", "AutopilotOptions"]
+
+_TWO_PI = 2.0 * math.pi
+
+
+def _wrap(angle: float) -> float:
+    """Angle wrapped to [-pi, pi) [rad]."""
+    return (angle + math.pi) % _TWO_PI - math.pi
+
+
+@dataclass(frozen=True)
+class AutopilotOptions:
+    """Tuning of the autopilot; every field can be passed to ``Autopilot(**options)``."""
+
+    cruise_speed: float | None = None  # [m/s] overrides observation.target_speed / speed_limit
+    max_accel: float = 2.0  # [m/s^2] IDM comfortable acceleration
+    comfort_decel: float = 3.5  # [m/s^2] IDM comfortable deceleration, stop-line approach
+    max_decel: float = 8.0  # [m/s^2] emergency braking limit
+    brake_jerk: float = 25.0  # [m/s^3] rate at which braking can build up (actuator lag)
+    time_headway: float = 1.5  # [s] IDM desired time gap
+    min_gap: float = 2.0  # [m] IDM bumper-to-bumper standstill gap
+    idm_delta: float = 4.0  # IDM acceleration exponent
+    lateral_accel: float = 2.5  # [m/s^2] curve speed limit
+    lookahead_time: float = 0.5  # [s] pure-pursuit look-ahead per unit of speed
+    min_lookahead: float = 4.0  # [m] pure-pursuit look-ahead at low speed
+    max_steering: float = 0.6  # [rad] front-wheel angle limit
+    horizon: float = 4.0  # [s] constant-velocity prediction horizon
+    sensor_range: float = 60.0  # [m] agents further away are not seen
+    latency: float = 0.2  # [s] perception latency: agents are seen as they were this long ago
+    gap_time: float = 1.0  # [s] time margin to go before / after a predicted crossing agent
+    lateral_margin: float = 0.4  # [m] clearance to vehicles in conflict prediction
+    pedestrian_margin: float = 1.0  # [m] clearance to pedestrians in conflict prediction
+    stop_margin: float = 1.0  # [m] front bumper stops this far before a line or conflict zone
+    stop_dwell: float = 0.5  # [s] standstill at a stop line before it may go
+    bus_distance: float = 6.0  # [m] stop this far from a school bus with its stop arm out
+    parking_speed: float = 1.0  # [m/s] speed of the parking manoeuvre
+    parking_clearance: float = 0.6  # [m] kept to the car behind the slot when reversing in
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None:
+                continue
+            if not isinstance(value, (int, float)) or isinstance(value, bool):
+                raise TypeError(f"Autopilot option {f.name}={value!r}: expected a number")
+            if value < 0:
+                raise ValueError(f"Autopilot option {f.name}={value!r}: must be >= 0")
+        for name in ("max_accel", "comfort_decel", "max_decel", "brake_jerk", "max_steering"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"Autopilot option {name} must be > 0")
+
+
+class _Perceived:
+    """One perception snapshot of the other agents as flat arrays (world frame)."""
+
+    __slots__ = ("n", "x", "y", "vx", "vy", "ch", "sh", "length", "width", "ped", "bus_arm")
+
+    def __init__(self, agents: tuple) -> None:
+        self.n = len(agents)
+        if not self.n:
+            return
+        rows = np.array(
+            [(a.x, a.y, a.vx, a.vy, a.heading, a.length, a.width) for a in agents], dtype=float
+        )
+        self.x, self.y, self.vx, self.vy = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3]
+        self.ch, self.sh = np.cos(rows[:, 4]), np.sin(rows[:, 4])
+        self.length, self.width = rows[:, 5], rows[:, 6]
+        self.ped = np.array([a.kind == "pedestrian" for a in agents])
+        self.bus_arm = [
+            i for i, a in enumerate(agents) if a.flags and a.flags.get("stop_arm")
+        ]
+
+
+_EMPTY = _Perceived(())
+
+
+class Autopilot:
+    """Route-following, IDM-based driver with conflict prediction and parallel parking.
+
+    ``Autopilot(**options)`` takes the fields of :class:`AutopilotOptions`;
+    ``act(observation) -> (acceleration [m/s^2], steering [rad])``. One instance drives one
+    case: it keeps internal state between steps (perception buffer, stop-line progress,
+    parking phase) and is deterministic (no randomness, no clock).
+    """
+
+    def __init__(self, **options: Any) -> None:
+        try:
+            self.options = AutopilotOptions(**options)
+        except TypeError as exc:
+            known = ", ".join(f.name for f in fields(AutopilotOptions))
+            raise TypeError(f"{exc}. Known Autopilot options: {known}") from None
+        self._path: RoutePath | None = None
+        self._route: tuple = ()
+        self._history: deque = deque()
+        self._accel = 0.0  # last commanded acceleration [m/s^2]
+        self._stop_state: dict[tuple[int, float], list] = {}
+        self._yielding: set[int] = set()
+        self._parker: _Parker | None = None
+        self._goal_key: Any = None
+        # Read by tests and debugging: why the last command was chosen.
+        self.last_reason = "cruise"
+
+    def __repr__(self) -> str:
+        changed = {k: v for k, v in asdict(self.options).items()
+                   if v != getattr(AutopilotOptions, k)}
+        return f"Autopilot({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
+
+    # -- perception -----------------------------------------------------------------------
+    def _perceive(self, obs: Any) -> _Perceived:
+        """The agents as seen ``latency`` seconds ago; nothing until a track is that old."""
+        delay = int(round(self.options.latency / obs.dt)) if obs.dt > 0 else 0
+        self._history.append(_Perceived(obs.agents) if obs.agents else _EMPTY)
+        while len(self._history) > delay + 1:
+            self._history.popleft()
+        if len(self._history) < delay + 1:
+            return _EMPTY
+        return self._history[0]
+
+    def _route_path(self, route: tuple) -> RoutePath | None:
+        if not route:
+            return None
+        if route is not self._route and route != self._route:
+            self._path = RoutePath(route)
+            self._route = route
+            self._stop_state.clear()
+        return self._path
+
+    # -- the step -------------------------------------------------------------------------
+    def act(self, obs: Any) -> tuple[float, float]:
+        """Acceleration [m/s^2] and front-wheel angle [rad] for one observation."""
+        o = self.options
+        ego = obs.ego
+        dt = obs.dt if obs.dt > 0 else 0.1
+        seen = self._perceive(obs)
+        if obs.goal is not None and obs.goal.get("kind") == "park":
+            key = (obs.goal.get("x"), obs.goal.get("y"), obs.goal.get("heading"))
+            if self._parker is None or key != self._goal_key:
+                self._parker = _Parker(obs.goal, o, ego, seen)
+                self._goal_key = key
+            if self._parker.phase != "approach":
+                accel, steer = self._parker.act(ego, dt)
+                self._accel = accel
+                self.last_reason = "park:" + self._parker.phase
+                return accel, steer
+
+        path = self._route_path(obs.route)
+        v = ego.speed
+        if path is None:  # no route: hold the heading and stop
+            self.last_reason = "no route"
+            return self._finish(-o.comfort_decel, 0.0, v, dt)
+        L, W = ego.length, ego.width
+        if 0 <= obs.route_index < len(path.offsets):
+            s_ego = path.offsets[obs.route_index] + obs.s
+        else:
+            s_ego = path.project(ego.x, ego.y)[0]
+
+        # Cruise speed, capped by the curvature ahead so the ego can brake into a curve.
+        v0 = o.cruise_speed if o.cruise_speed is not None else (
+            obs.target_speed if obs.target_speed is not None else obs.speed_limit)
+        if path.max_abs_curvature > 1e-3:
+            b = 0.7 * o.comfort_decel
+            w = path.window(s_ego, s_ego + v * v / (2 * b) + 20.0)
+            k = np.abs(path.curvature[w])
+            d = np.maximum(path.S[w] - s_ego, 0.0)
+            v_allow = np.sqrt(o.lateral_accel / np.maximum(k, 1e-6) + 2 * b * d)
+            v0 = min(v0, float(v_allow.min()))
+        accel = o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else -o.comfort_decel
+        reason = "cruise"
+
+        stops: list[tuple[float, str]] = []  # (front-bumper distance to stop [m], why)
+        crosswalks = []
+        for line in obs.stop_lines:
+            if not 0 <= line.route_index < len(path.offsets):
+                continue
+            s_line = path.offsets[line.route_index] + line.s
+            if line.kind == "crosswalk":
+                crosswalks.append(s_line)
+        if seen.n:
+            a_lead, agent_stops, clear = self._agents(seen, path, ego, s_ego, v, v0, crosswalks)
+            if a_lead < accel:
+                accel, reason = a_lead, "follow"
+            stops.extend(agent_stops)
+        else:
+            clear = True
+        stops.extend(self._stop_lines(obs, path, s_ego, L, v, dt, clear))
+        if self._parker is not None:  # approaching the parking start point
+            d = self._parker.approach_distance(ego)
+            if d is not None:
+                stops.append((d, "park:approach"))
+        for d, why in stops:
+            a_stop = self._stop_accel(d, v, dt)
+            if a_stop < accel:
+                accel, reason = a_stop, why
+        if self._parker is not None:
+            self._parker.maybe_start(ego)
+
+        # Pure pursuit on the centre line, from the vehicle centre along its velocity.
+        look = max(o.min_lookahead, o.lookahead_time * v)
+        px, py = path.point(s_ego + look)
+        dx, dy = px - ego.x, py - ego.y
+        steer = pursuit_steering(dx, dy, ego.heading, L, o.max_steering, forward=True)
+        self.last_reason = reason
+        return self._finish(accel, steer, v, dt)
+
+    def _finish(self, accel: float, steer: float, v: float, dt: float) -> tuple[float, float]:
+        """Actuator realism and limits: braking ramps at ``brake_jerk``, never reverses."""
+        o = self.options
+        if accel < self._accel:
+            floor = min(self._accel, 0.0) - o.brake_jerk * dt
+            accel = max(accel, floor)
+        accel = max(-o.max_decel, min(o.max_accel, accel))
+        if v >= 0.0:
+            # highway-env integrates speed without a floor: braking at standstill would
+            # drive backwards.
+            accel = max(accel, -v / dt)
+        self._accel = accel
+        return accel, steer
+
+    # -- longitudinal pieces ----------------------------------------------------------------
+    def _idm_interaction(self, v: float, v_lead: float, gap: float) -> float:
+        """IDM's braking term [m/s^2] behind a lead at bumper gap ``gap`` [m]."""
+        o = self.options
+        s_star = o.min_gap + max(
+            0.0, v * o.time_headway + v * (v - v_lead) / (2.0 * math.sqrt(o.max_accel * o.comfort_decel))
+        )
+        return -o.max_accel * (s_star / max(gap, 0.1)) ** 2
+
+    def _stop_accel(self, d: float, v: float, dt: float) -> float:
+        """Acceleration [m/s^2] to stop the front bumper ``d`` metres ahead.
+
+        Tracks the speed profile of a constant comfortable deceleration, which stops
+        crisply (IDM would creep toward a standing obstacle for seconds).
+        """
+        o = self.options
+        if d <= 0.0:
+            return -o.max_decel if v > 0.3 else -v / dt
+        if d < 0.3 and v < 0.5:
+            return -v / dt
+        v_des = math.sqrt(2.0 * 0.8 * o.comfort_decel * d)
+        if v < v_des:
+            return (v_des - v) / 0.4
+        # On or above the profile: the constant deceleration that ends exactly at d, which
+        # corrects itself each step (a lagging speed tracker would overrun the line).
+        return -v * v / (2.0 * d)
+
+    def _travel_time(self, d: float, v: float, v0: float) -> float:
+        """Time [s] to cover ``d`` [m] accelerating at max_accel from ``v`` up to ``v0``."""
+        if d <= 0.0:
+            return 0.0
+        a = self.options.max_accel
+        vmax = max(v0, v, 0.5)
+        d_acc = (vmax * vmax - v * v) / (2.0 * a)
+        if d <= d_acc:
+            return (-v + math.sqrt(v * v + 2.0 * a * d)) / a
+        return (vmax - v) / a + (d - d_acc) / vmax
+
+    def _stop_lines(self, obs, path, s_ego, L, v, dt, clear) -> list[tuple[float, str]]:
+        """Stop targets from the route's stop lines: full stop, then go when ``clear``."""
+        o = self.options
+        out = []
+        for line in obs.stop_lines:
+            if line.kind == "crosswalk" or not 0 <= line.route_index < len(path.offsets):
+                continue
+            d = path.offsets[line.route_index] + line.s - (s_ego + 0.5 * L)
+            if d < -L:
+                continue  # passed
+            key = (line.route_index, round(line.s, 2))
+            state = self._stop_state.setdefault(key, ["approach", 0.0])
+            if state[0] == "go":
+                continue
+            target = d - o.stop_margin
+            if state[0] == "approach":
+                if v < 0.1 and target < 1.5:
+                    state[1] += dt
+                    if state[1] >= o.stop_dwell:
+                        state[0] = "waiting"
+                else:
+                    state[1] = 0.0
+            if state[0] == "waiting" and clear:
+                state[0] = "go"
+                continue
+            out.append((target, "stop line"))
+        return out
+
+    # -- other agents -------------------------------------------------------------------------
+    def _agents(self, seen, path, ego, s_ego, v, v0, crosswalks):
+        """Lead following, conflict yielding and school buses, vectorized over agents.
+
+        Returns (IDM acceleration behind the lead [m/s^2] or +inf, stop targets, clear) where
+        ``clear`` says no conflict is predicted (a stop line may be left).
+        """
+        o = self.options
+        L, W = ego.length, ego.width
+        rng = o.sensor_range
+        near = (seen.x - ego.x) ** 2 + (seen.y - ego.y) ** 2 <= rng * rng
+        if not near.any():
+            return math.inf, [], True
+        idx = np.flatnonzero(near)
+        ax, ay, avx, avy = seen.x[idx], seen.y[idx], seen.vx[idx], seen.vy[idx]
+        ach, ash = seen.ch[idx], seen.sh[idx]
+        hl, hw = 0.5 * seen.length[idx], 0.5 * seen.width[idx]
+        w = path.window(s_ego - L, s_ego + rng)
+        qx, qy, qtx, qty, qs = path.x[w], path.y[w], path.tx[w], path.ty[w], path.S[w]
+        dx = ax[:, None] - qx
+        dy = ay[:, None] - qy
+        j = np.argmin(dx * dx + dy * dy, axis=1)
+        rows = np.arange(len(idx))
+        ex, ey, tx, ty = dx[rows, j], dy[rows, j], qtx[j], qty[j]
+        s_a = qs[j] + ex * tx + ey * ty
+        lat = tx * ey - ty * ex
+        v_par = avx * tx + avy * ty
+        v_perp = tx * avy - ty * avx
+        cos_rel = np.abs(ach * tx + ash * ty)
+        sin_rel = np.abs(ash * tx - ach * ty)
+        ext_par = hl * cos_rel + hw * sin_rel
+        ext_perp = hl * sin_rel + hw * cos_rel
+
+        # Lead: the nearest agent ahead overlapping the ego's corridor, whatever its lane.
+        in_corridor = (np.abs(lat) < 0.5 * W + ext_perp + 0.3) & (s_a > s_ego)
+        a_lead = math.inf
+        if in_corridor.any():
+            gaps = np.where(in_corridor, s_a - s_ego - 0.5 * L - ext_par, np.inf)
+            i = int(np.argmin(gaps))
+            a_lead = self._idm_interaction(v, max(float(v_par[i]), 0.0), float(gaps[i]))
+            a_lead += o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else 0.0
+
+        stops: list[tuple[float, str]] = []
+        for k in seen.bus_arm:
+            m = np.flatnonzero(idx == k)
+            if not m.size:
+                continue
+            i = int(m[0])
+            if abs(float(lat[i])) > 12.0 or s_a[i] + ext_par[i] < s_ego - 0.5 * L:
+                continue  # another road, or already behind us
+            d_bus = float(s_a[i] - ext_par[i]) - (s_ego + 0.5 * L)
+            # Stop bus_distance short of it; if that point is already overrun, stop now,
+            # unless even an emergency stop would not end before the bus itself.
+            if d_bus > 0.0 and v * v / (2.0 * d_bus) <= o.max_decel:
+                stops.append((max(d_bus - o.bus_distance, 0.0), "school bus"))
+
+        # Conflicts: everything not simply travelling along the path in our direction.
+        speed_a = np.hypot(avx, avy)
+        parallel = (np.abs(v_perp) < np.maximum(0.5, 0.15 * speed_a)) & (v_par >= -0.1)
+        cand = np.flatnonzero(~parallel)
+        clear = True
+        yielding = set()
+        if cand.size:
+            col0 = int(np.searchsorted(qs, s_ego - 0.5 * L))
+            cx, cy = dx[cand, col0:], dy[cand, col0:]
+            ctx, cty, cs = qtx[col0:], qty[col0:], qs[col0:]
+            cvx, cvy = avx[cand, None], avy[cand, None]
+            cc, cs_h = ach[cand, None], ash[cand, None]
+            # The agent's half-extent across our path at each path point, for its heading.
+            cos_r = np.abs(cc * ctx + cs_h * cty)
+            sin_r = np.abs(cs_h * ctx - cc * cty)
+            margin = np.where(seen.ped[idx[cand]], o.pedestrian_margin, o.lateral_margin)
+            radius = 0.5 * W + margin[:, None] + hl[cand, None] * sin_r + hw[cand, None] * cos_r
+            # |d0 + v t| <= R solved for t: the interval during which the agent, moving at
+            # constant velocity, covers each path point.
+            qa = cvx * cvx + cvy * cvy
+            qb = 2.0 * (cx * cvx + cy * cvy)
+            qc = cx * cx + cy * cy - radius * radius
+            disc = qb * qb - 4.0 * qa * qc
+            root = np.sqrt(np.maximum(disc, 0.0))
+            qa2 = 2.0 * np.maximum(qa, 1e-9)
+            t1 = (-qb - root) / qa2
+            t2 = (-qb + root) / qa2
+            hit = (disc >= 0.0) & (t2 >= 0.0) & (t1 <= o.horizon)
+            for r in np.flatnonzero(hit.any(axis=1)):
+                i = int(cand[r])
+                cols = np.flatnonzero(hit[r])
+                ep = float(ext_par[i])
+                s_in = float(cs[cols[0]]) - ep
+                s_out = float(cs[cols[-1]]) + ep
+                ta_in = max(0.0, float(t1[r, cols].min()))
+                ta_out = float(t2[r, cols].max())
+                d_in = s_in - (s_ego + 0.5 * L)
+                if d_in <= 0.0:
+                    continue  # already inside the zone: committed, drive through
+                te_in = self._travel_time(d_in, v, v0)
+                te_out = self._travel_time(s_out - (s_ego - 0.5 * L), v, v0)
+                gap = o.gap_time + (0.5 if seen.ped[idx[i]] else 0.0)
+                if ta_out + gap <= te_in:
+                    continue  # it will be gone before we get there
+                agent_id = int(idx[i])
+                if te_out + gap * (2.0 if agent_id in self._yielding else 1.0) <= ta_in:
+                    continue  # we clear the zone well before it arrives
+                clear = False
+                d_stop = d_in - o.stop_margin
+                if seen.ped[idx[i]]:
+                    # Yield to pedestrians at the crosswalk line rather than at them.
+                    ahead = [c - (s_ego + 0.5 * L) for c in crosswalks
+                             if s_ego + 0.5 * L < c < s_in]
+                    if ahead:
+                        d_stop = min(ahead) - o.stop_margin
+                if v * v / (2.0 * max(d_stop, 0.05)) > o.max_decel:
+                    continue  # cannot stop before it any more: commit
+                yielding.add(agent_id)
+                stops.append((d_stop, "yield"))
+        self._yielding = yielding
+        return a_lead, stops, clear
+
+
+class _Parker:
+    """Parallel parking into a slot: approach, reverse on two arcs, pull forward, hold.
+
+    Works in the slot frame (origin at the goal, +x along the goal heading), mirrored so the
+    ego always comes from the +y side; steering is mirrored back on output.
+    """
+
+    def __init__(self, goal: dict, o: AutopilotOptions, ego: Any, seen: _Perceived) -> None:
+        self.o = o
+        self.gx, self.gy = float(goal["x"]), float(goal["y"])
+        self.gh = float(goal.get("heading", 0.0))
+        self.c, self.s = math.cos(self.gh), math.sin(self.gh)
+        _, ye, _ = self._frame(ego.x, ego.y, ego.heading, 1.0)
+        self.side = 1.0 if ye >= 0.0 else -1.0
+        self.lateral = abs(ye)
+        L = ego.length
+        kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
+        # Keep 15% of the steering range for feedback.
+        self.radius = 1.0 / (0.85 * kappa_max)
+        slot_len = goal.get("length")
+        self.end_x = 0.0
+        if slot_len is not None:
+            self.end_x = min(0.0, -0.5 * float(slot_len) + o.parking_clearance + 0.5 * L)
+        elif seen.n:
+            # The nearest parked agent behind the slot bounds how far back we may reverse.
+            best = None
+            for i in range(seen.n):
+                x, y, h = self._frame(float(seen.x[i]), float(seen.y[i]),
+                                      math.atan2(seen.sh[i], seen.ch[i]), self.side)
+                if abs(y) < 1.5 and -15.0 < x < 0.0:
+                    front = x + 0.5 * float(seen.length[i]) * abs(math.cos(h)) \
+                        + 0.5 * float(seen.width[i]) * abs(math.sin(h))
+                    best = front if best is None else max(best, front)
+            if best is not None:
+                self.end_x = min(0.0, max(-2.0, best + o.parking_clearance + 0.5 * L))
+        phi = math.acos(max(-1.0, 1.0 - self.lateral / (2.0 * self.radius)))
+        self.start_x = self.end_x + 2.0 * self.radius * math.sin(phi)
+        self.phase = "approach"
+        self._track: np.ndarray | None = None
+        self._arc: np.ndarray | None = None
+        self._k = 0
+        self._dir = -1.0
+
+    def _frame(self, x: float, y: float, h: float, side: float) -> tuple[float, float, float]:
+        dx, dy = x - self.gx, y - self.gy
+        return (dx * self.c + dy * self.s, side * (-dx * self.s + dy * self.c),
+                side * _wrap(h - self.gh))
+
+    def approach_distance(self, ego: Any) -> float | None:
+        """Centre distance [m] still to drive before the reverse manoeuvre may start."""
+        if self.phase != "approach":
+            return None
+        x, _, _ = self._frame(ego.x, ego.y, ego.heading, self.side)
+        d = self.start_x + 0.3 - x
+        # Only steer the approach stop once near the slot; before that, drive normally.
+        return d if d < 40.0 else None
+
+    def maybe_start(self, ego: Any) -> None:
+        x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
+        if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.7 \
+                and x < self.start_x + 30.0:
+            self._begin(parking_path(max(x, self.start_x), y, self.end_x, self.radius), -1.0)
+            self.phase = "reverse"
+
+    def _begin(self, pts: np.ndarray, direction: float) -> None:
+        self._track = pts
+        seg = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
+        self._arc = np.concatenate([[0.0], np.cumsum(seg)])
+        self._k = 0
+        self._dir = direction
+
+    def act(self, ego: Any, dt: float) -> tuple[float, float]:
+        o = self.o
+        v = ego.speed
+        if self.phase == "done":
+            return (-v / dt if abs(v) > 1e-9 else 0.0), 0.0
+        x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
+        pts, arc = self._track, self._arc
+        # Progress: nearest point a little around the last one (the path may loop close).
+        k0, k1 = self._k, min(len(pts), self._k + 30)
+        d2 = (pts[k0:k1, 0] - x) ** 2 + (pts[k0:k1, 1] - y) ** 2
+        self._k = k = k0 + int(np.argmin(d2))
+        # Longitudinal: remaining distance along the path, projected past the last point.
+        ex, ey = pts[-1, 0], pts[-1, 1]
+        eh = pts[-1, 2]
+        along_end = (ex - x) * math.cos(eh) + (ey - y) * math.sin(eh)
+        rem = max(0.0, arc[-1] - arc[k]) if k < len(pts) - 1 else 0.0
+        if k >= len(pts) - 3:
+            rem = max(0.0, self._dir * along_end)
+        if rem < 0.05 and abs(v) < 0.05:
+            if self.phase == "reverse" and self.end_x < -0.3:
+                fwd = np.array([[self.end_x + (-self.end_x) * i / 10.0, 0.0, 0.0]
+                                for i in range(11)])
+                fwd[0, 0], fwd[0, 1] = x, y
+                self._begin(fwd, 1.0)
+                self.phase = "forward"
+            else:
+                self.phase = "done"
+            return -v / dt, 0.0
+        v_des = self._dir * min(o.parking_speed, math.sqrt(2.0 * 0.8 * max(rem, 0.0)))
+        accel = max(-2.0, min(2.0, (v_des - v) / 0.5))
+        if rem < 0.05:
+            accel = -v / dt
+        # Lateral: the planned curvature fed forward, plus feedback on the lateral and heading
+        # errors. Curvature is of the path as travelled (dh/ds along the motion); reversing,
+        # highway-env's centre turns at -2 sin(beta)/L per metre, hence the sign flip. The
+        # gains (k_y < k_h / (L/2)) keep the reverse loop stable: in reverse the slip angle
+        # pushes the lateral error the wrong way first.
+        kk = min(k, len(pts) - 2)
+        seg = max(arc[kk + 1] - arc[kk], 1e-6)
+        kappa_ref = _wrap(pts[kk + 1, 2] - pts[kk, 2]) / seg
+        th, ph = pts[kk, 2] + (0.0 if self._dir > 0 else math.pi), pts[kk, 2]
+        e_y = -(x - pts[kk, 0]) * math.sin(th) + (y - pts[kk, 1]) * math.cos(th)
+        e_h = _wrap(h - ph)
+        kappa = kappa_ref - 0.3 * e_y - 1.5 * e_h
+        sin_beta = max(-0.99, min(0.99, self._dir * 0.5 * ego.length * kappa))
+        steer = math.atan(2.0 * math.tan(math.asin(sin_beta)))
+        steer = max(-o.max_steering, min(o.max_steering, steer))
+        return accel, self.side * steer
