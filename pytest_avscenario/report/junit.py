@@ -1,0 +1,158 @@
+"""Scenario results in JUnit XML, the format every CI server reads.
+
+Two levels, both as ``<property name=… value=…>`` elements:
+
+* per case (one ``<testcase>`` per simulated case): :func:`case_properties` turns an
+  error-table row into ``avs.params``, ``avs.rho.<metric>``, ``avs.verdict`` … pairs. The
+  plugin appends them to ``item.user_properties`` during the run; pytest's own JUnit writer
+  puts them in the test case's ``<properties>`` in every ``junit_family``, without the
+  warning ``record_property`` gives under xunit2, and xdist carries them from the workers.
+* per suite (the run): seed, versions and the paper's per-test numbers from
+  :func:`.summary.suite_properties`. ``record_testsuite_property`` is lost under xdist (its
+  writes happen on workers, which write no XML), so they are added on the controller after
+  all reports are in: either through pytest's ``LogXML.add_global_property`` before pytest
+  writes the file (:func:`add_suite_properties_to_logxml`), or by rewriting the written file
+  atomically (:func:`add_suite_properties`), which needs no private pytest API.
+
+junit_family: we keep pytest's default ``xunit2``, the flavour of the Jenkins xunit
+plugin's ``junit-10.xsd`` that junitparser's ``xunit2`` module models. ``xunit1`` adds
+``file``/``line`` attributes that schema rejects and buys nothing for properties. One caveat
+holds for every family: the strict ``junit-10.xsd`` has no ``<properties>`` inside
+``<testcase>`` (pytest's docs warn that per-test properties "break schema verification");
+the Jenkins JUnit plugin, GitLab and junitparser read them all the same. Suite-level
+properties are valid under the strict schema. Nothing here imports pytest.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import xml.etree.ElementTree as ET
+from typing import Any, Iterable, Mapping
+
+from .table import atomic_write_bytes, normalize_row, _jsonable
+
+__all__ = [
+    "case_properties",
+    "add_suite_properties",
+    "add_suite_properties_to_logxml",
+    "read_properties",
+    "xml_safe",
+]
+
+# XML 1.0 forbids most control characters even when escaped; pytest shows them as "#xNN"
+# and so do we, so a stray byte in a parameter value cannot make the file unreadable.
+_ILLEGAL_XML = re.compile("[^\u0009\u000a\u000d\u0020-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def xml_safe(value: Any) -> str:
+    """``str(value)`` with characters XML cannot hold replaced by ``#xNN``."""
+    return _ILLEGAL_XML.sub(lambda m: f"#x{ord(m.group()):02X}", str(value))
+
+
+def _num(value: float | None) -> str:
+    if value is None:
+        return ""
+    x = float(value)
+    if math.isnan(x):
+        return "nan"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return repr(x)
+
+
+def case_properties(
+    row: Mapping[str, Any],
+    *,
+    minimized: Mapping[str, Any] | None = None,
+    shrink_sims: int | None = None,
+) -> list[tuple[str, str]]:
+    """The ``(name, value)`` properties of one case, for ``item.user_properties``.
+
+    ``avs.sampler``, ``avs.index``, ``avs.seed``, ``avs.origin``, ``avs.params`` (JSON,
+    keys in declaration order), ``avs.rho.<metric>`` (``repr`` of the float, ``inf`` /
+    ``-inf``), ``avs.verdict``, ``avs.sim_time_s``; for a shrunk counterexample also
+    ``avs.minimized`` (JSON of the minimal parameters) and ``avs.shrink_sims`` (simulations
+    the shrinking spent); ``avs.error`` when the simulation raised.
+    """
+    r = normalize_row(row)
+    props = [
+        ("avs.sampler", r["sampler"]),
+        ("avs.index", str(r["index"])),
+        ("avs.seed", "" if r["seed"] is None else str(r["seed"])),
+        ("avs.origin", r["origin"]),
+        ("avs.params", json.dumps(_jsonable(r["params"]), ensure_ascii=False)),
+    ]
+    props += [(f"avs.rho.{m}", _num(v)) for m, v in r["rho"].items()]
+    props += [("avs.verdict", r["verdict"]), ("avs.sim_time_s", f"{r['sim_time_s']:.4f}")]
+    if minimized is not None:
+        props.append(("avs.minimized", json.dumps(_jsonable(dict(minimized)), ensure_ascii=False)))
+    if shrink_sims is not None:
+        props.append(("avs.shrink_sims", str(int(shrink_sims))))
+    if r["error"]:
+        props.append(("avs.error", r["error"]))
+    return [(name, xml_safe(value)) for name, value in props]
+
+
+def add_suite_properties_to_logxml(logxml: Any, props: Mapping[str, Any]) -> None:
+    """Add suite properties through pytest's JUnit writer before it writes the file.
+
+    ``logxml`` is ``config.stash.get(_pytest.junitxml.xml_key, None)`` on the controller
+    (None when ``--junitxml`` is not given, or on an xdist worker: then nothing to do). Call
+    it from a ``pytest_sessionfinish`` hook marked ``tryfirst=True``: pytest's writer is a
+    plain ``pytest_sessionfinish`` of a plugin registered at configure time, so ``tryfirst``
+    runs ours before it writes. Existing properties of the same name are replaced.
+    """
+    if logxml is None:
+        return
+    names = set(props)
+    kept = [(n, v) for n, v in getattr(logxml, "global_properties", []) if n not in names]
+    logxml.global_properties[:] = kept
+    for name, value in props.items():
+        logxml.add_global_property(str(name), xml_safe(value))
+
+
+def add_suite_properties(path: str | os.PathLike, props: Mapping[str, Any]) -> None:
+    """Add ``props`` to every ``<testsuite>`` of an already written JUnit XML file.
+
+    For use on the controller after pytest wrote the file: a ``pytest_sessionfinish`` hook
+    marked ``trylast=True``, or ``pytest_unconfigure``. Properties of the same name are
+    replaced (calling twice is harmless); the ``<properties>`` element goes first in the
+    suite, where pytest and Ant put it. The file is rewritten atomically.
+    """
+    tree = ET.parse(os.fspath(path))
+    root = tree.getroot()
+    suites = [root] if root.tag == "testsuite" else root.findall("testsuite")
+    if not suites:
+        raise ValueError(f"{path}: no <testsuite> element; is this a JUnit XML file?")
+    for suite in suites:
+        node = suite.find("properties")
+        if node is None:
+            node = ET.Element("properties")
+            suite.insert(0, node)
+        for prop in list(node):
+            if prop.get("name") in props:
+                node.remove(prop)
+        for name, value in props.items():
+            ET.SubElement(node, "property", name=xml_safe(name), value=xml_safe(value))
+    data = ET.tostring(root, encoding="utf-8", xml_declaration=True)
+    atomic_write_bytes(path, data)
+
+
+def read_properties(path: str | os.PathLike) -> dict[str, Any]:
+    """Suite and per-case properties of a JUnit file, for tests and tools.
+
+    ``{"suite": {name: value}, "cases": {"<classname>::<name>": [(name, value), …]}}``.
+    """
+    root = ET.parse(os.fspath(path)).getroot()
+    suites: Iterable[ET.Element] = [root] if root.tag == "testsuite" else root.iter("testsuite")
+    out: dict[str, Any] = {"suite": {}, "cases": {}}
+    for suite in suites:
+        for prop in suite.findall("properties/property"):
+            out["suite"][prop.get("name")] = prop.get("value")
+        for case in suite.findall("testcase"):
+            key = f"{case.get('classname')}::{case.get('name')}"
+            out["cases"][key] = [(p.get("name"), p.get("value")) for p in case.findall("properties/property")]
+    return out
