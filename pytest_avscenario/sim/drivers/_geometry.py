@@ -157,6 +157,29 @@ class RoutePath:
         i1 = min(self.n, self.index(s_to) + 2)
         return slice(i0, i1)
 
+    def project_near(self, x: float, y: float, s_guess: float) -> tuple[float, float, float, float]:
+        """Arc length, lateral offset [m] and unit tangent of the route point nearest (x, y).
+
+        Local search from ``s_guess`` [m]: repeatedly slides along the tangent by the
+        point's along-track offset (exact on straight parts, a few steps on curves). Far
+        from the route on a tight curve it may settle on a local nearest point — good enough
+        to tell whether an agent is on our path.
+        """
+        s = s_guess
+        xl, yl, txl, tyl = self._xl, self._yl, self._txl, self._tyl
+        for _ in range(4):
+            i = self.index(s)
+            f = (s - self.S0) / self.ds - i
+            f = 0.0 if f < 0.0 else (1.0 if f > 1.0 else f)
+            qx = xl[i] + f * (xl[i + 1] - xl[i])
+            qy = yl[i] + f * (yl[i + 1] - yl[i])
+            tx, ty = txl[i], tyl[i]
+            along = (x - qx) * tx + (y - qy) * ty
+            s += along
+            if -0.05 < along < 0.05:
+                break
+        return s, tx * (y - qy) - ty * (x - qx), tx, ty
+
     def project(self, x: float, y: float) -> tuple[float, float]:
         """Arc length and signed lateral offset [m] of a world point, over the whole path."""
         d2 = (self.x - x) ** 2 + (self.y - y) ** 2

@@ -82,25 +82,32 @@ class AutopilotOptions:
                 raise ValueError(f"Autopilot option {name} must be > 0")
 
 
-class _Perceived:
-    """One perception snapshot of the other agents as flat arrays (world frame)."""
+class _Seen:
+    """One perceived agent (world frame), reduced to what the planner reads."""
 
-    __slots__ = ("n", "x", "y", "vx", "vy", "ch", "sh", "length", "width", "ped", "bus_arm")
+    __slots__ = ("x", "y", "vx", "vy", "c", "s", "hl", "hw", "ped", "arm", "name")
+
+    def __init__(self, a: Any) -> None:
+        self.x, self.y, self.vx, self.vy = float(a.x), float(a.y), float(a.vx), float(a.vy)
+        self.c, self.s = math.cos(a.heading), math.sin(a.heading)
+        self.hl, self.hw = 0.5 * float(a.length), 0.5 * float(a.width)
+        self.ped = a.kind == "pedestrian"
+        self.arm = bool(a.flags and a.flags.get("stop_arm"))
+        self.name = a.name
+
+
+class _Perceived:
+    """One perception snapshot of the other agents.
+
+    Plain Python per agent: with the few agents of a scenario, scalar math beats numpy's
+    per-call overhead; arrays are built only for the conflict prediction.
+    """
+
+    __slots__ = ("agents", "n")
 
     def __init__(self, agents: tuple) -> None:
-        self.n = len(agents)
-        if not self.n:
-            return
-        rows = np.array(
-            [(a.x, a.y, a.vx, a.vy, a.heading, a.length, a.width) for a in agents], dtype=float
-        )
-        self.x, self.y, self.vx, self.vy = rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3]
-        self.ch, self.sh = np.cos(rows[:, 4]), np.sin(rows[:, 4])
-        self.length, self.width = rows[:, 5], rows[:, 6]
-        self.ped = np.array([a.kind == "pedestrian" for a in agents])
-        self.bus_arm = [
-            i for i, a in enumerate(agents) if a.flags and a.flags.get("stop_arm")
-        ]
+        self.agents = tuple(_Seen(a) for a in agents)
+        self.n = len(self.agents)
 
 
 _EMPTY = _Perceived(())
@@ -316,121 +323,123 @@ class Autopilot:
 
     # -- other agents -------------------------------------------------------------------------
     def _agents(self, seen, path, ego, s_ego, v, v0, crosswalks):
-        """Lead following, conflict yielding and school buses, vectorized over agents.
+        """Lead following, school buses and conflict yielding.
 
         Returns (IDM acceleration behind the lead [m/s^2] or +inf, stop targets, clear) where
-        ``clear`` says no conflict is predicted (a stop line may be left).
+        ``clear`` says no conflict is predicted (a stop line may be left). Each agent is first
+        placed on the route (arc length, lateral offset, velocity along / across it); agents
+        not simply travelling along the route in our direction then go through a constant-
+        velocity prediction vectorized over (agents x route points).
         """
         o = self.options
         L, W = ego.length, ego.width
-        rng = o.sensor_range
-        near = (seen.x - ego.x) ** 2 + (seen.y - ego.y) ** 2 <= rng * rng
-        if not near.any():
-            return math.inf, [], True
-        idx = np.flatnonzero(near)
-        ax, ay, avx, avy = seen.x[idx], seen.y[idx], seen.vx[idx], seen.vy[idx]
-        ach, ash = seen.ch[idx], seen.sh[idx]
-        hl, hw = 0.5 * seen.length[idx], 0.5 * seen.width[idx]
-        w = path.window(s_ego - L, s_ego + rng)
-        qx, qy, qtx, qty, qs = path.x[w], path.y[w], path.tx[w], path.ty[w], path.S[w]
-        dx = ax[:, None] - qx
-        dy = ay[:, None] - qy
-        j = np.argmin(dx * dx + dy * dy, axis=1)
-        rows = np.arange(len(idx))
-        ex, ey, tx, ty = dx[rows, j], dy[rows, j], qtx[j], qty[j]
-        s_a = qs[j] + ex * tx + ey * ty
-        lat = tx * ey - ty * ex
-        v_par = avx * tx + avy * ty
-        v_perp = tx * avy - ty * avx
-        cos_rel = np.abs(ach * tx + ash * ty)
-        sin_rel = np.abs(ash * tx - ach * ty)
-        ext_par = hl * cos_rel + hw * sin_rel
-        ext_perp = hl * sin_rel + hw * cos_rel
-
-        # Lead: the nearest agent ahead overlapping the ego's corridor, whatever its lane.
-        in_corridor = (np.abs(lat) < 0.5 * W + ext_perp + 0.3) & (s_a > s_ego)
+        rng2 = o.sensor_range * o.sensor_range
+        etx, ety = path.tangent(s_ego)
         a_lead = math.inf
-        if in_corridor.any():
-            gaps = np.where(in_corridor, s_a - s_ego - 0.5 * L - ext_par, np.inf)
-            i = int(np.argmin(gaps))
-            a_lead = self._idm_interaction(v, max(float(v_par[i]), 0.0), float(gaps[i]))
-            a_lead += o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else 0.0
-
+        lead_gap = math.inf
+        lead_v = 0.0
         stops: list[tuple[float, str]] = []
-        for k in seen.bus_arm:
-            m = np.flatnonzero(idx == k)
-            if not m.size:
-                continue
-            i = int(m[0])
-            if abs(float(lat[i])) > 12.0 or s_a[i] + ext_par[i] < s_ego - 0.5 * L:
-                continue  # another road, or already behind us
-            d_bus = float(s_a[i] - ext_par[i]) - (s_ego + 0.5 * L)
-            # Stop bus_distance short of it; if that point is already overrun, stop now,
-            # unless even an emergency stop would not end before the bus itself.
-            if d_bus > 0.0 and v * v / (2.0 * d_bus) <= o.max_decel:
-                stops.append((max(d_bus - o.bus_distance, 0.0), "school bus"))
-
-        # Conflicts: everything not simply travelling along the path in our direction.
-        speed_a = np.hypot(avx, avy)
-        parallel = (np.abs(v_perp) < np.maximum(0.5, 0.15 * speed_a)) & (v_par >= -0.1)
-        cand = np.flatnonzero(~parallel)
+        cand = []
+        for a in seen.agents:
+            dx, dy = a.x - ego.x, a.y - ego.y
+            if dx * dx + dy * dy > rng2:
+                continue  # beyond sensor range
+            s_a, lat, tx, ty = path.project_near(a.x, a.y, s_ego + dx * etx + dy * ety)
+            v_par = a.vx * tx + a.vy * ty
+            v_perp = tx * a.vy - ty * a.vx
+            cos_rel = abs(a.c * tx + a.s * ty)
+            sin_rel = abs(a.s * tx - a.c * ty)
+            ext_par = a.hl * cos_rel + a.hw * sin_rel
+            ext_perp = a.hl * sin_rel + a.hw * cos_rel
+            # Lead: the nearest agent ahead overlapping the ego's corridor, whatever its lane.
+            if s_a > s_ego and abs(lat) < 0.5 * W + ext_perp + 0.3:
+                gap = s_a - s_ego - 0.5 * L - ext_par
+                if gap < lead_gap:
+                    lead_gap, lead_v = gap, max(v_par, 0.0)
+            if a.arm and abs(lat) < 12.0 and s_a + ext_par > s_ego - 0.5 * L:
+                d_bus = s_a - ext_par - (s_ego + 0.5 * L)
+                # Stop bus_distance short of it; if that point is already overrun, stop now,
+                # unless even an emergency stop would not end before the bus itself.
+                if d_bus > 0.0 and v * v / (2.0 * d_bus) <= o.max_decel:
+                    stops.append((max(d_bus - o.bus_distance, 0.0), "school bus"))
+            speed_a = math.hypot(a.vx, a.vy)
+            if abs(v_perp) < max(0.5, 0.15 * speed_a) and v_par >= -0.1:
+                continue  # travels along the route our way, or stands: the lead logic's job
+            cand.append((a, ext_par))
+        if lead_gap < math.inf:
+            a_lead = self._idm_interaction(v, lead_v, lead_gap)
+            a_lead += o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else 0.0
         clear = True
         yielding = set()
-        if cand.size:
-            col0 = int(np.searchsorted(qs, s_ego - 0.5 * L))
-            cx, cy = dx[cand, col0:], dy[cand, col0:]
-            ctx, cty, cs = qtx[col0:], qty[col0:], qs[col0:]
-            cvx, cvy = avx[cand, None], avy[cand, None]
-            cc, cs_h = ach[cand, None], ash[cand, None]
-            # The agent's half-extent across our path at each path point, for its heading.
-            cos_r = np.abs(cc * ctx + cs_h * cty)
-            sin_r = np.abs(cs_h * ctx - cc * cty)
-            margin = np.where(seen.ped[idx[cand]], o.pedestrian_margin, o.lateral_margin)
-            radius = 0.5 * W + margin[:, None] + hl[cand, None] * sin_r + hw[cand, None] * cos_r
-            # |d0 + v t| <= R solved for t: the interval during which the agent, moving at
-            # constant velocity, covers each path point.
-            qa = cvx * cvx + cvy * cvy
-            qb = 2.0 * (cx * cvx + cy * cvy)
-            qc = cx * cx + cy * cy - radius * radius
-            disc = qb * qb - 4.0 * qa * qc
-            root = np.sqrt(np.maximum(disc, 0.0))
-            qa2 = 2.0 * np.maximum(qa, 1e-9)
-            t1 = (-qb - root) / qa2
-            t2 = (-qb + root) / qa2
-            hit = (disc >= 0.0) & (t2 >= 0.0) & (t1 <= o.horizon)
-            for r in np.flatnonzero(hit.any(axis=1)):
-                i = int(cand[r])
-                cols = np.flatnonzero(hit[r])
-                ep = float(ext_par[i])
-                s_in = float(cs[cols[0]]) - ep
-                s_out = float(cs[cols[-1]]) + ep
-                ta_in = max(0.0, float(t1[r, cols].min()))
-                ta_out = float(t2[r, cols].max())
-                d_in = s_in - (s_ego + 0.5 * L)
-                if d_in <= 0.0:
-                    continue  # already inside the zone: committed, drive through
-                te_in = self._travel_time(d_in, v, v0)
-                te_out = self._travel_time(s_out - (s_ego - 0.5 * L), v, v0)
-                gap = o.gap_time + (0.5 if seen.ped[idx[i]] else 0.0)
-                if ta_out + gap <= te_in:
-                    continue  # it will be gone before we get there
-                agent_id = int(idx[i])
-                if te_out + gap * (2.0 if agent_id in self._yielding else 1.0) <= ta_in:
-                    continue  # we clear the zone well before it arrives
-                clear = False
-                d_stop = d_in - o.stop_margin
-                if seen.ped[idx[i]]:
-                    # Yield to pedestrians at the crosswalk line rather than at them.
-                    ahead = [c - (s_ego + 0.5 * L) for c in crosswalks
-                             if s_ego + 0.5 * L < c < s_in]
-                    if ahead:
-                        d_stop = min(ahead) - o.stop_margin
-                if v * v / (2.0 * max(d_stop, 0.05)) > o.max_decel:
-                    continue  # cannot stop before it any more: commit
-                yielding.add(agent_id)
-                stops.append((d_stop, "yield"))
+        if cand:
+            clear = self._conflicts(cand, path, s_ego, L, W, v, v0, crosswalks, stops, yielding)
         self._yielding = yielding
         return a_lead, stops, clear
+
+    def _conflicts(self, cand, path, s_ego, L, W, v, v0, crosswalks, stops, yielding) -> bool:
+        """Constant-velocity conflict prediction; appends yield stops, returns ``clear``.
+
+        For every (agent, route point ahead) pair, |d0 + v t| <= R is solved for t: the
+        interval during which the agent covers that route point, R being the ego's half
+        width plus the agent's half extent across the route there (for its heading) plus a
+        margin. The route points covered within the horizon form the agent's conflict zone
+        [s_in, s_out] and its occupancy window [ta_in, ta_out]; the ego yields unless it
+        would leave the zone ``gap_time`` before the agent comes, or reach it ``gap_time``
+        after the agent has gone (assuming it accelerates toward its cruise speed).
+        """
+        o = self.options
+        reach = max(20.0, v * o.horizon + 0.5 * o.max_accel * o.horizon ** 2 + L)
+        w = path.window(s_ego - 0.5 * L, s_ego + min(reach, o.sensor_range))
+        qx, qy, qtx, qty, qs = path.x[w], path.y[w], path.tx[w], path.ty[w], path.S[w]
+        rows = np.array([(a.x, a.y, a.vx, a.vy, a.c, a.s, a.hl, a.hw,
+                          o.pedestrian_margin if a.ped else o.lateral_margin)
+                         for a, _ in cand])
+        ax, ay, avx, avy, ac, as_, hl, hw, margin = (rows[:, k:k + 1] for k in range(9))
+        cx, cy = ax - qx, ay - qy
+        cos_r = np.abs(ac * qtx + as_ * qty)
+        sin_r = np.abs(as_ * qtx - ac * qty)
+        radius = 0.5 * W + margin + hl * sin_r + hw * cos_r
+        qa = avx * avx + avy * avy
+        qb = 2.0 * (cx * avx + cy * avy)
+        qc = cx * cx + cy * cy - radius * radius
+        disc = qb * qb - 4.0 * qa * qc
+        root = np.sqrt(np.maximum(disc, 0.0))
+        qa2 = 2.0 * np.maximum(qa, 1e-9)
+        t1 = (-qb - root) / qa2
+        t2 = (-qb + root) / qa2
+        hit = (disc >= 0.0) & (t2 >= 0.0) & (t1 <= o.horizon)
+        clear = True
+        front, rear = s_ego + 0.5 * L, s_ego - 0.5 * L
+        for r in np.flatnonzero(hit.any(axis=1)):
+            a, ep = cand[r]
+            cols = np.flatnonzero(hit[r])
+            s_in = float(qs[cols[0]]) - ep
+            s_out = float(qs[cols[-1]]) + ep
+            ta_in = max(0.0, float(t1[r, cols].min()))
+            ta_out = float(t2[r, cols].max())
+            d_in = s_in - front
+            if d_in <= 0.0:
+                continue  # already inside the zone: committed, drive through
+            te_in = self._travel_time(d_in, v, v0)
+            te_out = self._travel_time(s_out - rear, v, v0)
+            gap = o.gap_time + (0.5 if a.ped else 0.0)
+            if ta_out + gap <= te_in:
+                continue  # it will be gone before we get there
+            # Hysteresis: once yielding to an agent, going first needs twice the margin.
+            if te_out + gap * (2.0 if a.name in self._yielding else 1.0) <= ta_in:
+                continue  # we clear the zone well before it arrives
+            clear = False
+            d_stop = d_in - o.stop_margin
+            if a.ped:
+                # Yield to pedestrians at the crosswalk line rather than at them.
+                ahead = [c - front for c in crosswalks if front < c < s_in]
+                if ahead:
+                    d_stop = min(ahead) - o.stop_margin
+            if v * v / (2.0 * max(d_stop, 0.05)) > o.max_decel:
+                continue  # cannot stop before it any more: commit
+            yielding.add(a.name)
+            stops.append((d_stop, "yield"))
+        return clear
 
 
 class _Parker:
@@ -459,12 +468,10 @@ class _Parker:
         elif seen.n:
             # The nearest parked agent behind the slot bounds how far back we may reverse.
             best = None
-            for i in range(seen.n):
-                x, y, h = self._frame(float(seen.x[i]), float(seen.y[i]),
-                                      math.atan2(seen.sh[i], seen.ch[i]), self.side)
+            for a in seen.agents:
+                x, y, h = self._frame(a.x, a.y, math.atan2(a.s, a.c), self.side)
                 if abs(y) < 1.5 and -15.0 < x < 0.0:
-                    front = x + 0.5 * float(seen.length[i]) * abs(math.cos(h)) \
-                        + 0.5 * float(seen.width[i]) * abs(math.sin(h))
+                    front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
                     best = front if best is None else max(best, front)
             if best is not None:
                 self.end_x = min(0.0, max(-2.0, best + o.parking_clearance + 0.5 * L))
