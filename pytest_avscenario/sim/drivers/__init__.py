@@ -1,0 +1,157 @@
+"""Who drives the ego: turning a driver name or a user's policy object into one ``act`` call.
+
+:func:`resolve` accepts
+
+* ``"autopilot"`` — the built-in autopilot (``pytest_avscenario.sim.drivers.autopilot``,
+  imported only when asked for);
+* ``"idm"`` — highway-env's own ``IDMVehicle`` logic driving the ego: the world then builds
+  the ego *as* an IDM vehicle following its route (the observation is not used), isolated from
+  highway-env's mutable class constants;
+* ``"package.module:Name"`` — a class (instantiated without arguments) or object found there;
+* a user object: anything with ``act(observation)``, a stable-baselines3-style object with
+  ``predict(observation)`` returning ``(action, state)``, or a plain callable
+  ``policy(observation)``. The answer is ``(acceleration [m/s^2], steering [rad])``.
+
+:func:`action_pair` checks what a driver returned; the world turns its ``ValueError`` into a
+:class:`~pytest_avscenario.sim.SimError` naming the test and the agent.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+from typing import Any, Callable
+
+from ..errors import SimError
+
+__all__ = ["resolve", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT"]
+
+AUTOPILOT = "pytest_avscenario.sim.drivers.autopilot:Autopilot"
+
+
+class IDMDriver:
+    """Marker driver: the ego is highway-env's IDM vehicle itself (see module doc)."""
+
+    name = "idm"
+
+    def act(self, observation: Any) -> tuple[float, float]:  # pragma: no cover - never called
+        raise RuntimeError("the 'idm' ego drives itself; act() is not used")
+
+    def __repr__(self) -> str:
+        return "IDMDriver()"
+
+
+class PolicyDriver:
+    """A user policy adapted to ``act(observation) -> raw action``.
+
+    ``style`` is ``"act"``, ``"predict"`` or ``"callable"``; ``target`` the user's object.
+    """
+
+    def __init__(self, target: Any, style: str) -> None:
+        self.target = target
+        self.style = style
+        self.name = getattr(target, "__name__", None) or type(target).__name__
+        self._call: Callable[[Any], Any]
+        if style == "act":
+            self._call = target.act
+        elif style == "callable":
+            self._call = target
+        else:
+            predict = target.predict
+            try:
+                takes_det = "deterministic" in inspect.signature(predict).parameters
+            except (TypeError, ValueError):
+                takes_det = False
+            if takes_det:
+                self._call = lambda obs: _first(predict(obs, deterministic=True))
+            else:
+                self._call = lambda obs: _first(predict(obs))
+
+    def act(self, observation: Any) -> Any:
+        return self._call(observation)
+
+    def __repr__(self) -> str:
+        return f"PolicyDriver({self.name}, {self.style})"
+
+
+def _first(out: Any) -> Any:
+    # stable-baselines3 returns (action, recurrent_state).
+    if isinstance(out, tuple) and len(out) == 2 and not _is_number(out[0]):
+        return out[0]
+    return out
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def resolve(driver: Any) -> Any:
+    """The driver object for ``driver`` (name, import path or user policy); see module doc.
+
+    Raises :class:`SimError` for an unknown name or an object that cannot drive.
+    """
+    if driver is None:
+        driver = "autopilot"
+    if isinstance(driver, str):
+        name = driver.strip()
+        if name == "idm":
+            return IDMDriver()
+        if name == "autopilot":
+            name = AUTOPILOT
+        if ":" not in name:
+            raise SimError(
+                f"unknown driver {driver!r}: use 'autopilot', 'idm', 'package.module:Name', "
+                "or pass a policy object")
+        mod_name, _, attr = name.partition(":")
+        try:
+            obj = getattr(importlib.import_module(mod_name), attr)
+        except (ImportError, AttributeError) as exc:
+            raise SimError(f"driver {driver!r} cannot be imported ({exc}); "
+                           "use driver='idm' or pass a policy object") from exc
+        if inspect.isclass(obj):
+            obj = obj()
+        return resolve(obj) if not isinstance(obj, str) else resolve(obj)
+    if isinstance(driver, (IDMDriver, PolicyDriver)):
+        return driver
+    if callable(getattr(driver, "act", None)):
+        return PolicyDriver(driver, "act")
+    if callable(getattr(driver, "predict", None)):
+        return PolicyDriver(driver, "predict")
+    if callable(driver):
+        return PolicyDriver(driver, "callable")
+    raise SimError(
+        f"cannot drive with {driver!r} ({type(driver).__name__}): a driver is 'autopilot', "
+        "'idm', a callable policy(observation), or an object with act() or predict()")
+
+
+def action_pair(raw: Any) -> tuple[float, float]:
+    """``(acceleration, steering)`` as floats from a driver's answer; ``ValueError`` if malformed.
+
+    Accepts a 2-sequence or an array of 2 numbers (any shape with 2 elements, e.g. ``(1, 2)``
+    from a batched policy) and a mapping with ``acceleration`` and ``steering``.
+    """
+    if isinstance(raw, dict):
+        try:
+            vals = [raw["acceleration"], raw["steering"]]
+        except KeyError as exc:
+            raise ValueError(f"action dict lacks {exc.args[0]!r}: {raw!r}") from None
+    else:
+        try:
+            import numpy as np
+
+            arr = np.asarray(raw, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"expected (acceleration, steering), got {raw!r} ({type(raw).__name__})") from None
+        if arr.size != 2:
+            raise ValueError(
+                f"expected (acceleration, steering): 2 numbers, got shape {arr.shape}: {raw!r}")
+        vals = arr.reshape(2).tolist()
+    try:
+        a, d = float(vals[0]), float(vals[1])
+    except (TypeError, ValueError):
+        raise ValueError(f"expected two numbers, got {raw!r}") from None
+    if not (math.isfinite(a) and math.isfinite(d)):
+        raise ValueError(f"non-finite action (acceleration={a!r}, steering={d!r})")
+    return a, d

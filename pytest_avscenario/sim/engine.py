@@ -1,0 +1,428 @@
+"""Our highway-env subclasses: lanes, vehicles, pedestrians, the IDM ego, each with its own constants.
+
+This is the only module that imports highway-env at import time; the world imports it when it
+builds its first road, never at plugin load. Every class here sets the class constants it
+relies on itself, so code elsewhere in the process that rewrites highway-env's constants (e.g.
+``intersection-v0`` rewriting ``IDMVehicle.COMFORT_ACC_MAX``) cannot change a scenario's
+outcome. Each agent keeps its lane by tracking (see :mod:`.roads`) rather than
+highway-env's scan of every lane per step.
+
+Agents expose the few helpers behaviours drive with: ``follow()``, ``idm()``,
+``distance_along_route()``, ``change_lane()``, ``take_turn()``, ``curve_speed_cap()``.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import traceback
+from typing import Any
+
+import numpy as np
+from highway_env.road.lane import CircularLane, LineType, StraightLane
+from highway_env.vehicle.behavior import IDMVehicle
+from highway_env.vehicle.kinematics import Vehicle
+
+from . import control
+from .drivers import action_pair
+from .errors import DriverError, SimError
+
+__all__ = ["Straight", "Arc", "LineType", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian"]
+
+
+# -- lanes ----------------------------------------------------------------------------------------
+
+
+class Straight(StraightLane):
+    """A straight lane with scalar-math coordinate transforms (highway-env's use numpy per call)."""
+
+    DEFAULT_WIDTH = 3.5
+    VEHICLE_LENGTH = 5.0
+
+    def __init__(self, start, end, width: float = 3.5, line_types=None, speed_limit: float = 13.9,
+                 forbidden: bool = False) -> None:
+        super().__init__(start, end, width=width, line_types=line_types, speed_limit=speed_limit,
+                         forbidden=forbidden)
+        self._sx, self._sy = float(self.start[0]), float(self.start[1])
+        self._dx, self._dy = float(self.direction[0]), float(self.direction[1])
+        self.length = float(self.length)
+        self.heading = float(self.heading)
+        self.radius = math.inf
+
+    def position(self, longitudinal: float, lateral: float) -> np.ndarray:
+        return np.array([self._sx + longitudinal * self._dx - lateral * self._dy,
+                         self._sy + longitudinal * self._dy + lateral * self._dx])
+
+    def local_coordinates(self, position) -> tuple[float, float]:
+        ex = position[0] - self._sx
+        ey = position[1] - self._sy
+        return float(ex * self._dx + ey * self._dy), float(ey * self._dx - ex * self._dy)
+
+
+class Arc(CircularLane):
+    """A circular-arc lane (turn connector) with scalar-math coordinate transforms."""
+
+    DEFAULT_WIDTH = 3.5
+    VEHICLE_LENGTH = 5.0
+
+    def __init__(self, center, radius: float, start_phase: float, end_phase: float,
+                 clockwise: bool = True, width: float = 3.5, line_types=None,
+                 speed_limit: float = 13.9) -> None:
+        super().__init__(center, radius, start_phase, end_phase, clockwise=clockwise, width=width,
+                         line_types=line_types, speed_limit=speed_limit)
+        self._cx, self._cy = float(self.center[0]), float(self.center[1])
+        self.length = float(self.length)
+
+    def local_coordinates(self, position) -> tuple[float, float]:
+        dx = position[0] - self._cx
+        dy = position[1] - self._cy
+        phi = math.atan2(dy, dx)
+        phi = self.start_phase + ((phi - self.start_phase + math.pi) % (2 * math.pi) - math.pi)
+        r = math.hypot(dx, dy)
+        return (float(self.direction * (phi - self.start_phase) * self.radius),
+                float(self.direction * (self.radius - r)))
+
+
+# -- vehicles -------------------------------------------------------------------------------------
+
+
+class _Agent:
+    """Mixin: identity, lane tracking, route progress and the helpers behaviours use.
+
+    The world sets ``world``, ``name``, ``kind``, ``route`` (our :class:`~.places.Lane` objects)
+    and calls :meth:`_attach` once placed.
+    """
+
+    allow_reverse = False
+
+    def _attach(self, world: Any, name: str, kind: str, lane: Any, route: list, behavior: Any,
+                initial_speed: float, route_index: int = 0) -> None:
+        self.world = world
+        self.name = name
+        self.kind = kind
+        self.route = list(route)
+        self.route_index = route_index
+        self.route_s = 0.0
+        self.route_r = 0.0
+        self.behavior = behavior
+        self.initial_speed = float(initial_speed)
+        self.lane_index = lane.index if lane is not None else None
+        self.lane = lane.geometry if lane is not None else None
+        self.lane_r = math.nan
+        self.is_on_road = lane is not None
+        self.stop_arm = False
+        world._index.track(self)
+
+    def on_state_update(self) -> None:
+        # Replaces highway-env's per-step scan of every lane of the network.
+        if getattr(self, "world", None) is not None:
+            self.world._index.track(self)
+
+    def step(self, dt: float) -> None:
+        super().step(dt)
+        if self.speed < 0.0 and not self.allow_reverse:
+            # Brakes stop a car; they do not put it in reverse.
+            self.speed = 0.0
+
+    # -- helpers for behaviours -----------------------------------------------------------------
+    @property
+    def route_lane(self) -> Any:
+        return self.route[self.route_index]
+
+    def _route_point(self, ahead: float, r: float = 0.0) -> tuple[float, float]:
+        """World point ``ahead`` metres along the route from the agent, ``r`` metres left."""
+        i, s = self.route_index, self.route_s + ahead
+        while s > self.route[i].length and i + 1 < len(self.route):
+            s -= self.route[i].length
+            i += 1
+        p = self.route[i].geometry.position(s, r)
+        return float(p[0]), float(p[1])
+
+    def follow(self, r: float = 0.0, lookahead: float | None = None) -> float:
+        """Steering [rad] to follow the route ``r`` metres left of its centre line (pure pursuit)."""
+        ld = lookahead if lookahead is not None else max(6.0, 1.0 * self.speed)
+        tx, ty = self._route_point(ld, r)
+        return control.pure_pursuit_steering(float(self.position[0]), float(self.position[1]),
+                                             float(self.heading), tx, ty, self.LENGTH)
+
+    def leader(self, horizon: float = 60.0) -> tuple[float, float] | None:
+        """``(gap [m], speed along the route [m/s])`` of the nearest agent ahead in our path.
+
+        Sees agents on the next two route lanes whose footprint overlaps our path and that
+        drive roughly our way (within 60 degrees) or stand nearly still (pedestrians, parked or
+        stopped cars); crossing traffic is not seen, as in highway-env's IDM.
+        """
+        px, py = float(self.position[0]), float(self.position[1])
+        reach = horizon + self.route_lane.length
+        best: tuple[float, float] | None = None
+        lanes = [(self.route[self.route_index], -self.route_s)]
+        if self.route_index + 1 < len(self.route):
+            lanes.append((self.route[self.route_index + 1],
+                          self.route_lane.length - self.route_s))
+        for o in self.world._movers:
+            if o is self:
+                continue
+            ox, oy = float(o.position[0]), float(o.position[1])
+            if abs(ox - px) > reach or abs(oy - py) > reach:
+                continue
+            for lane, offset in lanes:
+                s_o, r_o = lane.geometry.local_coordinates(o.position)
+                if abs(r_o) > (self.WIDTH + o.WIDTH) / 2 + 0.2:
+                    continue
+                if s_o < -o.LENGTH / 2 or s_o > lane.length + o.LENGTH / 2:
+                    continue
+                ahead = s_o + offset
+                if ahead <= 0.0:
+                    break
+                rel = math.cos(o.heading - lane.geometry.heading_at(s_o))
+                if rel < 0.5 and o.speed > 0.5 and o.kind != "pedestrian":
+                    break
+                gap = ahead - (self.LENGTH + o.LENGTH) / 2
+                if gap <= horizon and (best is None or gap < best[0]):
+                    best = (gap, o.speed * max(rel, 0.0))
+                break
+        return best
+
+    def idm(self, target_speed: float, stop_in: float | None = None) -> float:
+        """IDM acceleration [m/s^2] toward ``target_speed`` [m/s] behind the leader.
+
+        ``stop_in`` [m] adds a virtual standing obstacle that far ahead (a stop line).
+        """
+        lead = self.leader()
+        gap, v_lead = (lead if lead is not None else (None, 0.0))
+        if stop_in is not None and (gap is None or stop_in < gap):
+            # Treat the line as a standing car whose rear is at the line.
+            gap, v_lead = stop_in + control.IDM.s0, 0.0
+        return control.idm_acceleration(float(self.speed), float(target_speed), gap, v_lead)
+
+    def distance_along_route(self, place: Any) -> float:
+        """Signed distance [m] along the route from the agent's centre to ``place``.
+
+        ``place`` is a spot or stop line (a lane and ``s``) or any object with a
+        ``position``; positive when it lies ahead.
+        """
+        lane = getattr(place, "lane", None)
+        if lane is not None:
+            idx = lane.index
+            for j in range(self.route_index, len(self.route)):
+                if self.route[j].index == idx:
+                    return (sum(self.route[k].length for k in range(self.route_index, j))
+                            + float(place.s) - self.route_s)
+            if self.lane_index == idx:
+                return float(place.s) - lane.local(self.position)[0]
+        # Anything else: distance projected on the heading.
+        p = np.asarray(getattr(place, "position", place), dtype=float)
+        d = p - self.position
+        return float(d[0] * math.cos(self.heading) + d[1] * math.sin(self.heading))
+
+    def distance_to_stop_line(self) -> float | None:
+        """Distance [m] along the route to the next stop line (negative once passed), or None."""
+        marks = self.world._index.stop_marks
+        ahead = -self.route_s
+        for j in range(self.route_index, len(self.route)):
+            lane = self.route[j]
+            for s, kind in marks.get(lane.index, ()):
+                if kind == "stop":
+                    return ahead + s
+            ahead += lane.length
+        return None
+
+    def curve_speed_cap(self, lateral_acc: float = 2.5, decel: float = 2.0) -> float:
+        """Highest speed [m/s] now so curves on the route ahead stay under ``lateral_acc``."""
+        cap = math.inf
+        ahead = -self.route_s
+        for j in range(self.route_index, min(self.route_index + 3, len(self.route))):
+            g = self.route[j].geometry
+            radius = getattr(g, "radius", math.inf)
+            if math.isfinite(radius):
+                v_c = control.curve_speed(radius, lateral_acc)
+                cap = min(cap, math.sqrt(v_c * v_c + 2.0 * decel * max(ahead, 0.0)))
+            ahead += self.route[j].length
+        return cap
+
+    def change_lane(self, to: Any) -> None:
+        """Re-plan the route onto lane ``to``: "left", "right", "out" (from parking), a number
+        or a Lane."""
+        target = self.world._index.resolve_lane_change(self, to)
+        self.route = self.world._index.continue_route(target)
+        self.route_index = 0
+        s, r = target.geometry.local_coordinates(self.position)
+        self.route_s, self.route_r = s, r
+
+    def take_turn(self, direction: str) -> None:
+        """Route through the intersection ahead taking ``direction``."""
+        route = self.world._turn_route(self, direction)
+        self.route = list(route.lanes)
+        self.route_index = 0
+        s, r = self.route[0].geometry.local_coordinates(self.position)
+        self.route_s, self.route_r = s, r
+
+
+class Actor(_Agent, Vehicle):
+    """A car driven by a behaviour (5 x 2 m)."""
+
+    LENGTH = 5.0
+    WIDTH = 2.0
+    MAX_SPEED = 40.0
+    MIN_SPEED = -10.0
+    HISTORY_SIZE = 0
+
+    def __init__(self, position, heading: float, speed: float) -> None:
+        # road=None skips highway-env's lane scan at construction; the world attaches the road.
+        super().__init__(None, position, heading, speed)
+
+    def act(self, action: Any = None) -> None:
+        if self.crashed or self.behavior is None:
+            return
+        try:
+            a, d = self.behavior.control(self, self.world)
+        except ValueError as exc:
+            if isinstance(exc, SimError):
+                raise
+            raise SimError(f"behaviour {self.behavior.name} failed at t={self.world.t:.2f} s: {exc}",
+                           test=self.world.name, agent=self.name) from exc
+        a = min(max(float(a), -control.MAX_DECELERATION), control.MAX_ACCELERATION)
+        d = min(max(float(d), -control.MAX_STEERING), control.MAX_STEERING)
+        self.action = {"acceleration": a, "steering": d}
+
+
+class Bus(Actor):
+    """A school bus (12 x 2.55 m) with a stop arm that behaviours set and the world records."""
+
+    LENGTH = 12.0
+    WIDTH = 2.55
+
+
+class DriverEgo(Actor):
+    """The ego under test: each step its driver answers (acceleration, steering) to an observation."""
+
+    def act(self, action: Any = None) -> None:
+        if self.crashed:
+            return
+        w = self.world
+        obs = w._observe(self)
+        try:
+            raw = self.driver.act(obs)
+        except Exception as exc:  # the driver is user code: report, never swallow
+            raise DriverError(
+                f"driver {self.driver!r} raised {type(exc).__name__}: {exc} at t={w.t:.2f} s",
+                test=w.name, agent=self.name, driver_traceback=traceback.format_exc()) from exc
+        try:
+            a, d = action_pair(raw)
+        except ValueError as exc:
+            raise SimError(f"driver {self.driver!r} returned a bad action at t={w.t:.2f} s: {exc}",
+                           test=w.name, agent=self.name) from None
+        a = min(max(a, -control.MAX_DECELERATION), control.MAX_ACCELERATION)
+        d = min(max(d, -control.MAX_STEERING), control.MAX_STEERING)
+        self.action = {"acceleration": a, "steering": d}
+
+
+class IDMEgo(_Agent, IDMVehicle):
+    """highway-env's IDM vehicle as the ego ("idm" driver), with its own copy of every constant.
+
+    Values are highway-env 1.12.1's defaults, frozen here so ``intersection-v0`` (which
+    rewrites ``IDMVehicle.COMFORT_ACC_MAX`` etc. process-wide) cannot change our runs. Lane
+    changes are off: the ego follows its route.
+    """
+
+    LENGTH = 5.0
+    WIDTH = 2.0
+    MAX_SPEED = 40.0
+    MIN_SPEED = -40.0
+    HISTORY_SIZE = 0
+    TAU_ACC = 0.6
+    TAU_HEADING = 0.2
+    TAU_LATERAL = 0.6
+    TAU_PURSUIT = 0.5 * TAU_HEADING
+    KP_A = 1 / TAU_ACC
+    KP_HEADING = 1 / TAU_HEADING
+    KP_LATERAL = 1 / TAU_LATERAL
+    MAX_STEERING_ANGLE = np.pi / 3
+    DELTA_SPEED = 5
+    ACC_MAX = 6.0
+    COMFORT_ACC_MAX = 3.0
+    COMFORT_ACC_MIN = -5.0
+    DISTANCE_WANTED = 5.0 + 5.0
+    TIME_WANTED = 1.5
+    DELTA = 4.0
+    DELTA_RANGE = [3.5, 4.5]
+    POLITENESS = 0.0
+    LANE_CHANGE_MIN_ACC_GAIN = 0.2
+    LANE_CHANGE_MAX_BRAKING_IMPOSED = 2.0
+    LANE_CHANGE_DELAY = 1.0
+
+    def __init__(self, road, position, heading: float, speed: float, target_lane_index,
+                 target_speed: float, route: list) -> None:
+        IDMVehicle.__init__(self, None, position, heading, speed,
+                            target_lane_index=target_lane_index, target_speed=target_speed,
+                            route=route, enable_lane_change=False, timer=0.0)
+        self.road = road
+        self.driver = None
+
+
+class Pedestrian(_Agent, Vehicle):
+    """A pedestrian (0.6 x 0.6 m) walking a polyline at the speed its behaviour asks for.
+
+    It lives in ``road.vehicles`` (highway-env never steps ``road.objects``), so it moves and
+    collides like a vehicle; it turns on the spot instead of following the bicycle model.
+    """
+
+    LENGTH = 0.6
+    WIDTH = 0.6
+    MAX_SPEED = 5.0
+    MIN_SPEED = 0.0
+    HISTORY_SIZE = 0
+    MAX_WALK = 3.0  # [m/s] a run
+
+    def __init__(self, path: np.ndarray, speed: float) -> None:
+        self._pts = [(float(x), float(y)) for x, y in path]
+        seg = np.hypot(*np.diff(np.asarray(path, dtype=float), axis=0).T)
+        self._cum = [0.0] + np.cumsum(seg).tolist()
+        self._seg_heading = [math.atan2(b[1] - a[1], b[0] - a[0])
+                             for a, b in zip(self._pts, self._pts[1:])]
+        self.path_length = self._cum[-1]
+        self.walked = 0.0
+        self._pause: float | None = None
+        super().__init__(None, self._pts[0], self._seg_heading[0], 0.0)
+        self.walk_speed = 0.0
+        self.initial_walk = float(speed)
+
+    def _place(self, u: float) -> None:
+        u = min(max(u, 0.0), self.path_length)
+        i = min(max(bisect.bisect_right(self._cum, u) - 1, 0), len(self._seg_heading) - 1)
+        seg = self._cum[i + 1] - self._cum[i]
+        f = (u - self._cum[i]) / seg if seg > 0 else 0.0
+        (x0, y0), (x1, y1) = self._pts[i], self._pts[i + 1]
+        self.position = np.array([x0 + f * (x1 - x0), y0 + f * (y1 - y0)])
+        self.heading = self._seg_heading[i]
+
+    def act(self, action: Any = None) -> None:
+        if self.crashed or self.behavior is None:
+            self.walk_speed = 0.0
+            return
+        v = float(self.behavior.control(self, self.world))
+        if not math.isfinite(v):
+            raise SimError(f"behaviour {self.behavior.name} asked for walking speed {v!r}",
+                           test=self.world.name, agent=self.name)
+        self.walk_speed = min(max(v, 0.0), self.MAX_WALK)
+
+    def step(self, dt: float) -> None:
+        if self.crashed:
+            self.speed = 0.0
+            self.impact = None
+        else:
+            v = self.walk_speed if self.walked < self.path_length else 0.0
+            self.walked = min(self.walked + v * dt, self.path_length)
+            self._place(self.walked)
+            self.speed = v
+            if self.impact is not None:
+                self.position = self.position + self.impact
+                self.crashed = True
+                self.impact = None
+        self.on_state_update()
+
+    def road_pause_at(self) -> float | None:
+        """Path length [m] at the middle of the first travel lane the path crosses, or None."""
+        if self._pause is None:
+            self._pause = self.world._index.first_lane_middle(self._pts, self._cum)
+        return self._pause if self._pause >= 0 else None

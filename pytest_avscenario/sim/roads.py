@@ -1,0 +1,606 @@
+"""The three road types a scenario builds, and the lane index that tracks agents on them.
+
+``StraightRoad`` (one-way, n lanes), ``TwoWayRoad`` (n lanes each way, kerb-side parking)
+and ``Intersection`` (four arms, one or two lanes per approach, through/left/right
+connectors, stop lines, crosswalks) each build a highway-env ``RoadNetwork`` from our own lane
+classes and hand out places (:mod:`.places`). World frame: x east, y north [m]; traffic keeps
+right. A straight or two-way road runs west to east from x = 0; an intersection is centred on
+the origin.
+
+:class:`LaneIndex` replaces highway-env's ``get_closest_lane_index`` — a scan of every lane
+of the network on every step of every vehicle — with tracking: an agent keeps its lane while
+it stays inside it and otherwise checks only that lane's precomputed neighbours and
+successors, falling back to a vectorized bounding-box query over all lanes only when it is
+off every candidate (pedestrians on a sidewalk, a car off the road).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Iterable
+
+import numpy as np
+
+from .errors import SimError
+from .places import Crosswalk, Lane, Path, Point, Route, StopLine
+
+__all__ = ["StraightRoad", "TwoWayRoad", "Intersection", "LaneIndex", "DIRECTIONS"]
+
+DIRECTIONS = ("north", "east", "south", "west")
+_UNIT = {"north": (0.0, 1.0), "east": (1.0, 0.0), "south": (0.0, -1.0), "west": (-1.0, 0.0)}
+_LEFT_OF = {"south": "west", "north": "east", "east": "south", "west": "north"}
+_RIGHT_OF = {"south": "east", "north": "west", "east": "north", "west": "south"}
+_OPPOSITE = {"north": "south", "south": "north", "east": "west", "west": "east"}
+SIDEWALK = 2.0  # [m] how far beyond the kerb crosswalk paths start
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class LaneIndex:
+    """All lanes of one road with their neighbourhoods, stop marks and a tracker for agents."""
+
+    def __init__(self, lanes: Iterable[Lane]) -> None:
+        self.lanes: dict[tuple, Lane] = {}
+        for lane in lanes:
+            self.lanes[lane.index] = lane
+        self.order = list(self.lanes.values())
+        self.code = {l.index: i for i, l in enumerate(self.order)}
+        self.stop_marks: dict[tuple, list[tuple[float, str]]] = {}
+        boxes = []
+        for lane in self.order:
+            g = lane.geometry
+            ss = np.linspace(0.0, g.length, max(2, int(g.length // 5) + 2))
+            half = g.width_at(0.0) / 2 + 0.05
+            pts = np.array([g.position(s, r) for s in ss for r in (-half, half)])
+            boxes.append([pts[:, 0].min(), pts[:, 1].min(), pts[:, 0].max(), pts[:, 1].max()])
+        self._box = np.asarray(boxes, dtype=float)
+        self.successors: dict[tuple, list[Lane]] = {}
+        by_from: dict[str, list[Lane]] = {}
+        by_to: dict[str, list[Lane]] = {}
+        for lane in self.order:
+            by_from.setdefault(lane.index[0], []).append(lane)
+            by_to.setdefault(lane.index[1], []).append(lane)
+        for lane in self.order:
+            self.successors[lane.index] = list(by_from.get(lane.index[1], []))
+        self.near: dict[tuple, tuple[Lane, ...]] = {}
+        for i, lane in enumerate(self.order):
+            near: list[Lane] = []
+            for other in (self.successors[lane.index] + by_from[lane.index[0]]
+                          + by_to[lane.index[1]] + self._parallel(i)):
+                if other is not lane and other not in near:
+                    near.append(other)
+            self.near[lane.index] = tuple(near)
+
+    def _parallel(self, i: int) -> list[Lane]:
+        """Straight lanes beside lane ``i`` (same or opposite heading, overlapping boxes)."""
+        me = self.order[i]
+        if math.isfinite(getattr(me.geometry, "radius", math.inf)):
+            return []
+        b = self._box
+        pad = 2.0 * me.width
+        hit = ((b[:, 0] <= b[i, 2] + pad) & (b[:, 2] >= b[i, 0] - pad)
+               & (b[:, 1] <= b[i, 3] + pad) & (b[:, 3] >= b[i, 1] - pad))
+        out = []
+        for j in np.flatnonzero(hit):
+            o = self.order[j]
+            if j == i or math.isfinite(getattr(o.geometry, "radius", math.inf)):
+                continue
+            if abs(math.sin(o.geometry.heading - me.geometry.heading)) < 0.05:
+                out.append(o)
+        return out
+
+    def add_stop(self, lane: Lane, s: float, kind: str) -> None:
+        marks = self.stop_marks.setdefault(lane.index, [])
+        marks.append((float(s), kind))
+        marks.sort()
+
+    # -- queries ---------------------------------------------------------------------------------
+    def containing(self, x: float, y: float) -> list[tuple[Lane, float, float]]:
+        """Lanes whose area contains the point, with its ``(s, r)`` on each."""
+        b = self._box
+        hit = np.flatnonzero((b[:, 0] <= x) & (x <= b[:, 2]) & (b[:, 1] <= y) & (y <= b[:, 3]))
+        out = []
+        for j in hit:
+            lane = self.order[j]
+            g = lane.geometry
+            s, r = g.local_coordinates((x, y))
+            if 0.0 <= s <= g.length and abs(r) <= g.width / 2:
+                out.append((lane, s, r))
+        return out
+
+    def on_road(self, x: float, y: float) -> bool:
+        return bool(self.containing(x, y))
+
+    def first_lane_middle(self, pts: list, cum: list) -> float:
+        """Arc length [m] along a polyline at the middle of the first travel lane it crosses.
+
+        -1 when it crosses none.
+        """
+        total = cum[-1]
+        first = None
+        for u in np.arange(0.0, total, 0.1):
+            i = min(int(np.searchsorted(cum, u, side="right")) - 1, len(pts) - 2)
+            seg = cum[i + 1] - cum[i]
+            f = (u - cum[i]) / seg if seg > 0 else 0.0
+            x = pts[i][0] + f * (pts[i + 1][0] - pts[i][0])
+            y = pts[i][1] + f * (pts[i + 1][1] - pts[i][1])
+            lanes = [l for l, _, _ in self.containing(x, y) if l.kind != "parking"]
+            if first is None:
+                if lanes:
+                    first = (lanes[0], u)
+            elif first[0] not in lanes:
+                return (first[1] + u) / 2
+        return (first[1] + total) / 2 if first is not None else -1.0
+
+    # -- tracking --------------------------------------------------------------------------------
+    def track(self, agent: Any) -> None:
+        """Update ``agent``'s route progress and current lane after it moved."""
+        pos = agent.position
+        x, y = float(pos[0]), float(pos[1])
+        route = agent.route
+        ri = agent.route_index
+        if route:
+            g = route[ri].geometry
+            s, r = g.local_coordinates(pos)
+            while s > g.length and ri + 1 < len(route):
+                ri += 1
+                g = route[ri].geometry
+                s, r = g.local_coordinates(pos)
+            agent.route_index, agent.route_s, agent.route_r = ri, s, r
+        cur = agent.lane_index
+        if cur is not None:
+            if route and route[ri].index == cur:
+                s, r = agent.route_s, agent.route_r
+                g = route[ri].geometry
+            else:
+                g = self.lanes[cur].geometry
+                s, r = g.local_coordinates(pos)
+            if 0.0 <= s <= g.length and abs(r) <= g.width / 2:
+                agent.lane_r = r
+                agent.is_on_road = True
+                return
+            candidates: tuple[Lane, ...] = (self.lanes[cur],) + self.near[cur]
+        else:
+            candidates = ()
+        pedestrian = agent.kind == "pedestrian"
+        on_route = {l.index for l in route[ri:ri + 2]} if route else set()
+        heading = float(agent.heading)
+        best = None
+        for lane in candidates:
+            g = lane.geometry
+            s, r = g.local_coordinates(pos)
+            inside = 0.0 <= s <= g.length and abs(r) <= g.width / 2
+            if not inside and lane.index != cur:
+                continue
+            score = self._score(lane, s, r, heading, pedestrian, on_route)
+            if inside and (best is None or not best[3] or score < best[0]):
+                best = (score, lane, r, True)
+            elif best is None:
+                best = (score, lane, r, False)
+        if best is None or not best[3]:
+            found = self.containing(x, y)
+            if found:
+                score, _, lane, r = min(
+                    (self._score(l, s, r, heading, pedestrian, on_route), i, l, r)
+                    for i, (l, s, r) in enumerate(found))
+                best = (score, lane, r, True)
+        if best is None:
+            agent.lane_index = None if pedestrian else cur
+            agent.lane_r = math.nan
+            agent.is_on_road = False
+            return
+        _, lane, r, inside = best
+        if pedestrian and not inside:
+            agent.lane_index, agent.lane, agent.lane_r, agent.is_on_road = None, None, math.nan, False
+            return
+        agent.lane_index = lane.index
+        agent.lane = lane.geometry
+        agent.lane_r = r
+        if inside:
+            agent.is_on_road = True
+        else:
+            # Past a lane's end but still on its asphalt (highway-env's own on_lane margin).
+            s, _ = lane.geometry.local_coordinates(pos)
+            agent.is_on_road = bool(abs(r) <= lane.width / 2
+                                    and -2.5 <= s <= lane.geometry.length + 2.5)
+
+    @staticmethod
+    def _score(lane: Lane, s: float, r: float, heading: float, pedestrian: bool,
+               on_route: set) -> float:
+        g = lane.geometry
+        d = abs(r) + max(s - g.length, 0.0) + max(-s, 0.0)
+        if not pedestrian:
+            d += abs(_wrap(heading - g.heading_at(s)))
+        if lane.index in on_route:
+            d -= 0.5
+        return d
+
+    # -- re-planning -------------------------------------------------------------------------------
+    def continue_route(self, lane: Lane, limit: int = 4) -> list[Lane]:
+        """``lane`` and the lanes that carry straight on from it (through intersections)."""
+        route = [lane]
+        while len(route) < limit:
+            g = route[-1].geometry
+            h_end = g.heading_at(g.length)
+            p_end = g.position(g.length, 0.0)
+            nxt = None
+            for cand in self.successors[route[-1].index]:
+                cg = cand.geometry
+                if abs(_wrap(cg.heading_at(cg.length) - h_end)) > 0.1:
+                    continue
+                if float(np.hypot(*(cg.position(0.0, 0.0) - p_end))) > 0.5:
+                    continue
+                nxt = cand
+                break
+            if nxt is None or nxt in route:
+                break
+            route.append(nxt)
+        return route
+
+    def resolve_lane_change(self, agent: Any, to: Any) -> Lane:
+        """The lane a lane change ``to`` ("left", "right", "out", a number, a Lane) aims at."""
+        if isinstance(to, Lane):
+            return to
+        here = agent.route_lane
+        group = [l for l in self.order if l.group == here.group and here.group]
+        if to == "out":
+            g = here.geometry
+            s = agent.route_s
+            cands = [(abs(l.local(here.position(s))[1]), l) for l in self._parallel(self.order.index(here))
+                     if l.kind == "travel" and abs(_wrap(l.geometry.heading - g.heading)) < 0.1]
+            if not cands:
+                raise SimError(f"no travel lane next to {here.id!r} to pull out into",
+                               test=agent.world.name, agent=agent.name)
+            return min(cands, key=lambda c: c[0])[1]
+        if to == "left":
+            number = here.number - 1
+        elif to == "right":
+            number = here.number + 1
+        elif isinstance(to, (int, np.integer)):
+            number = int(to)
+        else:
+            raise SimError(f"change_lane(to={to!r}): use 'left', 'right', a lane number or a Lane",
+                           test=agent.world.name, agent=agent.name)
+        for lane in group:
+            if lane.number == number:
+                return lane
+        raise SimError(f"change_lane(to={to!r}) from {here.id!r}: no such lane "
+                       f"(lanes {sorted(l.number for l in group)})",
+                       test=agent.world.name, agent=agent.name)
+
+
+class _Road:
+    """Common part of the road types: its lanes, network and the owning world."""
+
+    kind = ""
+
+    def __init__(self, world: Any) -> None:
+        self.world = world
+        self.all_lanes: list[Lane] = []
+        self.crosswalks: list[Crosswalk] = []
+        self.stop_lines: list[StopLine] = []
+
+    def _lane(self, net: Any, frm: str, to: str, geometry: Any, lane_id: str, kind: str,
+              direction: str, group: str, number: int) -> Lane:
+        net.add_lane(frm, to, geometry)
+        i = len(net.graph[frm][to]) - 1
+        lane = Lane(lane_id, (frm, to, i), geometry, kind=kind, direction=direction,
+                    group=group, number=number)
+        self.all_lanes.append(lane)
+        return lane
+
+    def default_route(self, lane: Lane) -> Route:
+        """The route an agent placed on ``lane`` follows unless told otherwise (straight on)."""
+        return Route(tuple(self.world._index.continue_route(lane)))
+
+    def _crosswalk_across(self, name: str, lanes: list[Lane], s_of: dict, start: np.ndarray,
+                          end: np.ndarray, width: float, sides: tuple[str, str]) -> Crosswalk:
+        cw = Crosswalk(name, Path.through([start, end]), float(width),
+                       tuple((l, float(s_of[l.index])) for l in lanes), sides)
+        self.crosswalks.append(cw)
+        return cw
+
+
+class StraightRoad(_Road):
+    """A one-way road running east from x = 0: ``lanes`` lanes, lane 0 leftmost (north)."""
+
+    kind = "straight"
+
+    def __init__(self, world: Any, net: Any, lanes: int, length: float, lane_width: float,
+                 speed_limit: float) -> None:
+        from .engine import LineType, Straight
+
+        super().__init__(world)
+        if lanes < 1 or int(lanes) != lanes:
+            raise SimError(f"straight_road(lanes={lanes!r}): need a whole number >= 1", test=world.name)
+        if not length > 0:
+            raise SimError(f"straight_road(length={length!r}): need > 0 m", test=world.name)
+        self.length = float(length)
+        self.lane_width = float(lane_width)
+        self.lanes: list[Lane] = []
+        for i in range(int(lanes)):
+            y = -i * lane_width
+            right = LineType.CONTINUOUS_LINE if i == lanes - 1 else LineType.STRIPED
+            left = LineType.CONTINUOUS_LINE if i == 0 else LineType.NONE
+            g = Straight((0.0, y), (length, y), width=lane_width, line_types=(right, left),
+                         speed_limit=speed_limit)
+            self.lanes.append(self._lane(net, "west", "east", g, f"lane[{i}]", "travel",
+                                         "forward", "lanes", i))
+        self._y_left = lane_width / 2
+        self._y_right = -(lanes - 0.5) * lane_width
+
+    def lane(self, i: int = 0) -> Lane:
+        """Lane ``i`` (0 leftmost)."""
+        try:
+            return self.lanes[i]
+        except (IndexError, TypeError):
+            raise SimError(f"road.lane({i!r}): this road has lanes 0..{len(self.lanes) - 1}",
+                           test=self.world.name) from None
+
+    def crosswalk(self, s: float, width: float = 3.0) -> Crosswalk:
+        """A crosswalk centred ``s`` metres from the start of the road, walked south to north."""
+        s = float(s)
+        if not 0 < s < self.length:
+            raise SimError(f"crosswalk(s={s!r}): must lie within the road (0..{self.length} m)",
+                           test=self.world.name)
+        for lane in self.lanes:
+            self.world._index.add_stop(lane, s - width / 2, "crosswalk")
+        return self._crosswalk_across(
+            f"crosswalk@{s:g}", self.lanes, {l.index: s for l in self.lanes},
+            np.array([s, self._y_right - SIDEWALK]), np.array([s, self._y_left + SIDEWALK]),
+            width, ("south", "north"))
+
+
+class TwoWayRoad(_Road):
+    """A two-way road along x: forward lanes drive east south of y = 0, backward lanes west.
+
+    Lanes are numbered from the centre line outward in each direction; a parking lane runs along
+    each kerb (``parking_lane`` is the forward one, beside the ego's usual lane).
+    """
+
+    kind = "two_way"
+
+    def __init__(self, world: Any, net: Any, lanes: int, length: float, parking: bool,
+                 lane_width: float, parking_width: float, speed_limit: float) -> None:
+        from .engine import LineType, Straight
+
+        super().__init__(world)
+        if lanes < 1 or int(lanes) != lanes:
+            raise SimError(f"two_way_road(lanes={lanes!r}): need a whole number >= 1", test=world.name)
+        if not length > 0:
+            raise SimError(f"two_way_road(length={length!r}): need > 0 m", test=world.name)
+        n = int(lanes)
+        self.length = float(length)
+        self.lane_width = float(lane_width)
+        self.forward: list[Lane] = []
+        self.backward: list[Lane] = []
+        self._parking: dict[str, Lane] = {}
+        N, S, C = LineType.NONE, LineType.STRIPED, LineType.CONTINUOUS_LINE
+        for i in range(n):
+            off = (i + 0.5) * lane_width
+            outer = (S if parking else C) if i == n - 1 else S
+            g = Straight((0.0, -off), (length, -off), width=lane_width,
+                         line_types=(outer, C if i == 0 else N), speed_limit=speed_limit)
+            self.forward.append(self._lane(net, "west", "east", g, f"forward[{i}]", "travel",
+                                           "forward", "forward", i))
+            g = Straight((length, off), (0.0, off), width=lane_width,
+                         line_types=(outer, N), speed_limit=speed_limit)
+            self.backward.append(self._lane(net, "east", "west", g, f"backward[{i}]", "travel",
+                                            "backward", "backward", i))
+        edge = n * lane_width
+        if parking:
+            off = edge + parking_width / 2
+            g = Straight((0.0, -off), (length, -off), width=parking_width,
+                         line_types=(C, N), speed_limit=speed_limit)
+            self._parking["forward"] = self._lane(net, "west.kerb", "east.kerb", g,
+                                                  "parking.forward", "parking", "forward",
+                                                  "parking.forward", 0)
+            g = Straight((length, off), (0.0, off), width=parking_width,
+                         line_types=(C, N), speed_limit=speed_limit)
+            self._parking["backward"] = self._lane(net, "east.kerb", "west.kerb", g,
+                                                   "parking.backward", "parking", "backward",
+                                                   "parking.backward", 0)
+            edge += parking_width
+        self._edge = edge
+
+    def lane(self, i: int = 0, direction: str = "forward") -> Lane:
+        """Lane ``i`` (0 next to the centre line) of ``direction`` ("forward" east, "backward" west)."""
+        lanes = {"forward": self.forward, "backward": self.backward}.get(direction)
+        if lanes is None:
+            raise SimError(f"road.lane(direction={direction!r}): use 'forward' or 'backward'",
+                           test=self.world.name)
+        try:
+            return lanes[i]
+        except (IndexError, TypeError):
+            raise SimError(f"road.lane({i!r}): each direction has lanes 0..{len(lanes) - 1}",
+                           test=self.world.name) from None
+
+    @property
+    def parking_lane(self) -> Lane:
+        """The forward direction's kerb-side parking lane."""
+        return self.parking("forward")
+
+    def parking(self, direction: str = "forward") -> Lane:
+        """The kerb-side parking lane of ``direction``."""
+        if direction not in self._parking:
+            raise SimError("this road has no parking lanes (two_way_road(parking=True))"
+                           if not self._parking else
+                           f"parking({direction!r}): use 'forward' or 'backward'",
+                           test=self.world.name)
+        return self._parking[direction]
+
+    def crosswalk(self, s: float, width: float = 3.0) -> Crosswalk:
+        """A crosswalk ``s`` metres east of the road start, walked from the south kerb north."""
+        s = float(s)
+        if not 0 < s < self.length:
+            raise SimError(f"crosswalk(s={s!r}): must lie within the road (0..{self.length} m)",
+                           test=self.world.name)
+        crossed = self.forward + self.backward + list(self._parking.values())
+        s_of = {}
+        for lane in crossed:
+            ls = s if lane.direction == "forward" else self.length - s
+            s_of[lane.index] = ls
+            self.world._index.add_stop(lane, ls - width / 2, "crosswalk")
+        return self._crosswalk_across(
+            f"crosswalk@{s:g}", crossed, s_of, np.array([s, -self._edge - SIDEWALK]),
+            np.array([s, self._edge + SIDEWALK]), width, ("south", "north"))
+
+
+class Intersection(_Road):
+    """A four-way intersection centred on the origin; arms "north", "east", "south", "west".
+
+    Each arm has ``lanes`` incoming and outgoing lanes of ``approach_length`` metres. Incoming
+    lanes end at the box edge; a crosswalk lies across the last ``crosswalk_width`` metres of
+    each arm and the stop line 1 m before it. Connectors: straight from every lane, left turns
+    from lane 0 (next to the centre line), right turns from the outermost lane.
+    """
+
+    kind = "intersection"
+
+    def __init__(self, world: Any, net: Any, lanes: int, approach_length: float, lane_width: float,
+                 speed_limit: float, crosswalk_width: float, corner: float) -> None:
+        from .engine import Arc, LineType, Straight
+
+        super().__init__(world)
+        if lanes not in (1, 2):
+            raise SimError(f"intersection(lanes={lanes!r}): one or two lanes per approach",
+                           test=world.name)
+        if not approach_length > crosswalk_width + 2:
+            raise SimError(f"intersection(approach_length={approach_length!r}): too short",
+                           test=world.name)
+        n, w, L = int(lanes), float(lane_width), float(approach_length)
+        self.n_lanes, self.lane_width, self.approach_length = n, w, L
+        self.half = H = n * w + float(corner)
+        self.crosswalk_width = float(crosswalk_width)
+        N, S, C = LineType.NONE, LineType.STRIPED, LineType.CONTINUOUS_LINE
+        self._in: dict[str, list[Lane]] = {}
+        self._out: dict[str, list[Lane]] = {}
+        self._conn: dict[tuple[str, str, int], Lane] = {}
+        for d in DIRECTIONS:
+            u = np.array(_UNIT[d])
+            right_in = np.array([-u[1], u[0]])  # right of travel toward the centre (-u)
+            self._in[d], self._out[d] = [], []
+            for i in range(n):
+                off = (i + 0.5) * w
+                outer = C if i == n - 1 else S
+                g = Straight(u * (H + L) + right_in * off, u * H + right_in * off, width=w,
+                             line_types=(outer, C if i == 0 else N), speed_limit=speed_limit)
+                self._in[d].append(self._lane(net, f"{d}.start", f"{d}.stop", g, f"{d}.in[{i}]",
+                                              "travel", d, f"{d}.in", i))
+                g = Straight(u * H - right_in * off, u * (H + L) - right_in * off, width=w,
+                             line_types=(outer, N), speed_limit=speed_limit)
+                self._out[d].append(self._lane(net, f"{d}.exit", f"{d}.end", g, f"{d}.out[{i}]",
+                                               "travel", d, f"{d}.out", i))
+        for d in DIRECTIONS:
+            u = np.array(_UNIT[d])
+            right_in = np.array([-u[1], u[0]])
+            for turn, i_list in (("straight", range(n)), ("left", [0]), ("right", [n - 1])):
+                d2 = {"straight": _OPPOSITE[d], "left": _LEFT_OF[d], "right": _RIGHT_OF[d]}[turn]
+                u2 = np.array(_UNIT[d2])
+                for i in i_list:
+                    off = (i + 0.5) * w
+                    p = u * H + right_in * off
+                    if turn == "straight":
+                        g = Straight(p, u2 * H + right_in * off, width=w, line_types=(N, N),
+                                     speed_limit=speed_limit)
+                    else:
+                        c = u * H + u2 * H
+                        radius = H - off if turn == "right" else H + off
+                        phase = math.atan2(p[1] - c[1], p[0] - c[0])
+                        sweep = math.pi / 2 if turn == "left" else -math.pi / 2
+                        g = Arc(c, radius, phase, phase + sweep, clockwise=(turn == "left"),
+                                width=w, line_types=(N, N), speed_limit=speed_limit)
+                    self._conn[(d, turn, i)] = self._lane(
+                        net, f"{d}.stop", f"{d2}.exit", g, f"{d}>{d2}[{i}]", "connector", d,
+                        f"{d}>{d2}", i)
+        self.centre = Point(0.0, 0.0)
+
+    def _after_index(self) -> None:
+        """Register stop lines and crosswalks once the lane index exists."""
+        idx = self.world._index
+        L, cw = self.approach_length, self.crosswalk_width
+        span = self.n_lanes * self.lane_width + SIDEWALK
+        for d in DIRECTIONS:
+            u = np.array(_UNIT[d])
+            right_in = np.array([-u[1], u[0]])
+            for lane in self._in[d]:
+                idx.add_stop(lane, L - cw - 1.0, "stop")
+                idx.add_stop(lane, L - cw, "crosswalk")
+                self.stop_lines.append(StopLine(lane, L - cw - 1.0, d))
+            for lane in self._out[d]:
+                idx.add_stop(lane, 0.0, "crosswalk")
+            mid = u * (self.half + cw / 2)
+            sides = {"north": ("west", "east"), "south": ("west", "east"),
+                     "east": ("south", "north"), "west": ("south", "north")}[d]
+            # Walk from the first named side to the second.
+            a_dir = np.array(_UNIT[sides[0]])
+            s_of = {l.index: L - cw / 2 for l in self._in[d]}
+            s_of.update({l.index: cw / 2 for l in self._out[d]})
+            self._crosswalk_across(d, self._in[d] + self._out[d], s_of,
+                                   mid + a_dir * span, mid - a_dir * span, cw, sides)
+
+    def _arm(self, d: str) -> str:
+        if d not in _UNIT:
+            raise SimError(f"unknown arm {d!r}: use one of {list(DIRECTIONS)}", test=self.world.name)
+        return d
+
+    def _pick(self, lanes: list[Lane], i: int, what: str) -> Lane:
+        try:
+            return lanes[i]
+        except (IndexError, TypeError):
+            raise SimError(f"{what}: lane {i!r} does not exist (lanes 0..{len(lanes) - 1})",
+                           test=self.world.name) from None
+
+    def approach(self, d: str, lane: int = 0) -> Lane:
+        """Incoming lane ``lane`` (0 next to the centre line) of arm ``d``."""
+        return self._pick(self._in[self._arm(d)], lane, f"approach({d!r})")
+
+    def exit(self, d: str, lane: int = 0) -> Lane:
+        """Outgoing lane ``lane`` of arm ``d``."""
+        return self._pick(self._out[self._arm(d)], lane, f"exit({d!r})")
+
+    def stop_line(self, d: str, lane: int = 0) -> StopLine:
+        """The stop line of arm ``d`` on incoming lane ``lane``."""
+        ln = self.approach(d, lane)
+        return StopLine(ln, self.approach_length - self.crosswalk_width - 1.0, d)
+
+    def crosswalk(self, d: str) -> Crosswalk:
+        """The crosswalk across arm ``d`` (sides named by compass, e.g. "west"/"east")."""
+        self._arm(d)
+        return next(c for c in self.crosswalks if c.name == d)
+
+    def turn_target(self, d: str, turn: str) -> str:
+        """The arm a vehicle coming from ``d`` leaves by when it turns ``turn``."""
+        table = {"straight": _OPPOSITE, "left": _LEFT_OF, "right": _RIGHT_OF}
+        if turn not in table:
+            raise SimError(f"unknown turn {turn!r}: use 'left', 'right' or 'straight'",
+                           test=self.world.name)
+        return table[turn][self._arm(d)]
+
+    def connector(self, d: str, turn: str, lane: int | None = None) -> Lane:
+        """The connector lane through the box from arm ``d`` turning ``turn``."""
+        self.turn_target(d, turn)
+        if lane is None:
+            lane = {"left": 0, "right": self.n_lanes - 1}.get(turn, 0)
+        key = (d, turn, lane)
+        if key not in self._conn:
+            allowed = sorted(i for (a, t, i) in self._conn if a == d and t == turn)
+            raise SimError(f"no {turn} turn from lane {lane} of the {d} approach "
+                           f"(from lanes {allowed})", test=self.world.name)
+        return self._conn[key]
+
+    def route(self, d: str, turn: str = "straight", lane: int | None = None) -> Route:
+        """Approach lane, connector and exit lane from arm ``d`` turning ``turn``."""
+        conn = self.connector(d, turn, lane)
+        d2 = self.turn_target(d, turn)
+        i = conn.number
+        exit_lane = self._out[d2][min(i, self.n_lanes - 1)]
+        return Route((self._in[d][i], conn, exit_lane), turn=turn)
+
+    def arm_of(self, lane: Lane) -> str | None:
+        for d in DIRECTIONS:
+            if lane in self._in[d]:
+                return d
+        return None

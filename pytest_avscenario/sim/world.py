@@ -1,0 +1,600 @@
+"""One simulated scene per case: build a road, place agents, run, and keep the recording.
+
+A test gets a fresh :class:`World` seeded from its case, builds one road on it, places the ego
+(driven by the AV under test) and other agents, and calls :meth:`World.run`, which steps
+highway-env and records a :class:`~pytest_avscenario.sim.trajectory.Trajectory` into
+preallocated arrays. All randomness comes from the case: the world's ``rng`` (the case's
+``case.rng``) feeds behaviours, and highway-env's ``Road`` gets its own
+``default_rng(seed)``. Same case, same bits, in any process and any test order.
+
+highway-env (and with it pygame, matplotlib, pandas) is imported only when a road is built.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .drivers import IDMDriver, resolve
+from .errors import SimError
+from .observation import AgentState, Observation, StopLine as ObsStopLine
+from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
+from .trajectory import Trajectory
+
+__all__ = ["World"]
+
+_TWO_PI = 2 * math.pi
+
+
+class World:
+    """A fresh simulated world for one case.
+
+    ``seed`` seeds highway-env's road rng; ``rng`` (default ``default_rng(seed)``) is what
+    behaviours draw from during the run; ``driver`` is the ego's default driver (a name such
+    as ``"autopilot"``/``"idm"`` or a policy object, see :func:`.drivers.resolve`); ``name``
+    the pytest node id, quoted in every error.
+    """
+
+    def __init__(self, seed: int, rng: np.random.Generator | None = None, driver: Any = None,
+                 name: str = "") -> None:
+        self.seed = int(seed)
+        self.rng = rng if rng is not None else np.random.default_rng(self.seed)
+        self.driver = driver
+        self.name = str(name)
+        self.t = 0.0  # [s] simulation time of the state being acted on
+        self.dt = 0.1  # [s]
+        self.trajectory: Trajectory | None = None
+        self.road: Any = None  # our road object (StraightRoad, TwoWayRoad, Intersection)
+        self._road: Any = None  # the highway-env Road
+        self._index: Any = None
+        self._ego: Any = None
+        self._others: list[Any] = []
+        self._movers: list[Any] = []
+        self._counts: dict[str, int] = {}
+        self._route_geoms: tuple = ()
+        self._stop_cache: dict[int, tuple] = {}
+        self.sensor_range = 80.0  # [m]
+
+    def __repr__(self) -> str:
+        return f"World(seed={self.seed}, name={self.name!r}, road={getattr(self.road, 'kind', None)})"
+
+    # -- roads -------------------------------------------------------------------------------------
+    def _new_network(self, what: str) -> Any:
+        if self.road is not None:
+            raise SimError(f"{what}: this world already has a {self.road.kind} road; "
+                           "build one road per world", test=self.name)
+        from highway_env.road.road import RoadNetwork
+
+        return RoadNetwork()
+
+    def _finish_road(self, road: Any, net: Any) -> Any:
+        from highway_env.road.road import Road
+
+        from .roads import LaneIndex
+
+        self._road = Road(network=net, vehicles=[], np_random=np.random.default_rng(self.seed),
+                          record_history=False)
+        self._index = LaneIndex(road.all_lanes)
+        self.road = road
+        if hasattr(road, "_after_index"):
+            road._after_index()
+        return road
+
+    def straight_road(self, lanes: int = 1, length: float = 400.0, *, lane_width: float = 3.5,
+                      speed_limit: float = 13.9) -> Any:
+        """A one-way road east from x = 0: ``lanes`` lanes (0 leftmost), ``length`` [m].
+
+        ``speed_limit`` [m/s] is what IDM drivers cap their target speed at.
+        """
+        from .roads import StraightRoad
+
+        net = self._new_network("straight_road")
+        return self._finish_road(StraightRoad(self, net, lanes, float(length), lane_width,
+                                              speed_limit), net)
+
+    def two_way_road(self, lanes: int = 1, length: float = 300.0, parking: bool = True, *,
+                     lane_width: float = 3.5, parking_width: float = 2.5,
+                     speed_limit: float = 13.9) -> Any:
+        """A two-way road along x: ``lanes`` lanes each way and, with ``parking``, a parking
+        lane along each kerb. Forward traffic drives east."""
+        from .roads import TwoWayRoad
+
+        net = self._new_network("two_way_road")
+        return self._finish_road(TwoWayRoad(self, net, lanes, float(length), parking, lane_width,
+                                            parking_width, speed_limit), net)
+
+    def intersection(self, lanes: int = 1, approach_length: float = 100.0, *,
+                     lane_width: float = 3.5, speed_limit: float = 13.9,
+                     crosswalk_width: float = 3.0, corner: float = 6.0) -> Any:
+        """A four-way intersection at the origin, ``lanes`` (1 or 2) lanes per approach.
+
+        ``approach_length`` [m] per arm; ``corner`` [m] is the clearance between the outermost
+        lane and the box edge (sets the turn radii).
+        """
+        from .roads import Intersection
+
+        net = self._new_network("intersection")
+        return self._finish_road(Intersection(self, net, lanes, float(approach_length),
+                                              lane_width, speed_limit, crosswalk_width,
+                                              corner), net)
+
+    # -- placing agents --------------------------------------------------------------------------
+    def _need_road(self, what: str) -> None:
+        if self.road is None:
+            raise SimError(f"{what}: build a road first (world.straight_road(), "
+                           "world.two_way_road() or world.intersection())", test=self.name)
+        if self.trajectory is not None:
+            raise SimError(f"{what}: the world has already run; a world runs once",
+                           test=self.name)
+
+    def _spot(self, place: Any, s: float, r: float, agent: str) -> Spot:
+        if isinstance(place, Route):
+            place = place.lanes[0]
+        if isinstance(place, Lane):
+            spot = Spot(place, float(s), float(r))
+        elif isinstance(place, (Spot, StopLine)):
+            spot = Spot(place.lane, float(place.s) + float(s), getattr(place, "r", 0.0) + float(r))
+        else:
+            raise SimError(f"cannot place a vehicle on {place!r}: give a lane "
+                           "(road.lane(0), inter.approach('south')), a spot (lane.at(s)) "
+                           "or a stop line", test=self.name, agent=agent)
+        if spot.lane.index not in self._index.lanes:
+            raise SimError(f"lane {spot.lane.id!r} belongs to another world's road",
+                           test=self.name, agent=agent)
+        if not (math.isfinite(spot.s) and 0.0 <= spot.s <= spot.lane.length):
+            raise SimError(f"placed off the road: s={spot.s!r} m is outside lane {spot.lane.id!r} "
+                           f"(0..{spot.lane.length:g} m)", test=self.name, agent=agent)
+        if not (math.isfinite(spot.r) and abs(spot.r) <= spot.lane.width / 2):
+            raise SimError(f"placed off the road: r={spot.r!r} m is outside lane {spot.lane.id!r} "
+                           f"(|r| <= {spot.lane.width / 2:g} m)", test=self.name, agent=agent)
+        return spot
+
+    def _name(self, kind: str, name: str | None) -> str:
+        if name is None:
+            k = self._counts.get(kind, 0) + 1
+            self._counts[kind] = k
+            name = f"{kind}{k}" if kind != "ego" else "ego"
+        taken = [a.name for a in self._all()]
+        if name in taken:
+            raise SimError(f"duplicate agent name {name!r}", test=self.name, agent=name)
+        return str(name)
+
+    def _all(self) -> list[Any]:
+        return ([self._ego] if self._ego is not None else []) + self._others
+
+    def _check_speed(self, speed: float, agent: str) -> float:
+        try:
+            v = float(speed)
+        except (TypeError, ValueError):
+            raise SimError(f"speed={speed!r} is not a number [m/s]", test=self.name,
+                           agent=agent) from None
+        if not math.isfinite(v) or v < 0:
+            raise SimError(f"speed={speed!r} m/s: need a finite speed >= 0", test=self.name,
+                           agent=agent)
+        return v
+
+    def _check_overlap(self, new: Any) -> None:
+        from highway_env import utils
+
+        poly = new.polygon()
+        zero = np.zeros(2)
+        for other in self._all():
+            if other is new:
+                continue
+            if np.hypot(*(other.position - new.position)) > (other.diagonal + new.diagonal) / 2:
+                continue
+            if utils.are_polygons_intersecting(poly, other.polygon(), zero, zero)[0]:
+                raise SimError(
+                    f"overlaps {other.name!r} at t=0 (centres {np.round(new.position, 2).tolist()} "
+                    f"and {np.round(other.position, 2).tolist()} m); move one of them",
+                    test=self.name, agent=new.name)
+
+    def _bind(self, behavior: Any, kind: str, name: str) -> Any:
+        from .behaviors import Behavior
+
+        if behavior is None:
+            return None
+        if not isinstance(behavior, Behavior):
+            raise SimError(f"behavior={behavior!r} is not a behaviour; use one from "
+                           "pytest_avscenario.sim.behaviors", test=self.name, agent=name)
+        if kind not in behavior.kinds:
+            raise SimError(f"behaviour {behavior.name} cannot drive a {kind}", test=self.name,
+                           agent=name)
+        try:
+            return behavior.bind(self.rng)
+        except (TypeError, ValueError) as exc:
+            raise SimError(f"behaviour {behavior.name}: {exc}", test=self.name, agent=name) from exc
+
+    def _route_for(self, spot: Spot, route: Any, agent: str) -> tuple[list[Lane], int]:
+        if route is None:
+            lanes = list(self.road.default_route(spot.lane).lanes)
+        elif isinstance(route, Route):
+            lanes = list(route.lanes)
+        elif isinstance(route, Lane):
+            lanes = [route]
+        else:
+            lanes = list(route)
+            if not lanes or not all(isinstance(l, Lane) for l in lanes):
+                raise SimError(f"route={route!r}: give inter.route(...), a Lane or a list of "
+                               "Lanes", test=self.name, agent=agent)
+        if spot.lane not in lanes:
+            raise SimError(f"placed on {spot.lane.id!r}, which is not on its route "
+                           f"{[l.id for l in lanes]}", test=self.name, agent=agent)
+        return lanes, lanes.index(spot.lane)
+
+    def _register(self, agent: Any, spot: Spot | None, lanes: list[Lane], k: int, kind: str,
+                  name: str, behavior: Any, initial: float) -> Any:
+        agent.road = self._road
+        agent._attach(self, name, kind, spot.lane if spot is not None else None, lanes, behavior,
+                      initial, route_index=k)
+        self._check_overlap(agent)
+        if kind == "ego":
+            self._ego = agent
+        else:
+            self._others.append(agent)
+        return agent
+
+    def ego(self, place: Any, s: float = 0.0, speed: float = 0.0, driver: Any = None,
+            route: Any = None, target_speed: float | None = None, goal: dict | None = None, *,
+            r: float = 0.0, allow_reverse: bool = False, name: str = "ego") -> Any:
+        """Place the AV under test at ``place`` (a lane, a spot, a stop line), ``s`` [m] along it.
+
+        ``driver`` overrides the world's default driver; ``route`` (e.g.
+        ``inter.route("south", "left")``) defaults to straight on. ``target_speed`` [m/s] is
+        handed to the driver (and is the "idm" driver's desired speed; default ``speed`` or
+        the speed limit); ``goal`` is passed through to the observation. Braking stops the
+        ego at 0 m/s unless ``allow_reverse``.
+        """
+        self._need_road("world.ego()")
+        if self._ego is not None:
+            raise SimError("the world already has an ego", test=self.name, agent=name)
+        spot = self._spot(place, s, r, name)
+        v = self._check_speed(speed, name)
+        lanes, k = self._route_for(spot, route, name)
+        drv = resolve(driver if driver is not None else self.driver)
+        pos = spot.position
+        heading = spot.heading
+        from .engine import DriverEgo, IDMEgo
+
+        if isinstance(drv, IDMDriver):
+            v0 = target_speed if target_speed is not None else (v if v > 0 else None)
+            if v0 is None:
+                v0 = float(spot.lane.geometry.speed_limit)
+            agent = IDMEgo(self._road, pos, heading, v, target_lane_index=spot.lane.index,
+                           target_speed=float(v0), route=[l.index for l in lanes[k:]])
+        else:
+            agent = DriverEgo(pos, heading, v)
+        agent.driver = drv
+        agent.goal = goal
+        agent.target_speed_request = target_speed
+        agent.allow_reverse = bool(allow_reverse)
+        self._counts["ego"] = 1
+        return self._register(agent, spot, lanes, k, "ego", self._name_free(name), None, v)
+
+    def _name_free(self, name: str) -> str:
+        if name in [a.name for a in self._all()]:
+            raise SimError(f"duplicate agent name {name!r}", test=self.name, agent=name)
+        return name
+
+    def _vehicle(self, cls: Any, kind: str, place: Any, s: float, speed: float, behavior: Any,
+                 name: str | None, r: float, route: Any = None) -> Any:
+        name = self._name(kind, name)
+        spot = self._spot(place, s, r, name)
+        v = self._check_speed(speed, name)
+        lanes, k = self._route_for(spot, route, name)
+        bound = self._bind(behavior, kind, name)
+        agent = cls(spot.position, spot.heading, v)
+        return self._register(agent, spot, lanes, k, kind, name, bound, v)
+
+    def car(self, lane: Any, s: float = 0.0, speed: float = 0.0, behavior: Any = None, *,
+            name: str | None = None, r: float = 0.0, route: Any = None) -> Any:
+        """A 5 x 2 m car on ``lane`` (or a spot) at ``s`` [m], ``speed`` [m/s].
+
+        Without a behaviour it keeps its lane at its initial speed (IDM behind others).
+        """
+        from .behaviors import keep_lane
+        from .engine import Actor
+
+        self._need_road("world.car()")
+        return self._vehicle(Actor, "car", lane, s, speed,
+                             behavior if behavior is not None else keep_lane(), name, r, route)
+
+    def bus(self, lane: Any, s: float = 0.0, speed: float = 0.0, behavior: Any = None, *,
+            name: str | None = None, r: float = 0.0, route: Any = None) -> Any:
+        """A 12 x 2.55 m school bus; its ``stop_arm`` is recorded as signal ``"<name>.stop_arm"``."""
+        from .behaviors import keep_lane
+        from .engine import Bus
+
+        self._need_road("world.bus()")
+        return self._vehicle(Bus, "bus", lane, s, speed,
+                             behavior if behavior is not None else keep_lane(), name, r, route)
+
+    def parked_car(self, lane: Any, s: float = 0.0, behavior: Any = None, *,
+                   name: str | None = None) -> Any:
+        """A standing 5 x 2 m car, usually on ``road.parking_lane``; ``b.pull_out`` moves it."""
+        from .behaviors import stopped
+        from .engine import Actor
+
+        self._need_road("world.parked_car()")
+        return self._vehicle(Actor, "parked", lane, s, 0.0,
+                             behavior if behavior is not None else stopped(), name, 0.0)
+
+    def pedestrian(self, path: Any, side: str | None = None, speed: float = 1.4,
+                   behavior: Any = None, *, name: str | None = None) -> Any:
+        """A pedestrian (0.6 m) walking ``path`` at ``speed`` [m/s].
+
+        ``path`` is a crosswalk (walked from ``side``, default its first side), a
+        :class:`~.places.Path` or a list of (x, y) points [m]. Without a behaviour it walks
+        straight away; ``b.cross(wait=..., wait_in_road=...)`` adds the waits.
+        """
+        from .behaviors import walk
+        from .engine import Pedestrian
+
+        self._need_road("world.pedestrian()")
+        name = self._name("pedestrian", name)
+        if isinstance(path, Crosswalk):
+            try:
+                p = path.walk(side)
+            except ValueError as exc:
+                raise SimError(str(exc), test=self.name, agent=name) from None
+        elif isinstance(path, Path):
+            p = path
+        else:
+            try:
+                p = Path.through(path)
+            except (TypeError, ValueError, IndexError) as exc:
+                raise SimError(f"path={path!r}: give a crosswalk, a Path or a list of (x, y) "
+                               f"points ({exc})", test=self.name, agent=name) from None
+        pts = p.array
+        if not np.all(np.isfinite(pts)):
+            raise SimError(f"path has non-finite points: {pts.tolist()}", test=self.name, agent=name)
+        if p.length <= 0:
+            raise SimError("path has zero length", test=self.name, agent=name)
+        v = self._check_speed(speed, name)
+        bound = self._bind(behavior if behavior is not None else walk(), "pedestrian", name)
+        agent = Pedestrian(pts, v)
+        agent.road = self._road
+        agent._attach(self, name, "pedestrian", None, [], bound, v)
+        self._check_overlap(agent)
+        self._others.append(agent)
+        return agent
+
+    # -- queries during a run -------------------------------------------------------------------------
+    def agent(self, name: str) -> Any:
+        """The agent called ``name`` (``"ego"``, ``"car1"``…)."""
+        for a in self._all():
+            if a.name == name:
+                return a
+        raise KeyError(f"no agent {name!r}; agents: {[a.name for a in self._all()]}")
+
+    @property
+    def agents(self) -> list[Any]:
+        """All agents, ego first."""
+        return self._all()
+
+    def distance(self, a: Any, b: Any) -> float:
+        """Euclidean distance [m] between two agents (or names) and/or places."""
+        a = self.agent(a) if isinstance(a, str) else a
+        b = self.agent(b) if isinstance(b, str) else b
+        return _distance(a, b)
+
+    def _turn_route(self, agent: Any, direction: str) -> Route:
+        road = self.road
+        if getattr(road, "kind", "") != "intersection":
+            raise SimError(f"turn {direction!r} needs an intersection road, this is a "
+                           f"{getattr(road, 'kind', None)} road", test=self.name, agent=agent.name)
+        lane = agent.route[agent.route_index]
+        arm = road.arm_of(lane)
+        if arm is None:
+            raise SimError(f"turn {direction!r}: place the agent on an approach lane "
+                           f"(it is on {lane.id!r})", test=self.name, agent=agent.name)
+        try:
+            return road.route(arm, direction, lane.number)
+        except SimError:
+            return road.route(arm, direction)
+
+    def ego_distance_to_centre(self, agent: Any = None) -> float:
+        """Distance [m] from the ego to the intersection centre (or to ``agent`` elsewhere)."""
+        if self._ego is None:
+            return math.inf
+        centre = getattr(self.road, "centre", None)
+        return _distance(self._ego, centre if centre is not None else agent)
+
+    def ego_in_conflict(self, agent: Any) -> bool:
+        """Whether the ego is near the intersection (30 m) and closer to its centre than ``agent``."""
+        d_ego = self.ego_distance_to_centre(agent)
+        centre = getattr(self.road, "centre", None)
+        if centre is None:
+            return False
+        return d_ego < 30.0 and d_ego < _distance(agent, centre)
+
+    # -- observation -------------------------------------------------------------------------------
+    def _state(self, a: Any, kind: str | None = None) -> AgentState:
+        h = float(a.heading)
+        v = float(a.speed)
+        flags = {"stop_arm": bool(a.stop_arm)} if a.kind == "bus" else {}
+        return AgentState(a.name, kind or a.kind, float(a.position[0]), float(a.position[1]),
+                          v * math.cos(h), v * math.sin(h), v, h, float(a.LENGTH),
+                          float(a.WIDTH), flags)
+
+    def _observe(self, ego: Any) -> Observation:
+        x, y = float(ego.position[0]), float(ego.position[1])
+        near = []
+        rng2 = self.sensor_range ** 2
+        for i, o in enumerate(self._others):
+            dx, dy = float(o.position[0]) - x, float(o.position[1]) - y
+            d2 = dx * dx + dy * dy
+            if d2 <= rng2:
+                near.append((d2, i, o))
+        near.sort(key=lambda t: (t[0], t[1]))
+        ri = ego.route_index
+        stops = self._stop_cache.get(ri)
+        if stops is None:
+            stops = tuple(ObsStopLine(j, s, kind) for j in range(ri, len(ego.route))
+                          for s, kind in self._index.stop_marks.get(ego.route[j].index, ()))
+            self._stop_cache[ri] = stops
+        return Observation(
+            t=self.t, dt=self.dt, ego=self._state(ego, "ego"), route=self._route_geoms,
+            route_index=ri, s=float(ego.route_s), r=float(ego.route_r),
+            agents=tuple(self._state(o) for _, _, o in near), stop_lines=stops,
+            speed_limit=float(ego.route[ri].geometry.speed_limit),
+            target_speed=ego.target_speed_request, goal=ego.goal,
+            sensor_range=self.sensor_range)
+
+    # -- running -----------------------------------------------------------------------------------
+    def run(self, seconds: float, dt: float = 0.1, until: Callable[["World"], bool] | None = None,
+            stop_on_collision: bool = False) -> Trajectory:
+        """Simulate ``seconds`` [s] in steps of ``dt`` [s] and record; returns the trajectory.
+
+        ``until(world)`` is asked after every step and ends the run early when true;
+        ``stop_on_collision`` ends it at the step the ego first crashes. The recording has
+        ``round(seconds / dt) + 1`` samples (fewer when stopped early), t = 0 first.
+        """
+        for label, val in (("seconds", seconds), ("dt", dt)):
+            try:
+                ok = math.isfinite(float(val)) and float(val) > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise SimError(f"run({label}={val!r}): need a finite number > 0 [s]", test=self.name)
+        if until is not None and not callable(until):
+            raise SimError(f"run(until={until!r}): need a callable(world) -> bool", test=self.name)
+        self._need_road("world.run()")
+        if self._ego is None:
+            raise SimError("world.run(): place the ego first (world.ego(...))", test=self.name)
+        seconds, dt = float(seconds), float(dt)
+        n_steps = max(1, int(round(seconds / dt)))
+        self.dt = dt
+        ego = self._ego
+        agents = [ego] + self._others
+        self._movers = agents
+        self._road.vehicles = list(agents)
+        self._route_geoms = tuple(l.geometry for l in ego.route)
+        self._stop_cache = {}
+        self.t = 0.0
+        for a in agents:
+            if a.behavior is not None:
+                try:
+                    a.behavior.start(a, self)
+                except SimError:
+                    raise
+                except ValueError as exc:
+                    raise SimError(f"behaviour {a.behavior.name}: {exc}", test=self.name,
+                                   agent=a.name) from exc
+        rec = _Recorder(self, agents, n_steps + 1)
+        rec.write(0)
+        road = self._road
+        reason = None
+        k = 0
+        for k in range(1, n_steps + 1):
+            self.t = (k - 1) * dt
+            road.act()
+            road.step(dt)
+            self.t = k * dt
+            rec.write(k)
+            if stop_on_collision and ego.crashed:
+                reason = "collision"
+                break
+            if until is not None and until(self):
+                reason = "until"
+                break
+        self.trajectory = rec.finish(k + 1, seconds=seconds, stopped=reason)
+        return self.trajectory
+
+    # -- rendering ---------------------------------------------------------------------------------
+    def render_png(self, path: str, step: int | None = None, **kw: Any) -> str:
+        """Write a PNG of the recorded run: one frame at ``step``, or a strip of 6 frames.
+
+        Replays ``world.trajectory`` (call :meth:`run` first). Returns the path.
+        """
+        from .render import render_png
+
+        return render_png(self, path, step=step, **kw)
+
+    def render_gif(self, path: str, every: int = 1, **kw: Any) -> str:
+        """Write an animated GIF replaying every ``every``-th recorded step. Returns the path."""
+        from .render import render_gif
+
+        return render_gif(self, path, every=every, **kw)
+
+
+class _Recorder:
+    """Fills preallocated ``(T, A, k)`` arrays each step and builds the Trajectory at the end."""
+
+    def __init__(self, world: World, agents: list[Any], n: int) -> None:
+        self.world = world
+        self.agents = agents
+        self.code = world._index.code
+        A = len(agents)
+        self.kin = np.empty((n, A, 8))  # x, y, vx, vy, speed, heading, lane_offset, lane code
+        self.flags = np.zeros((n, A, 2), dtype=bool)  # crashed, on_road
+        self.buses = [a for a in agents if a.kind == "bus"]
+        self.arm = np.zeros((n, len(self.buses)))
+        self.cmd = np.zeros((n, 2))  # ego commanded acceleration, steering
+
+    def write(self, k: int) -> None:
+        code = self.code
+        rows = []
+        fl = []
+        for a in self.agents:
+            p = a.position
+            h = a.heading
+            v = a.speed
+            c = math.cos(h)
+            s = math.sin(h)
+            li = a.lane_index
+            rows.append((p[0], p[1], v * c, v * s, v, (h + math.pi) % _TWO_PI - math.pi,
+                         a.lane_r if li is not None else math.nan,
+                         code[li] if li is not None else -1))
+            fl.append((a.crashed, a.is_on_road))
+        self.kin[k] = rows
+        self.flags[k] = fl
+        if self.buses:
+            self.arm[k] = [b.stop_arm for b in self.buses]
+        act = self.agents[0].action
+        self.cmd[k] = (act["acceleration"], act["steering"])
+
+    def finish(self, n: int, seconds: float, stopped: str | None) -> Trajectory:
+        w = self.world
+        kin = self.kin[:n].transpose(1, 0, 2)  # (A, T, 8)
+        flags = self.flags[:n].transpose(1, 0, 2)
+        ids = np.asarray([l.id for l in w._index.order] + [""])
+        codes = kin[:, :, 7].astype(int)
+        lane = ids[codes]  # -1 picks the trailing "" entry
+        t = np.arange(n) * w.dt
+        ego = self.agents[0]
+        signals = {f"{b.name}.stop_arm": self.arm[:n, i].copy() for i, b in enumerate(self.buses)}
+        # Command at step k is what the ego applied from t[k-1] to t[k]; sample 0 repeats step 1.
+        cmd = self.cmd[:n].copy()
+        if n > 1:
+            cmd[0] = cmd[1]
+        signals[f"{ego.name}.acceleration"] = cmd[:, 0]
+        signals[f"{ego.name}.steering"] = cmd[:, 1]
+        last = ego.route[-1]
+        reached = bool(ego.route_index == len(ego.route) - 1
+                       and ego.route_s >= last.length - ego.LENGTH / 2)
+        meta = {
+            "dt": w.dt, "seed": w.seed, "test": w.name, "seconds": seconds,
+            "road": w.road.kind, "ego_driver": repr(ego.driver),
+            "ego_route": [l.id for l in ego.route],
+            "ego_reached_route_end": reached,
+            "ego_route_index": int(ego.route_index),
+            "stopped_early": stopped,
+            "crashed": [a.name for a in self.agents if a.crashed],
+            "crosswalks": [c.name for c in getattr(w.road, "crosswalks", [])],
+        }
+        return Trajectory(
+            t=t, names=tuple(a.name for a in self.agents), kinds=tuple(a.kind for a in self.agents),
+            length=np.array([float(a.LENGTH) for a in self.agents]),
+            width=np.array([float(a.WIDTH) for a in self.agents]),
+            x=np.ascontiguousarray(kin[:, :, 0]), y=np.ascontiguousarray(kin[:, :, 1]),
+            vx=np.ascontiguousarray(kin[:, :, 2]), vy=np.ascontiguousarray(kin[:, :, 3]),
+            speed=np.ascontiguousarray(kin[:, :, 4]), heading=np.ascontiguousarray(kin[:, :, 5]),
+            lane=lane, lane_offset=np.ascontiguousarray(kin[:, :, 6]),
+            crashed=np.ascontiguousarray(flags[:, :, 0]),
+            present=np.ones(codes.shape, dtype=bool),
+            on_road=np.ascontiguousarray(flags[:, :, 1]),
+            signals=signals, meta=meta,
+        )
