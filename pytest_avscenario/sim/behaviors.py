@@ -196,6 +196,8 @@ class Turn(Behavior):
         hold = None
         if (self.stop or self.go_when_ego_within is not None) and not st.get("released"):
             d = agent.distance_to_stop_line()
+            if d is not None:
+                d -= agent.LENGTH / 2  # from the front bumper
             if d is None or d < -1.0:
                 st["released"] = True
             else:

@@ -100,7 +100,7 @@ class _Agent:
         self.world = world
         self.name = name
         self.kind = kind
-        self.route = list(route)
+        self.plan = list(route)
         self.route_index = route_index
         self.route_s = 0.0
         self.route_r = 0.0
@@ -127,15 +127,15 @@ class _Agent:
     # -- helpers for behaviours -----------------------------------------------------------------
     @property
     def route_lane(self) -> Any:
-        return self.route[self.route_index]
+        return self.plan[self.route_index]
 
     def _route_point(self, ahead: float, r: float = 0.0) -> tuple[float, float]:
         """World point ``ahead`` metres along the route from the agent, ``r`` metres left."""
         i, s = self.route_index, self.route_s + ahead
-        while s > self.route[i].length and i + 1 < len(self.route):
-            s -= self.route[i].length
+        while s > self.plan[i].length and i + 1 < len(self.plan):
+            s -= self.plan[i].length
             i += 1
-        p = self.route[i].geometry.position(s, r)
+        p = self.plan[i].geometry.position(s, r)
         return float(p[0]), float(p[1])
 
     def follow(self, r: float = 0.0, lookahead: float | None = None) -> float:
@@ -155,9 +155,9 @@ class _Agent:
         px, py = float(self.position[0]), float(self.position[1])
         reach = horizon + self.route_lane.length
         best: tuple[float, float] | None = None
-        lanes = [(self.route[self.route_index], -self.route_s)]
-        if self.route_index + 1 < len(self.route):
-            lanes.append((self.route[self.route_index + 1],
+        lanes = [(self.plan[self.route_index], -self.route_s)]
+        if self.route_index + 1 < len(self.plan):
+            lanes.append((self.plan[self.route_index + 1],
                           self.route_lane.length - self.route_s))
         for o in self.world._movers:
             if o is self:
@@ -204,9 +204,9 @@ class _Agent:
         lane = getattr(place, "lane", None)
         if lane is not None:
             idx = lane.index
-            for j in range(self.route_index, len(self.route)):
-                if self.route[j].index == idx:
-                    return (sum(self.route[k].length for k in range(self.route_index, j))
+            for j in range(self.route_index, len(self.plan)):
+                if self.plan[j].index == idx:
+                    return (sum(self.plan[k].length for k in range(self.route_index, j))
                             + float(place.s) - self.route_s)
             if self.lane_index == idx:
                 return float(place.s) - lane.local(self.position)[0]
@@ -219,8 +219,8 @@ class _Agent:
         """Distance [m] along the route to the next stop line (negative once passed), or None."""
         marks = self.world._index.stop_marks
         ahead = -self.route_s
-        for j in range(self.route_index, len(self.route)):
-            lane = self.route[j]
+        for j in range(self.route_index, len(self.plan)):
+            lane = self.plan[j]
             for s, kind in marks.get(lane.index, ()):
                 if kind == "stop":
                     return ahead + s
@@ -231,20 +231,20 @@ class _Agent:
         """Highest speed [m/s] now so curves on the route ahead stay under ``lateral_acc``."""
         cap = math.inf
         ahead = -self.route_s
-        for j in range(self.route_index, min(self.route_index + 3, len(self.route))):
-            g = self.route[j].geometry
+        for j in range(self.route_index, min(self.route_index + 3, len(self.plan))):
+            g = self.plan[j].geometry
             radius = getattr(g, "radius", math.inf)
             if math.isfinite(radius):
                 v_c = control.curve_speed(radius, lateral_acc)
                 cap = min(cap, math.sqrt(v_c * v_c + 2.0 * decel * max(ahead, 0.0)))
-            ahead += self.route[j].length
+            ahead += self.plan[j].length
         return cap
 
     def change_lane(self, to: Any) -> None:
         """Re-plan the route onto lane ``to``: "left", "right", "out" (from parking), a number
         or a Lane."""
         target = self.world._index.resolve_lane_change(self, to)
-        self.route = self.world._index.continue_route(target)
+        self.plan = self.world._index.continue_route(target)
         self.route_index = 0
         s, r = target.geometry.local_coordinates(self.position)
         self.route_s, self.route_r = s, r
@@ -252,9 +252,9 @@ class _Agent:
     def take_turn(self, direction: str) -> None:
         """Route through the intersection ahead taking ``direction``."""
         route = self.world._turn_route(self, direction)
-        self.route = list(route.lanes)
+        self.plan = list(route.lanes)
         self.route_index = 0
-        s, r = self.route[0].geometry.local_coordinates(self.position)
+        s, r = self.plan[0].geometry.local_coordinates(self.position)
         self.route_s, self.route_r = s, r
 
 

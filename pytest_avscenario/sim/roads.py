@@ -139,7 +139,7 @@ class LaneIndex:
         """Update ``agent``'s route progress and current lane after it moved."""
         pos = agent.position
         x, y = float(pos[0]), float(pos[1])
-        route = agent.route
+        route = agent.plan
         ri = agent.route_index
         if route:
             g = route[ri].geometry

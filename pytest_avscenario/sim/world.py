@@ -385,7 +385,7 @@ class World:
         if getattr(road, "kind", "") != "intersection":
             raise SimError(f"turn {direction!r} needs an intersection road, this is a "
                            f"{getattr(road, 'kind', None)} road", test=self.name, agent=agent.name)
-        lane = agent.route[agent.route_index]
+        lane = agent.plan[agent.route_index]
         arm = road.arm_of(lane)
         if arm is None:
             raise SimError(f"turn {direction!r}: place the agent on an approach lane "
@@ -432,14 +432,14 @@ class World:
         ri = ego.route_index
         stops = self._stop_cache.get(ri)
         if stops is None:
-            stops = tuple(ObsStopLine(j, s, kind) for j in range(ri, len(ego.route))
-                          for s, kind in self._index.stop_marks.get(ego.route[j].index, ()))
+            stops = tuple(ObsStopLine(j, s, kind) for j in range(ri, len(ego.plan))
+                          for s, kind in self._index.stop_marks.get(ego.plan[j].index, ()))
             self._stop_cache[ri] = stops
         return Observation(
             t=self.t, dt=self.dt, ego=self._state(ego, "ego"), route=self._route_geoms,
             route_index=ri, s=float(ego.route_s), r=float(ego.route_r),
             agents=tuple(self._state(o) for _, _, o in near), stop_lines=stops,
-            speed_limit=float(ego.route[ri].geometry.speed_limit),
+            speed_limit=float(ego.plan[ri].geometry.speed_limit),
             target_speed=ego.target_speed_request, goal=ego.goal,
             sensor_range=self.sensor_range)
 
@@ -471,7 +471,7 @@ class World:
         agents = [ego] + self._others
         self._movers = agents
         self._road.vehicles = list(agents)
-        self._route_geoms = tuple(l.geometry for l in ego.route)
+        self._route_geoms = tuple(l.geometry for l in ego.plan)
         self._stop_cache = {}
         self.t = 0.0
         for a in agents:
@@ -572,13 +572,13 @@ class _Recorder:
             cmd[0] = cmd[1]
         signals[f"{ego.name}.acceleration"] = cmd[:, 0]
         signals[f"{ego.name}.steering"] = cmd[:, 1]
-        last = ego.route[-1]
-        reached = bool(ego.route_index == len(ego.route) - 1
+        last = ego.plan[-1]
+        reached = bool(ego.route_index == len(ego.plan) - 1
                        and ego.route_s >= last.length - ego.LENGTH / 2)
         meta = {
             "dt": w.dt, "seed": w.seed, "test": w.name, "seconds": seconds,
             "road": w.road.kind, "ego_driver": repr(ego.driver),
-            "ego_route": [l.id for l in ego.route],
+            "ego_route": [l.id for l in ego.plan],
             "ego_reached_route_end": reached,
             "ego_route_index": int(ego.route_index),
             "stopped_early": stopped,
