@@ -17,6 +17,7 @@ import json
 import math
 import os
 import secrets
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,6 +33,8 @@ DEFAULT_SAMPLER = "halton"
 
 plans_key = pytest.StashKey[dict[str, "ScenarioPlan"]]()
 seed_key = pytest.StashKey[int]()
+row_key = pytest.StashKey[dict]()
+session_key = pytest.StashKey["RunState"]()
 
 
 # --------------------------------------------------------------------------- options
@@ -56,6 +59,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         metavar="NAME", default=None,
         help="built-in driver of the ego: 'autopilot' (default) or 'idm'; a conftest "
              "`avs_driver` fixture overrides this")
+    add("report", "directory of the scenario report (error table, summary, plots); 'none' disables",
+        metavar="DIR", default=None,
+        help="write the scenario report under DIR (default avs-report; 'none' disables)")
+    add("time-budget", "wall-time cap per scenario test and sampler (e.g. 30m, 90s)",
+        metavar="DURATION", default=None,
+        help="cap each scenario test's campaign per sampler (e.g. 30m, 90s, 1h); remaining "
+             "cases are skipped")
     group.addoption(
         "--avs-params", dest="avs_params", metavar="JSON", default=None,
         help="run the selected scenario cases with these parameter values "
@@ -72,6 +82,8 @@ def pytest_configure(config: pytest.Config) -> None:
     )
     config.stash[plans_key] = {}
     config.stash[seed_key] = _session_seed(config)
+    config.stash[session_key] = state = RunState(config)
+    config.pluginmanager.register(state, "avscenario-run")
     if config.pluginmanager.hasplugin("xdist"):
         config.pluginmanager.register(_XdistHooks(), "avscenario-xdist")
 
@@ -145,7 +157,18 @@ class ScenarioPlan:
     seed: int
     monitor_set: Any
     sampler_options: dict[str, Any]
+    time_budget_s: float | None = None
     active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
+    started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
+    ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        return tuple(self.monitor_set.names) if self.monitor_set is not None else ()
+
+    def info(self) -> dict[str, Any]:
+        """What the controller needs to summarize this test (plain JSON)."""
+        return {"metrics": list(self.metrics), "space": self.space.describe()}
 
     def make_sampler(self, name: str) -> Any:
         from . import samplers
@@ -235,7 +258,8 @@ def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan,
     if not isinstance(opts, dict):
         raise DeclarationError(f"sampler_options must be a dict, got {opts!r}")
     plan = ScenarioPlan(test=test, space=space, samplers=sampler_names, samples=samples,
-                        seed=seed, monitor_set=monitor_set, sampler_options=dict(opts))
+                        seed=seed, monitor_set=monitor_set, sampler_options=dict(opts),
+                        time_budget_s=_time_budget(config, spec))
 
     pinned = _pinned_params(config, space)
     slots: list[CaseSlot] = []
@@ -279,6 +303,39 @@ def _setting_int(config: pytest.Config, spec: ScenarioSpec, key: str, default: i
     if value < minimum:
         raise DeclarationError(f"{key} must be >= {minimum}, got {value} (from {source})")
     return value
+
+
+def parse_duration(value: Any) -> float:
+    """Seconds from ``90``, ``"90s"``, ``"30m"``, ``"1.5h"``; ValueError otherwise."""
+    if isinstance(value, bool):
+        raise ValueError(value)
+    if isinstance(value, (int, float)):
+        seconds = float(value)
+    else:
+        text = str(value).strip().lower()
+        unit = {"s": 1.0, "m": 60.0, "h": 3600.0}.get(text[-1:], None)
+        seconds = float(text[:-1]) * unit if unit else float(text)
+    if not math.isfinite(seconds) or seconds <= 0:
+        raise ValueError(value)
+    return seconds
+
+
+def _time_budget(config: pytest.Config, spec: ScenarioSpec) -> float | None:
+    if "time_budget" in spec.given and spec.time_budget is not None:
+        raw, source = spec.time_budget, "@scenario(time_budget=...)"
+    elif config.getoption("avs_time_budget"):
+        raw, source = config.getoption("avs_time_budget"), "--avs-time-budget"
+    elif config.getini("avs_time_budget"):
+        raw, source = config.getini("avs_time_budget"), "ini avs_time_budget"
+    else:
+        return None
+    try:
+        return parse_duration(raw)
+    except (ValueError, TypeError):
+        raise DeclarationError(
+            f"time_budget must be a positive duration like 30m, 90s, 1h or seconds, got {raw!r} "
+            f"(from {source})"
+        ) from None
 
 
 def _samplers(config: pytest.Config, spec: ScenarioSpec) -> list[str]:
@@ -333,6 +390,13 @@ def case(request: pytest.FixtureRequest) -> Case:
             "with @scenario(...)"
         )
     plan = _plan_of(request.node)
+    if plan.time_budget_s is not None:
+        start = plan.started.setdefault(slot.sampler, time.monotonic())
+        if time.monotonic() - start > plan.time_budget_s:
+            pytest.skip(
+                f"time budget of {plan.time_budget_s:g} s for {slot.sampler} spent after "
+                f"{plan.ran.get(slot.sampler, 0)} cases"
+            )
     params = slot.params
     if params is None:
         params = _active_sampler(plan, slot.sampler).ask()
@@ -395,7 +459,10 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
         _active_sampler(plan, slot.sampler).tell(
             outcome.params, None if outcome.verdict == "error" else dict(outcome.rho) or _body_rho(outcome)
         )
-    _record_properties(pyfuncitem, case_obj, outcome)
+    plan.ran[slot.sampler] = plan.ran.get(slot.sampler, 0) + 1
+    row = _row(pyfuncitem, case_obj, outcome)
+    pyfuncitem.stash[row_key] = row
+    _record_properties(pyfuncitem, row)
     if outcome.verdict == "pass":
         return True
     if outcome.exc is not None and not (outcome.verdict == "error" and outcome.error and outcome.error.startswith("MonitorError")):
@@ -461,10 +528,125 @@ def rerun_command(item: pytest.Item, case: Case) -> str:
     return cmd
 
 
-def _record_properties(item: pytest.Item, case: Case, outcome: CaseOutcome) -> None:
-    props = item.user_properties
-    props.append(("avs.params", json.dumps(case.params, sort_keys=False, default=repr)))
-    for name, rho in outcome.rho.items():
-        props.append((f"avs.rho.{name}", _fmt_rho(rho).lstrip("+")))
-    props.append(("avs.verdict", outcome.verdict))
-    props.append(("avs.seed", str(case.seed)))
+def _row(item: pytest.Item, case: Case, outcome: CaseOutcome) -> dict[str, Any]:
+    """The error-table row of one finished case (plain JSON-able data)."""
+    from .report.table import row_to_json
+
+    return row_to_json({
+        "test": _function_id(item), "item": item.nodeid, "sampler": case.sampler,
+        "index": case.index, "seed": case.seed, "origin": case.origin,
+        "params": dict(case.params), "rho": dict(outcome.rho), "verdict": outcome.verdict,
+        "sim_time_s": outcome.sim_time_s, "error": outcome.error,
+    })
+
+
+def _record_properties(item: pytest.Item, row: dict[str, Any]) -> None:
+    from .report.junit import case_properties
+    from .report.table import row_from_json
+
+    # user_properties (not record_property) gives the same XML without xunit2's warning
+    item.user_properties.extend(case_properties(row_from_json(row)))
+
+
+# --------------------------------------------------------------------------- reporting
+class RunState:
+    """The controller's view of the run: the error table and what the summary needs."""
+
+    def __init__(self, config: pytest.Config):
+        self.config = config
+        self.is_worker = hasattr(config, "workerinput")
+        raw = config.getoption("avs_report") or config.getini("avs_report") or "avs-report"
+        self.directory = None if str(raw).lower() == "none" else (
+            config.invocation_params.dir / str(raw))
+        self.table: Any = None
+        self.rows: list[dict[str, Any]] = []
+        self.tests: dict[str, dict[str, Any]] = {}
+        self.summary_rows: list[Any] | None = None
+
+    # -- hooks (this object is registered as a plugin for its config) ---------------------
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        row = getattr(report, "avs_row", None)
+        if row is not None and not self.is_worker:
+            self.add(row, report.avs_test)
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> None:
+        # tryfirst: the suite properties must reach pytest's JUnit writer before it writes
+        if self.is_worker or not self.rows:
+            return
+        from _pytest.junitxml import xml_key
+
+        from .report.junit import add_suite_properties_to_logxml
+        from .report.summary import suite_properties
+
+        self.summary_rows = self.summary()
+        props = suite_properties(self.summary_rows, seed=self.config.stash[seed_key],
+                                 versions=_versions())
+        add_suite_properties_to_logxml(self.config.stash.get(xml_key, None), props)
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        if self.is_worker or not self.rows:
+            return
+        from .report.summary import format_pointer, format_table
+
+        summary = self.summary_rows if self.summary_rows is not None else self.summary()
+        terminalreporter.write_sep("=", "avscenario")
+        for line in format_table(summary).splitlines():
+            terminalreporter.write_line(line)
+        if self.directory is not None:
+            terminalreporter.write_line(format_pointer(self.directory))
+
+    # -- state ----------------------------------------------------------------------------
+    def add(self, row: dict[str, Any], info: dict[str, Any]) -> None:
+        self.tests.setdefault(row["test"], info)
+        self.rows.append(row)
+        if self.directory is None:
+            return
+        if self.table is None:
+            from .report.table import ErrorTable, prepare_report_dir
+
+            prepare_report_dir(self.directory)
+            self.table = ErrorTable(self.directory)
+        self.table.append(row)
+
+    def close(self) -> None:
+        if self.table is not None:
+            self.table.close()
+
+    def summary(self) -> list[Any]:
+        from .report.summary import TestInfo, summarize
+
+        infos = {
+            test: TestInfo(metrics=tuple(info["metrics"]),
+                           space=FeatureSpace.from_description(info["space"]))
+            for test, info in self.tests.items()
+        }
+        return summarize(self.rows, infos)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    report = yield
+    if call.when == "call" and row_key in item.stash:
+        # extra report attributes travel to the xdist controller with the report
+        report.avs_row = item.stash[row_key]
+        report.avs_test = _plan_of(item).info()
+    return report
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for dist in ("pytest-avscenario", "highway-env"):
+        try:
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            out[dist] = "not installed"
+    return out
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    state = config.stash.get(session_key, None)
+    if state is not None:
+        state.close()

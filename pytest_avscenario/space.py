@@ -449,6 +449,20 @@ class FeatureSpace:
     def describe(self) -> dict[str, Any]:
         return {n: d.describe() for n, d in self.parameters.items()}
 
+    @classmethod
+    def from_description(cls, description: Mapping[str, Mapping[str, Any]]) -> "FeatureSpace":
+        """Rebuild a space from :meth:`describe` output (plain JSON data; nothing executed)."""
+        kinds = {"Uniform": Uniform, "Normal": Normal, "IntRange": IntRange, "Choice": Choice,
+                 "Constant": Constant}
+        params: dict[str, Distribution] = {}
+        for name, desc in description.items():
+            desc = dict(desc)
+            kind = kinds.get(desc.pop("type", None))
+            if kind is None:
+                raise SpaceError(f"parameter {name!r}: unknown distribution in {desc!r}")
+            params[name] = kind(**desc)
+        return cls(params)
+
     def fingerprint(self) -> str:
         blob = json.dumps(self.describe(), sort_keys=True, default=repr).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
