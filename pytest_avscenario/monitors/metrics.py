@@ -70,7 +70,8 @@ def pairwise_ttc(traj: Trajectory, radius: float) -> np.ndarray:
     # approaching pair (b < 0) and a real root (disc >= 0); then t1 = 2c / (-b + sqrt(disc)),
     # the cancellation-free form of (-b - sqrt(disc)) / 2a (it also covers a -> 0).
     approaching = (c > 0) & (b < 0) & (disc >= 0)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    # a vanishing closing speed overflows to TTC = inf, which is the right answer
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         t1 = 2.0 * c / (-b + np.sqrt(np.where(approaching, disc, 0.0)))
     out = np.where(approaching, t1, np.inf)
     out = np.where(c <= 0, 0.0, out)

@@ -1,0 +1,151 @@
+"""Properties of the metrics on random scenes (Hypothesis): the sign of rho agrees with the
+boolean definition, and distance/TTC do not depend on where the scene is or how it is turned."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from pytest_avscenario.monitors import always, collision, distance, gap, ttc, ttc_to
+from pytest_avscenario.sim.trajectory import Trajectory
+
+coord = st.floats(-60, 60, allow_nan=False, allow_infinity=False)
+# speeds below 1 µm/s are zero: with subnormal closing speeds the textbook quadratic's
+# leading coefficient underflows and numpy.roots loses a root the closed form keeps
+vel = st.floats(-25, 25, allow_nan=False, allow_infinity=False).map(
+    lambda v: 0.0 if abs(v) < 1e-6 else v)
+
+
+@st.composite
+def scenes(draw):
+    """Random (A, T) scene as plain arrays, some agents absent at some steps."""
+    A = draw(st.integers(2, 4))
+    T = draw(st.integers(1, 6))
+    arr = lambda s: np.array(draw(st.lists(s, min_size=A * T, max_size=A * T))).reshape(A, T)
+    x, y, vx, vy = arr(coord), arr(coord), arr(vel), arr(vel)
+    heading = arr(st.floats(-math.pi, math.pi))
+    present = arr(st.booleans())
+    present[0] = True  # the ego is recorded at every step
+    return dict(x=x, y=y, vx=vx, vy=vy, heading=heading, present=present)
+
+
+def build(s):
+    A, T = s["x"].shape
+    agents = {}
+    for a in range(A):
+        d = {k: np.where(s["present"][a], s[k][a], np.nan) for k in ("x", "y", "vx", "vy", "heading")}
+        d["present"] = s["present"][a]
+        agents["ego" if a == 0 else f"car{a}"] = d
+    return Trajectory.from_arrays(np.arange(T) * 0.1, agents)
+
+
+def pairs(s):
+    """(other agent, step) for every step where ego and the other are both present."""
+    A, T = s["x"].shape
+    return [(a, k) for a in range(1, A) for k in range(T) if s["present"][a, k]]
+
+
+def ttc_textbook(s, a, k, r=5.0):
+    """TTC straight from the definition, solving the quadratic with numpy.roots."""
+    dp = np.array([s["x"][a, k] - s["x"][0, k], s["y"][a, k] - s["y"][0, k]])
+    dv = np.array([s["vx"][a, k] - s["vx"][0, k], s["vy"][a, k] - s["vy"][0, k]])
+    if dp @ dp <= r * r:
+        return 0.0
+    roots = np.roots([dv @ dv, 2 * dp @ dv, dp @ dp - r * r])
+    real = sorted(z.real for z in roots if abs(z.imag) < 1e-12)
+    if len(real) < 2 or real[1] <= 0:
+        return math.inf
+    return real[0]
+
+
+def closest_approach(s, a, k):
+    dp = np.array([s["x"][a, k] - s["x"][0, k], s["y"][a, k] - s["y"][0, k]])
+    dv = np.array([s["vx"][a, k] - s["vx"][0, k], s["vy"][a, k] - s["vy"][0, k]])
+    if dv @ dv == 0:
+        return float(np.hypot(*dp))
+    tau = -(dp @ dv) / (dv @ dv)
+    return float(np.hypot(*(dp + dv * tau)))
+
+
+@settings(max_examples=150, deadline=None)
+@given(scenes())
+def test_distance_sign_agrees_with_boolean_definition(s):
+    rho = distance(5.0).evaluate(build(s)).rho
+    dists = [math.hypot(s["x"][a, k] - s["x"][0, k], s["y"][a, k] - s["y"][0, k])
+             for a, k in pairs(s)]
+    holds = all(d >= 5.0 for d in dists)
+    assert (rho >= 0) == holds
+    if dists:
+        assert rho == pytest.approx(min(dists) - 5.0, rel=1e-12, abs=1e-12)
+    else:
+        assert rho == math.inf
+
+
+@settings(max_examples=150, deadline=None)
+@given(scenes())
+def test_ttc_sign_agrees_with_boolean_definition(s):
+    # requirement per pair and step: never inside, and (t1 >= 2 or t2 <= 0 or no real root)
+    ps = pairs(s)
+    # numpy.roots and the closed form may disagree on a root that exists only by rounding
+    assume(all(abs(closest_approach(s, a, k) - 5.0) > 1e-6 for a, k in ps))
+    rho = ttc(2.0).evaluate(build(s)).rho
+    ttcs = [ttc_textbook(s, a, k) for a, k in ps]
+    assume(all(abs(v - 2.0) > 1e-6 for v in ttcs))
+    assert (rho >= 0) == all(v >= 2.0 for v in ttcs)
+    if ttcs and min(ttcs) < math.inf:
+        assert rho == pytest.approx(min(ttcs) - 2.0, rel=1e-6, abs=1e-6)
+    else:
+        assert rho == math.inf
+
+
+@settings(max_examples=100, deadline=None)
+@given(scenes())
+def test_collision_sign_agrees_with_polygon_overlap(s):
+    from shapely.geometry import Polygon
+
+    traj = build(s)
+    rho = collision(use_crash_flag=False).evaluate(traj).rho
+    assume(abs(rho) > 1e-6)
+    overlap = False
+    for a, k in pairs(s):
+        polys = traj.footprints(k)
+        overlap |= polys[0].intersection(polys[a]).area > 1e-9
+    assert (rho < 0) == overlap
+
+
+def transform(s, theta, dx, dy):
+    c, sn = math.cos(theta), math.sin(theta)
+    out = dict(s)
+    out["x"] = c * s["x"] - sn * s["y"] + dx
+    out["y"] = sn * s["x"] + c * s["y"] + dy
+    out["vx"] = c * s["vx"] - sn * s["vy"]
+    out["vy"] = sn * s["vx"] + c * s["vy"]
+    out["heading"] = s["heading"] + theta
+    return out
+
+
+@settings(max_examples=150, deadline=None)
+@given(scenes(), st.floats(-math.pi, math.pi), coord, coord)
+def test_distance_and_ttc_invariant_under_rotation_and_translation(s, theta, dx, dy):
+    # exclude scenes that graze the 5-m circle: there "touches" vs "misses" is decided by
+    # the last bit of a rotated coordinate
+    assume(all(abs(closest_approach(s, a, k) - 5.0) > 1e-6 for a, k in pairs(s)))
+    a, b = build(s), build(transform(s, theta, dx, dy))
+    for m in (distance(5.0), ttc(2.0), distance(1.0, footprint=True), collision()):
+        ra, rb = m.evaluate(a).rho, m.evaluate(b).rho
+        if math.isinf(ra):
+            assert rb == ra, m.name
+        else:
+            assert rb == pytest.approx(ra, rel=1e-6, abs=1e-6), m.name
+
+
+@settings(max_examples=80, deadline=None)
+@given(scenes())
+def test_stl_formulas_agree_with_the_builtin_metrics(s):
+    traj = build(s)
+    assert always(gap() >= 5.0).evaluate(traj).rho == distance(5.0).evaluate(traj).rho
+    assert always(ttc_to() >= 2.0).evaluate(traj).rho == ttc(2.0).evaluate(traj).rho
