@@ -1,0 +1,259 @@
+"""Pictures of a falsification run: where the failures are, and how robustness evolved.
+
+Two PNGs per scenario test, drawn from its error-table rows:
+
+* the sampled feature space as pairwise 2-D projections of its parameters (a scatter
+  matrix), passing cases blue, failing red, errored grey — the paper's point plots, showing
+  at a glance which region of (gap, speed, brake time) breaks the AV;
+* ρ per metric over the sample index, one panel per metric with the ρ = 0 boundary, so one
+  sees an active sampler closing in on failures (ρ falling) or a passive one spreading out.
+
+matplotlib is imported inside the functions and only through its object-oriented API with
+the Agg canvas (no pyplot, no global backend switch), so loading the plugin never pays for
+it and a user's own matplotlib state is untouched. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from .table import atomic_write_bytes, file_slug
+
+__all__ = ["plot_feature_space", "plot_rho_over_index", "plot_test", "PLOTS_DIR"]
+
+PLOTS_DIR = "plots"
+
+# Colour-blind-safe pair (blue / vermillion) plus grey for cases that did not simulate.
+_COLOURS = {"pass": "#0072B2", "fail": "#D55E00", "error": "#999999"}
+_MAX_PARAMS = 6  # 15 panels; more would make each panel too small to read
+
+
+def _figure(width_in: float, height_in: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: str | os.PathLike) -> Path:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    atomic_write_bytes(path, buf.getvalue())
+    return Path(path)
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
+
+
+def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
+    """Numbers to plot for one parameter, and tick labels when it is categorical."""
+    values = [r["params"].get(name) for r in rows]
+    if all(_is_number(v) for v in values):
+        return [float(v) for v in values], None
+    # Categorical (or mixed): position by first appearance, label with the value itself.
+    labels: list[str] = []
+    for v in values:
+        if str(v) not in labels:
+            labels.append(str(v))
+    # A small deterministic jitter keeps cases with the same category from hiding each other.
+    jitter = [((i * 0.6180339887) % 1.0 - 0.5) * 0.3 for i in range(len(values))]
+    return [labels.index(str(v)) + j for v, j in zip(values, jitter)], labels
+
+
+def _varying(rows: Sequence[Mapping[str, Any]], names: Sequence[str]) -> list[str]:
+    # A parameter that never changes (a constant) is a wasted row and column of panels.
+    return [n for n in names if len({repr(r["params"].get(n)) for r in rows}) > 1]
+
+
+def plot_feature_space(
+    path: str | os.PathLike,
+    rows: Sequence[Mapping[str, Any]],
+    params: Sequence[str] | None = None,
+    *,
+    title: str | None = None,
+) -> Path | None:
+    """Pairwise projections of the sampled cases, coloured by verdict; returns the PNG path.
+
+    ``params`` chooses and orders the parameters (default: every parameter that varies, in
+    the rows' order, at most six). One parameter gives a strip plot over the case index.
+    Returns None (and writes nothing) when there are no rows or no varying parameter.
+    """
+    rows = [r for r in rows if r.get("params") is not None]
+    if not rows:
+        return None
+    names = list(params) if params is not None else list(rows[0]["params"])
+    names = _varying(rows, names)[:_MAX_PARAMS]
+    if not names:
+        return None
+    verdicts = [r.get("verdict", "pass") for r in rows]
+    cols = {n: _axis_values(rows, n) for n in names}
+    k = len(names)
+    size = 2.6 if k > 2 else 4.2
+    n_panels = max(1, k - 1)
+    fig = _figure(size * n_panels + 0.6, size * n_panels + 0.4)
+
+    def scatter(ax, xs, ys):
+        # Draw failures last so a red point is never hidden under a cloud of blue ones.
+        for verdict in ("pass", "error", "fail"):
+            idx = [i for i, v in enumerate(verdicts) if v == verdict]
+            if idx:
+                ax.scatter([xs[i] for i in idx], [ys[i] for i in idx], s=14, alpha=0.85,
+                           color=_COLOURS[verdict], label=f"{verdict} ({len(idx)})",
+                           edgecolors="none")
+
+    def label_axis(ax, which: str, name: str):
+        _, labels = cols[name]
+        getattr(ax, f"set_{which}label")(name)
+        if labels is not None:
+            getattr(ax, f"set_{which}ticks")(range(len(labels)))
+            getattr(ax, f"set_{which}ticklabels")(labels)
+            getattr(ax, f"set_{which}lim")(-0.5, len(labels) - 0.5)
+
+    if k == 1:
+        ax = fig.add_subplot(1, 1, 1)
+        xs = [float(r.get("index", i)) for i, r in enumerate(rows)]
+        scatter(ax, xs, cols[names[0]][0])
+        ax.set_xlabel("case index")
+        label_axis(ax, "y", names[0])
+        ax.legend(loc="best", fontsize=8)
+    else:
+        axes = fig.subplots(n_panels, n_panels, squeeze=False)
+        for row_i in range(n_panels):
+            for col_j in range(n_panels):
+                ax = axes[row_i][col_j]
+                yi, xj = row_i + 1, col_j
+                if xj >= yi:  # upper triangle: the lower one already shows that pair
+                    ax.set_axis_off()
+                    continue
+                scatter(ax, cols[names[xj]][0], cols[names[yi]][0])
+                if row_i == n_panels - 1:
+                    label_axis(ax, "x", names[xj])
+                elif cols[names[xj]][1] is not None:
+                    ax.set_xticks(range(len(cols[names[xj]][1])))
+                    ax.set_xticklabels([])
+                    ax.set_xlim(-0.5, len(cols[names[xj]][1]) - 0.5)
+                if col_j == 0:
+                    label_axis(ax, "y", names[yi])
+                elif cols[names[yi]][1] is not None:
+                    ax.set_yticks(range(len(cols[names[yi]][1])))
+                    ax.set_yticklabels([])
+                    ax.set_ylim(-0.5, len(cols[names[yi]][1]) - 0.5)
+                ax.tick_params(labelsize=7)
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        if n_panels > 1:
+            axes[0][n_panels - 1].legend(handles, labels, loc="upper right", fontsize=8)
+        else:
+            axes[0][0].legend(loc="best", fontsize=8)
+    fig.suptitle(title or "sampled feature space", fontsize=10)
+    return _save(fig, path)
+
+
+def _finite_limits(values: Sequence[float]) -> tuple[float, float]:
+    finite = [v for v in values if v is not None and math.isfinite(v)]
+    if not finite:
+        return -1.0, 1.0
+    lo, hi = min(finite + [0.0]), max(finite + [0.0])
+    pad = 0.08 * (hi - lo) if hi > lo else 1.0
+    return lo - pad, hi + pad
+
+
+def plot_rho_over_index(
+    path: str | os.PathLike,
+    rows: Sequence[Mapping[str, Any]],
+    metrics: Sequence[str] | None = None,
+    *,
+    title: str | None = None,
+) -> Path | None:
+    """ρ of each metric against the case index, one panel per metric; returns the PNG path.
+
+    Samplers are told apart by marker shape; violations (ρ < 0) are red. ±inf values are
+    drawn at the top or bottom edge of the panel as triangles (a value off the scale, not a
+    missing one). Returns None when there is nothing to plot.
+    """
+    rows = sorted((r for r in rows if r.get("rho")), key=lambda r: (str(r.get("sampler")), r.get("index", 0)))
+    if not rows:
+        return None
+    if metrics is None:
+        metrics = []
+        for r in rows:
+            metrics += [m for m in r["rho"] if m not in metrics]
+    metrics = list(metrics)
+    samplers = list(dict.fromkeys(str(r.get("sampler")) for r in rows))
+    markers = dict(zip(samplers, "o s D v P X *".split() * 4))
+    fig = _figure(7.5, 1.9 * len(metrics) + 0.8)
+    axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)
+    for ax, metric in zip((a[0] for a in axes), metrics):
+        lo, hi = _finite_limits([r["rho"].get(metric) for r in rows])
+        ax.axhline(0.0, color="black", linewidth=0.8)
+        ax.axhspan(lo, 0.0, color=_COLOURS["fail"], alpha=0.06)
+        for sampler in samplers:
+            sub = [r for r in rows if str(r.get("sampler")) == sampler and r["rho"].get(metric) is not None]
+            xs = [r.get("index", 0) for r in sub]
+            ys = [r["rho"][metric] for r in sub]
+            finite = [(x, y) for x, y in zip(xs, ys) if math.isfinite(y)]
+            if finite:
+                ax.plot([x for x, _ in finite], [y for _, y in finite], color="#bbbbbb", linewidth=0.6, zorder=1)
+                ax.scatter([x for x, _ in finite], [y for _, y in finite], s=16, zorder=2,
+                           marker=markers[sampler], edgecolors="none",
+                           color=[_COLOURS["fail" if y < 0 else "pass"] for _, y in finite])
+            for positive, edge, mark in ((True, hi, "^"), (False, lo, "v")):
+                off = [x for x, y in zip(xs, ys) if math.isinf(y) and (y > 0) == positive]
+                if off:
+                    # Off the scale, drawn on the panel's edge: a value, not a missing one.
+                    ax.scatter(off, [edge] * len(off), marker=mark, s=22, zorder=3, clip_on=False,
+                               color=_COLOURS["pass" if positive else "fail"])
+        ax.set_ylim(lo, hi)
+        ax.set_ylabel(f"ρ {metric}", fontsize=9)
+        ax.tick_params(labelsize=7)
+    fig.legend(handles=_rho_legend(samplers, markers, rows, metrics), loc="outside lower center",
+               ncols=6, fontsize=7, frameon=False)
+    axes[-1][0].set_xlabel("case index")
+    fig.suptitle(title or "robustness per metric", fontsize=10)
+    return _save(fig, path)
+
+
+def _rho_legend(samplers, markers, rows, metrics):
+    from matplotlib.lines import Line2D
+
+    def handle(marker, colour, label):
+        return Line2D([], [], linestyle="none", marker=marker, markersize=5, color=colour, label=label)
+
+    out = [handle("o", _COLOURS["pass"], "ρ ≥ 0 holds"), handle("o", _COLOURS["fail"], "ρ < 0 violated")]
+    values = [r["rho"].get(m) for r in rows for m in metrics]
+    if any(v is not None and v == math.inf for v in values):
+        out.append(handle("^", _COLOURS["pass"], "+inf"))
+    if any(v is not None and v == -math.inf for v in values):
+        out.append(handle("v", _COLOURS["fail"], "-inf"))
+    if len(samplers) > 1:
+        # Shape, not colour, tells samplers apart: colour already means the verdict.
+        out += [handle(markers[s], "#555555", s) for s in samplers]
+    return out
+
+
+def plot_test(
+    directory: str | os.PathLike,
+    test: str,
+    rows: Sequence[Mapping[str, Any]],
+    *,
+    metrics: Sequence[str] | None = None,
+    params: Sequence[str] | None = None,
+) -> dict[str, Path]:
+    """Both pictures of one test under ``<directory>/plots/``; returns ``{kind: path}``
+    for the kinds written (``"space"``, ``"rho"``). Pass the test's main-table rows (not the
+    shrink candidates, which crowd the failure region)."""
+    base = Path(directory) / PLOTS_DIR / file_slug(test)
+    out: dict[str, Path] = {}
+    space = plot_feature_space(f"{base}.space.png", rows, params, title=f"{test}: sampled cases")
+    if space is not None:
+        out["space"] = space
+    rho = plot_rho_over_index(f"{base}.rho.png", rows, metrics, title=f"{test}: ρ per metric")
+    if rho is not None:
+        out["rho"] = rho
+    return out

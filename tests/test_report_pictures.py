@@ -1,0 +1,166 @@
+"""Pictures and the static index page: PNGs that show passes and failures, an escaped page
+whose table and images really render in a headless browser."""
+
+import math
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pytest_avscenario.report.html import render_index, write_index
+from pytest_avscenario.report.plots import plot_feature_space, plot_rho_over_index, plot_test
+from pytest_avscenario.report.summary import TestInfo, summarize
+from pytest_avscenario.report.table import ErrorTable
+from pytest_avscenario.space import Choice, FeatureSpace, Uniform
+
+PASS_RGB = (0x00, 0x72, 0xB2)
+FAIL_RGB = (0xD5, 0x5E, 0x00)
+NASTY = "tests/test_x.py::test_follow[<img src=x onerror=alert(1)>&\"q\"]"
+
+
+def make_rows(test=NASTY, n=40, seed=0):
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        gap, speed = rng.uniform(10, 40), rng.uniform(5, 15)
+        rho = {"distance": gap - 25.0, "ttc": math.inf if i % 3 else speed - 10.0}
+        rows.append({
+            "test": test, "item": f"{test}[{i}]", "sampler": "halton" if i % 2 else "mab", "index": i // 2,
+            "seed": i, "origin": "sampled", "params": {"gap": gap, "speed": speed, "road": ["dry", "<wet>"][i % 2]},
+            "rho": rho, "verdict": "fail" if min(rho.values()) < 0 else "pass", "sim_time_s": 0.01, "error": None,
+        })
+    return rows
+
+
+def _pixels(path):
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert("RGB")).reshape(-1, 3).astype(int)
+
+
+def _count_colour(pixels, rgb, tol=90):
+    # Loose enough for antialiasing and the markers' slight transparency over white, far
+    # tighter than the distance between the pass blue, the fail orange and the grey lines.
+    return int((np.abs(pixels - np.array(rgb)).sum(axis=1) < tol).sum())
+
+
+def test_feature_space_plot_shows_passing_and_failing_cases(tmp_path):
+    path = plot_feature_space(tmp_path / "space.png", make_rows())
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    px = _pixels(path)
+    assert _count_colour(px, PASS_RGB) > 50 and _count_colour(px, FAIL_RGB) > 50
+    # Only passing cases: no failure colour anywhere.
+    passing = [r for r in make_rows() if r["verdict"] == "pass"]
+    assert _count_colour(_pixels(plot_feature_space(tmp_path / "p.png", passing)), FAIL_RGB) == 0
+
+
+def test_rho_plot_handles_infinities_and_missing_values(tmp_path):
+    rows = make_rows()
+    rows[0]["rho"] = {"distance": -math.inf}  # ttc missing, distance off the scale
+    path = plot_rho_over_index(tmp_path / "rho.png", rows, ["distance", "ttc"])
+    from PIL import Image
+
+    w, h = Image.open(path).size
+    assert w > 500 and h > 400  # two panels
+    assert _count_colour(_pixels(path), FAIL_RGB) > 20
+
+
+def test_nothing_to_draw_writes_nothing(tmp_path):
+    assert plot_feature_space(tmp_path / "a.png", []) is None
+    constant = [dict(r, params={"lane": 1}) for r in make_rows(n=3)]
+    assert plot_feature_space(tmp_path / "b.png", constant) is None
+    assert plot_rho_over_index(tmp_path / "c.png", [dict(r, rho={}) for r in make_rows(n=3)]) is None
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plot_test_names_files_after_the_test(tmp_path):
+    out = plot_test(tmp_path, NASTY, make_rows(n=6))
+    assert set(out) == {"space", "rho"}
+    for p in out.values():
+        assert p.parent == tmp_path / "plots" and "<" not in p.name and p.stat().st_size > 5000
+
+
+def _build_report(directory: Path):
+    rows = make_rows() + make_rows(test="tests/test_y.py::test_cross", n=10, seed=1)
+    info = {NASTY: TestInfo(("distance", "ttc"), FeatureSpace({"gap": Uniform(10, 40), "speed": Uniform(5, 15),
+                                                               "road": Choice(["dry", "<wet>"])}))}
+    with ErrorTable(directory) as table:
+        for r in rows:
+            table.append(r)
+        tables = table.tables()
+    tables[""] = [directory / "errors.jsonl"]
+    images = {t: plot_test(directory, t, [r for r in rows if r["test"] == t]) for t in (NASTY, "tests/test_y.py::test_cross")}
+    summary = summarize(rows, info)
+    return write_index(directory, summary, images, tables, meta={"seed": "<7>"}), summary, images
+
+
+def test_index_escapes_everything_and_links_relatively(tmp_path):
+    index, summary, images = _build_report(tmp_path / "rep")
+    text = index.read_text()
+    assert "<img src=x" not in text and "&lt;img src=x onerror=alert(1)&gt;&amp;&quot;q&quot;" in text
+    assert "seed: &lt;7&gt;" in text
+    hrefs = re.findall(r"(?:href|src)='([^']*)'", text)
+    assert hrefs and all(not h.startswith(("/", "http")) for h in hrefs)
+    for h in hrefs:  # every link resolves to a file we wrote
+        from urllib.parse import unquote
+
+        assert (index.parent / unquote(h)).is_file(), h
+    n_images = sum(len(v) for v in images.values())
+    assert text.count("<img ") == n_images == 4
+    assert text.count("<tr>") == 1 + len(summary)
+
+
+def _chromium() -> str:
+    """Path of a headless-capable Chromium, installing Debian's package when missing."""
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        if shutil.which(name):
+            return shutil.which(name)
+    if os.geteuid() != 0 or not shutil.which("apt-get"):
+        pytest.skip("chromium is not installed and this user cannot apt-get install it")
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    try:
+        subprocess.run("apt-get update -q && apt-get install -y -q chromium", shell=True, env=env,
+                       check=True, capture_output=True, timeout=900)
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired) as exc:
+        pytest.skip(f"could not install chromium with apt-get: {exc}")
+    path = shutil.which("chromium")
+    if path is None:
+        pytest.skip("apt-get installed chromium but it is not on PATH")
+    return path
+
+
+def _headless(chromium: str, *args: str) -> subprocess.CompletedProcess:
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+           "--virtual-time-budget=5000", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    return _chromium()
+
+
+def test_index_renders_its_table_and_images_in_headless_chromium(tmp_path, chromium):
+    index, summary, images = _build_report(tmp_path / "rep")
+    url = index.resolve().as_uri()
+    dom = _headless(chromium, "--dump-dom", url).stdout
+    assert "<table id=\"summary\">" in dom
+    assert dom.count("<tr>") == 1 + len(summary)
+    n = sum(len(v) for v in images.values())
+    # The page's own check ran in the browser: every <img> decoded to a non-empty bitmap.
+    assert f'data-loaded="{n}/{n}"' in dom and dom.count('data-loaded="yes"') == n
+    shot = tmp_path / "shot.png"
+    _headless(chromium, "--window-size=1300,2200", f"--screenshot={shot}", url)
+    px = _pixels(shot)
+    assert _count_colour(px, FAIL_RGB) > 100  # the scatter points were painted
+
+
+def test_the_browser_check_notices_a_missing_picture(tmp_path, chromium):
+    page = render_index(tmp_path, [], {"t": {"gone": tmp_path / "nope.png"}}, {})
+    (tmp_path / "index.html").write_text(page)
+    dom = _headless(chromium, "--dump-dom", (tmp_path / "index.html").as_uri()).stdout
+    assert 'data-loaded="0/1"' in dom and 'class="broken"' in dom
