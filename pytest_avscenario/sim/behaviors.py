@@ -50,7 +50,7 @@ class Behavior:
     """Base class. Subclasses are frozen dataclasses of their parameters."""
 
     kinds = VEHICLES  # which agent kinds it can drive
-    state: dict = field(default_factory=dict, compare=False, repr=False)
+    state: dict = field(default_factory=dict, compare=False, repr=False, kw_only=True)
 
     def bind(self, rng: Any) -> "Behavior":
         """A copy with callable parameters drawn from ``rng`` and fresh per-agent state."""
@@ -159,8 +159,7 @@ class ChangeLane(Behavior):
             agent.change_lane(self.to)
             st["done"] = True
         v = self.speed if self.speed is not None else agent.initial_speed
-        look = max(6.0, agent.speed * self.duration / 2.0) if st.get("done") else None
-        return agent.idm(v), agent.follow(lookahead=look)
+        return agent.idm(v), agent.follow(settle=self.duration if st.get("done") else None)
 
 
 def change_lane(to: Any = "left", at: float = 0.0, duration: float = 3.0,
@@ -201,7 +200,7 @@ class Turn(Behavior):
             if d is None or d < -1.0:
                 st["released"] = True
             else:
-                stopped = agent.speed < 0.2 and d < 3.0
+                stopped = agent.speed < 0.5 and d < 3.0
                 if stopped:
                     st["stopped_for"] = st.get("stopped_for", 0.0) + world.dt
                 waited = st.get("stopped_for", 0.0) >= (self.stop_time if self.stop else 0.0)
@@ -281,8 +280,7 @@ class Encroach(Behavior):
         active = world.t >= self.at - 1e-9 and (
             self.duration is None or world.t < self.at + self.duration)
         v = self.speed if self.speed is not None else agent.initial_speed
-        return agent.idm(v), agent.follow(r=float(self.offset) if active else 0.0,
-                                         lookahead=max(8.0, agent.speed * 1.5))
+        return agent.idm(v), agent.follow(r=float(self.offset) if active else 0.0, settle=2.0)
 
 
 def encroach(offset: float, at: float = 0.0, duration: float | None = None,
@@ -309,7 +307,7 @@ class PullOut(Behavior):
         if not st.get("out"):
             agent.change_lane(self.to if self.to is not None else "out")
             st["out"] = True
-        return agent.idm(self.speed), agent.follow(lookahead=6.0)
+        return agent.idm(self.speed), agent.follow(settle=3.0)
 
 
 def pull_out(at: float = 0.0, speed: float = 8.0, to: Any = None) -> PullOut:

@@ -1,4 +1,4 @@
-"""Control laws the built-in behaviours use: our IDM, a speed tracker, a pure-pursuit lane follower.
+"""Control laws the built-in behaviours use: our IDM, a speed tracker, a lane-keeping steer.
 
 Plain scalar math (``math``, not numpy: these run once per agent per step, where numpy's
 per-call overhead would dominate). Nothing here reads highway-env's class constants; every
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 __all__ = [
-    "IDM", "idm_acceleration", "track_speed", "pure_pursuit_steering", "curve_speed",
+    "IDM", "idm_acceleration", "track_speed", "lane_steering", "curve_speed",
     "MAX_STEERING", "MAX_ACCELERATION", "MAX_DECELERATION",
 ]
 
@@ -56,26 +56,26 @@ def track_speed(speed: float, target_speed: float, tau: float = 0.6,
     return min(max((target_speed - speed) / tau, -b_max), a_max)
 
 
-def pure_pursuit_steering(x: float, y: float, heading: float, tx: float, ty: float,
-                          length: float) -> float:
-    """Front-wheel angle [rad] that steers highway-env's bicycle at (x, y, heading) onto (tx, ty).
+def lane_steering(speed: float, heading: float, lateral_error: float, path_heading: float,
+                  length: float, k_lateral: float = 1 / 0.6, k_heading: float = 1 / 0.2) -> float:
+    """Front-wheel angle [rad] that brings a vehicle onto a path and keeps it there.
 
-    Pure pursuit: the circle through the target point has curvature ``2 sin(alpha) / ld``.
-    highway-env's bicycle moves the centre at slip angle ``beta = atan(tan(delta) / 2)`` and
-    turns at ``v sin(beta) / (length / 2)``, i.e. curvature ``2 sin(beta) / length``; equate
-    and invert. ``length`` [m] is the vehicle length.
+    A cascade: the lateral error [m] (positive: the vehicle is left of where it should be) asks
+    for a lateral speed ``-k_lateral * error`` [m/s], i.e. a heading offset from the path
+    heading ``path_heading`` [rad] (taken a little ahead, which anticipates curves); the
+    heading error asks for a yaw rate ``k_heading * error`` [rad/s], which highway-env's
+    bicycle (slip ``beta = atan(tan(delta)/2)``, yaw rate ``v sin(beta) / (length/2)``)
+    turns into a steering angle. ``length`` [m] is the vehicle length.
     """
-    dx, dy = tx - x, ty - y
-    ld = math.hypot(dx, dy)
-    if ld < 1e-6:
-        return 0.0
-    alpha = math.atan2(dy, dx) - heading
-    alpha = (alpha + math.pi) % (2 * math.pi) - math.pi
-    sin_beta = min(max(length * math.sin(alpha) / ld, -1.0), 1.0)
-    beta = math.asin(sin_beta)
-    if abs(beta) >= math.pi / 2 - 1e-6:
-        return math.copysign(MAX_STEERING, beta)
-    delta = math.atan(2.0 * math.tan(beta))
+    v = speed if abs(speed) > 0.1 else math.copysign(0.1, speed if speed else 1.0)
+    lateral_speed = -k_lateral * lateral_error
+    offset = math.asin(min(max(lateral_speed / v, -1.0), 1.0))
+    offset = min(max(offset, -math.pi / 4), math.pi / 4)
+    err = path_heading + offset - heading
+    err = (err + math.pi) % (2 * math.pi) - math.pi
+    yaw_rate = k_heading * err
+    sin_beta = min(max(length / 2 * yaw_rate / v, -1.0), 1.0)
+    delta = math.atan(2.0 * math.tan(math.asin(sin_beta)))
     return min(max(delta, -MAX_STEERING), MAX_STEERING)
 
 

@@ -129,21 +129,25 @@ class _Agent:
     def route_lane(self) -> Any:
         return self.plan[self.route_index]
 
-    def _route_point(self, ahead: float, r: float = 0.0) -> tuple[float, float]:
-        """World point ``ahead`` metres along the route from the agent, ``r`` metres left."""
+    def _route_heading(self, ahead: float) -> float:
+        """Heading [rad] of the route ``ahead`` metres beyond the agent's projection."""
         i, s = self.route_index, self.route_s + ahead
         while s > self.plan[i].length and i + 1 < len(self.plan):
             s -= self.plan[i].length
             i += 1
-        p = self.plan[i].geometry.position(s, r)
-        return float(p[0]), float(p[1])
+        return float(self.plan[i].geometry.heading_at(s))
 
-    def follow(self, r: float = 0.0, lookahead: float | None = None) -> float:
-        """Steering [rad] to follow the route ``r`` metres left of its centre line (pure pursuit)."""
-        ld = lookahead if lookahead is not None else max(6.0, 1.0 * self.speed)
-        tx, ty = self._route_point(ld, r)
-        return control.pure_pursuit_steering(float(self.position[0]), float(self.position[1]),
-                                             float(self.heading), tx, ty, self.LENGTH)
+    def follow(self, r: float = 0.0, settle: float | None = None) -> float:
+        """Steering [rad] that keeps the agent ``r`` metres left of its route's centre line.
+
+        ``settle`` [s] is roughly how long it takes to close a lateral error (a lane change's
+        duration; default 1.8 s).
+        """
+        k_lat = 3.0 / settle if settle else 1 / 0.6
+        v = float(self.speed)
+        path_heading = self._route_heading(max(v, 0.0) * 0.1)
+        return control.lane_steering(v, float(self.heading), self.route_r - r, path_heading,
+                                     self.LENGTH, k_lateral=k_lat)
 
     def leader(self, horizon: float = 60.0) -> tuple[float, float] | None:
         """``(gap [m], speed along the route [m/s])`` of the nearest agent ahead in our path.
