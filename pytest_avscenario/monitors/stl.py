@@ -15,7 +15,8 @@ step and agent that decided it.
 Time is the steps where the ego is present (absent steps are left out, not turned into NaN);
 windows are in seconds of the trajectory's own time axis, so a non-uniform ``t`` works.
 Every operator is a whole-array numpy computation: windowed min/max use a sparse table
-(O(T log T)), until a (T x window) matrix evaluated in row blocks.
+(O(T log T)); until with an unbounded window an associative scan (O(T log T)), with a
+bounded one a (T x window) matrix evaluated in row blocks.
 """
 
 from __future__ import annotations
@@ -575,6 +576,8 @@ class _Until(Formula):
 
     def _compute(self, ctx: _Ctx) -> np.ndarray:
         lo, hi = _bounds(ctx, self.a, self.b)
+        if not math.isfinite(self.b):
+            return self._compute_unbounded(ctx, lo)
         width = int(max(1, (hi - np.arange(ctx.n)).max()))
         block = max(1, self.BLOCK_CELLS // width)
         out = np.empty(ctx.n)
@@ -582,6 +585,30 @@ class _Until(Formula):
             rows = np.arange(start, min(ctx.n, start + block))
             out[rows] = self._candidates(ctx, rows, lo, hi, width).max(axis=1)
         return out
+
+    def _compute_unbounded(self, ctx: _Ctx, lo: np.ndarray) -> np.ndarray:
+        """Window [a, inf): O(T log T) without the (T x T) matrix.
+
+        Unbounded until from step m, U(m) = max(psi(m), min(phi(m), U(m+1))) with
+        U(n) = -inf, applies clamp maps f_m(x) = max(P, min(Q, x)) right to left. Clamp maps
+        compose into clamp maps — f1∘f2 has P = max(P1, min(Q1, P2)), Q = min(Q1, Q2) — so
+        all suffix compositions come from a Hillis-Steele scan in log2(T) whole-array
+        passes, and U(m) is the P of the suffix starting at m. A window start a > 0 then
+        needs phi over [k, lo_k) as well: rho(k) = min(min phi[k, lo_k), U(lo_k)).
+        """
+        phi, psi = self.phi._series(ctx), self.psi._series(ctx)
+        n = ctx.n
+        P, Q = psi.copy(), phi.copy()
+        stride = 1
+        while stride < n:  # log2(n) passes over whole arrays
+            P_next = P.copy()
+            P_next[: n - stride] = np.maximum(P[: n - stride], np.minimum(Q[: n - stride], P[stride:]))
+            Q[: n - stride] = np.minimum(Q[: n - stride], Q[stride:])
+            P = P_next
+            stride *= 2
+        U = np.append(P, -np.inf)  # U(n) = -inf: no step left to satisfy psi
+        head = _range_reduce(phi, np.arange(n), lo, np.minimum, math.inf)
+        return np.minimum(head, U[np.minimum(lo, n)])
 
     def _witness(self, ctx: _Ctx, k: int) -> tuple[int, int]:
         lo, hi = _bounds(ctx, self.a, self.b)
