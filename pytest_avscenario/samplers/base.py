@@ -174,6 +174,11 @@ class Sampler:
         self.rng.bit_generator.state = _rng_from_json(state["rng"])
 
 
+def json_float(x: float) -> float | str:
+    """A float for strict JSON: +-inf become the strings "inf"/"-inf" (float() reads them)."""
+    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
 def _compile(space: FeatureSpace) -> list[tuple[str, int, Any, float, Any]]:
     """Per parameter: (name, kind 0=constant/1=uniform/2=other, offset, width, distribution)."""
     from ..space import Uniform

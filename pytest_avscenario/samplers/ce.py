@@ -1,0 +1,124 @@
+"""The cross-entropy sampler (``ce``): a per-dimension bucket distribution pulled toward elites.
+
+Each coordinate of the unit cube is cut into buckets (see :mod:`._buckets`) with a categorical
+distribution over them, initially uniform; a case is drawn by picking a bucket per dimension
+from its distribution and a point uniformly inside. Every ``batch`` valid cases the elite set
+— the ``elite`` fraction of all cases told so far with the lowest rho — is counted per
+dimension and bucket, and each distribution moves toward those frequencies by ``smoothing``
+(the smoothed cross-entropy update), then is floored at ``floor / buckets`` so no bucket is
+ever starved. Elites are a quantile of rho, not "rho < 0": the sampler learns from its first
+batch on, where the reference learns nothing until a counterexample has been found.
+
+Points of one batch are drawn together when the distribution changes, so ask is a list pop.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import numpy as np
+
+from ._buckets import Buckets
+from .base import ActiveSampler, Rho, check_float, check_int, json_float
+
+
+class CrossEntropySampler(ActiveSampler):
+    """Cross-entropy over per-dimension bucket distributions.
+
+    Options: ``buckets`` (per continuous dimension, default 5 like VerifAI), ``elite``
+    (quantile of lowest rho that forms the elite set, default 0.2), ``smoothing`` (step
+    toward the elite frequencies in (0, 1], default 0.3), ``batch`` (valid cases between
+    updates, default 10), ``floor`` (minimum probability relative to uniform, default 0.1),
+    plus ``metrics`` and ``priority`` (checked; ``ce`` minimizes the worst metric).
+    """
+
+    name = "ce"
+    options = ActiveSampler.options + ("buckets", "elite", "smoothing", "batch", "floor")
+
+    def __init__(self, space, seed=0, buckets: int = 5, elite: float = 0.2,
+                 smoothing: float = 0.3, batch: int = 10, floor: float = 0.1, **options: Any):
+        super().__init__(space, seed=seed, **options)
+        self.n_buckets = check_int(buckets, "ce buckets")
+        self.elite = check_float(elite, "ce elite", 0.0, 1.0, lo_open=True)
+        self.smoothing = check_float(smoothing, "ce smoothing", 0.0, 1.0, lo_open=True)
+        self.batch = check_int(batch, "ce batch")
+        self.floor = check_float(floor, "ce floor", 0.0, 1.0)
+        self.grid = Buckets(self.space, self.n_buckets)
+        g = self.grid
+        self._k = np.maximum(g.k, 1)[:, None].astype(float)
+        self.prob = np.where(g.valid, g.width, 0.0)  # uniform on the unit cube
+        self.prob /= np.maximum(self.prob.sum(1, keepdims=True), 1e-300)
+        # valid cases told: unit points and rho, in arrays grown by doubling
+        self._n = 0
+        self._U = np.zeros((16, g.d))
+        self._R = np.zeros(16)
+        self._queue: list[np.ndarray] = []
+        self._since = 0
+
+    # -- proposing ----------------------------------------------------------------------
+    def ask_unit(self) -> np.ndarray:
+        self.n_asked += 1
+        if not self._queue:
+            self._queue = list(self._draw(self.batch)[::-1])
+        return self._queue.pop()
+
+    def _draw(self, m: int) -> np.ndarray:
+        g = self.grid
+        cdf = np.cumsum(self.prob, 1)
+        cdf[:, -1] = np.inf  # round-off must never push a draw past the last bucket
+        r = self.rng.random((2, m, g.d))
+        b = (r[0][:, :, None] >= cdf[None]).sum(2)
+        b = np.minimum(b, g.k - 1)
+        return g.lo[g.rows, b] + r[1] * g.width[g.rows, b]
+
+    # -- learning -----------------------------------------------------------------------
+    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
+        if r is None:
+            return  # an invalid case is no evidence: neither elite nor pass
+        if self._n == len(self._R):
+            self._U = np.concatenate([self._U, np.zeros_like(self._U)])
+            self._R = np.concatenate([self._R, np.zeros_like(self._R)])
+        self._U[self._n] = u
+        self._R[self._n] = r
+        self._n += 1
+        self._since += 1
+        if self._since >= self.batch:
+            self._update()
+
+    def _update(self) -> None:
+        self._since = 0
+        g = self.grid
+        n = self._n
+        rho = self._R[:n]
+        m = max(1, int(math.ceil(self.elite * n)))
+        elite = np.argpartition(rho, m - 1)[:m] if m < n else np.arange(n)
+        b = g.index_many(self._U[elite])  # (m, d)
+        freq = np.zeros_like(self.prob)
+        np.add.at(freq, (np.broadcast_to(g.rows, b.shape), b), 1.0 / m)
+        p = (1.0 - self.smoothing) * self.prob + self.smoothing * freq
+        p = np.where(g.valid, np.maximum(p, self.floor / self._k), 0.0)
+        self.prob = p / p.sum(1, keepdims=True)
+        self._queue = []  # the rest of the batch came from the old distribution
+
+    # -- state --------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        st = super().state()
+        st.update(prob=self.prob.tolist(), u=self._U[: self._n].tolist(),
+                  rho=[json_float(x) for x in self._R[: self._n].tolist()],
+                  since=self._since,
+                  queue=[q.tolist() for q in self._queue])
+        return st
+
+    def restore(self, state: Mapping[str, Any]) -> None:
+        super().restore(state)
+        self.prob = np.array(state["prob"], dtype=float).reshape(self.prob.shape)
+        self._n = len(state["rho"])
+        cap = max(16, 1 << max(self._n - 1, 0).bit_length())
+        self._U = np.zeros((cap, self.grid.d))
+        self._R = np.zeros(cap)
+        if self._n:
+            self._U[: self._n] = np.array(state["u"], dtype=float).reshape(self._n, self.grid.d)
+            self._R[: self._n] = [float(x) for x in state["rho"]]
+        self._since = int(state["since"])
+        self._queue = [np.array(q, dtype=float) for q in state["queue"]]
