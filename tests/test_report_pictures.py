@@ -164,3 +164,24 @@ def test_the_browser_check_notices_a_missing_picture(tmp_path, chromium):
     (tmp_path / "index.html").write_text(page)
     dom = _headless(chromium, "--dump-dom", (tmp_path / "index.html").as_uri()).stdout
     assert 'data-loaded="0/1"' in dom and 'class="broken"' in dom
+
+
+def test_finish_report_builds_everything_from_the_tables_on_disk(tmp_path):
+    from pytest_avscenario.report.build import finish_report
+
+    rows = make_rows(n=12)
+    with ErrorTable(tmp_path) as table:
+        for r in rows:
+            table.append(r)
+        table.append(dict(rows[0], origin="shrink"))
+    info = {NASTY: TestInfo(("distance", "ttc"), FeatureSpace({"gap": Uniform(10, 40), "speed": Uniform(5, 15),
+                                                               "road": Choice(["dry", "<wet>"])}))}
+    summary = finish_report(tmp_path, info, seed=3, versions={"highway-env": "1.12.1"})
+    assert [(s.sampler, s.samples) for s in summary] == [("mab", 6), ("halton", 6)]
+    import json
+
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert data["seed"] == 3 and len(data["tests"]) == 2
+    page = (tmp_path / "index.html").read_text()
+    assert page.count("<img ") == 2 and ".shrink.csv" in page and "errors.jsonl" in page
+    assert len(list((tmp_path / "plots").glob("*.png"))) == 2

@@ -217,3 +217,15 @@ def test_a_new_run_starts_from_empty_tables_and_keeps_user_files(tmp_path):
 def test_slugs_are_distinct_for_distinct_tests():
     a, b = file_slug("x/test_a.py::test[1]"), file_slug("y/test_a.py::test[1]")
     assert a != b and a.startswith("test_a.py-test-1")
+
+
+@pytest.mark.parametrize("fsync", [False, True])
+def test_fsync_is_opt_in_and_covers_both_files(tmp_path, monkeypatch, fsync):
+    calls = []
+    real = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (calls.append(fd), real(fd)))
+    with ErrorTable(tmp_path, fsync=fsync) as table:
+        table.append(make_row(index=0))
+        calls.clear()
+        table.append(make_row(index=1))
+    assert len(calls) == (2 if fsync else 0)  # the JSONL and the test's CSV

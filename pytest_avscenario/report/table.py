@@ -2,7 +2,7 @@
 
 An AV engineer opens the error table after (or during) a falsification run to see which
 parameter combinations violated which metric and by how much. :class:`ErrorTable` appends
-each row to JSON Lines and CSV files and flushes (and by default fsyncs) before returning,
+each row to JSON Lines and CSV files and flushes them (fsync on request) before returning,
 so a run killed half-way leaves every finished case readable.
 
 Layout under the report directory (``--avs-report``, default ``avs-report/``)::
@@ -318,14 +318,17 @@ class ErrorTable:
     """Incremental writer of the error table under one report directory.
 
     ``append(row)`` validates the row, writes it to the JSONL and the test's CSV and flushes
-    both (fsync too unless ``fsync=False``; it costs ~0.1 ms per file here) before
-    returning. Rows with ``origin == "shrink"`` go to the shrink table. Thread-safe; meant
-    for one writing process (under xdist: the controller, fed by the workers' reports).
-    Opening truncates the tables of a previous run (use :func:`prepare_report_dir` to clear
-    plots and pages too). Use as a context manager or call :meth:`close`.
+    both to the operating system before returning, so a killed or crashed pytest process
+    leaves every finished row readable. ``fsync=True`` also forces each row to the disk,
+    which survives a power cut or kernel crash too, but costs 0.1–5 ms per row (two
+    fsyncs; measured in bench/README.md) against ~20 ms per simulated case, so it is opt-in.
+    Rows with ``origin == "shrink"`` go to the shrink table. Thread-safe; meant for one
+    writing process (under xdist: the controller, fed by the workers' reports). Opening
+    truncates the tables of a previous run (use :func:`prepare_report_dir` to clear plots and
+    pages too). Use as a context manager or call :meth:`close`.
     """
 
-    def __init__(self, directory: str | os.PathLike, *, fsync: bool = True):
+    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False):
         self.directory = Path(directory)
         self.fsync = fsync
         (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
