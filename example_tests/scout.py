@@ -1,0 +1,134 @@
+"""Scout a scenario module outside pytest: run its nominal case and sampled ones, print the
+robustness of every metric, and render frames to look at.
+
+It is what the example scenarios were tuned with (and how ``frames/`` was made)::
+
+    python example_tests/scout.py test_02_vehicle_following -n 30            # nominal + 30 Halton
+    python example_tests/scout.py test_06_pedestrian_crossing --driver idm -n 30
+    python example_tests/scout.py test_05_encroaching_oncoming_car --png frames/05.png
+    python example_tests/scout.py test_07_oncoming_left_turn --params '{"d_ego": 20}' --png /tmp/x.png
+
+Cases are built the way the plugin builds them (``Case`` + ``World`` with the case's seed and
+rng), so a row here replays under pytest with ``--avs-params``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def scenario_tests(module):
+    """``(name, function, spec)`` of every @scenario test of a module."""
+    out = []
+    for name in dir(module):
+        fn = getattr(module, name)
+        if not (name.startswith("test") and callable(fn)):
+            continue
+        for mark in getattr(fn, "pytestmark", []):
+            if mark.name == "scenario":
+                out.append((name, fn, mark.args[0]))
+    return out
+
+
+def run_one(fn, spec, params, seed, driver, png=None, gif=None, shrink_png=True):
+    from pytest_avscenario import Case
+    from pytest_avscenario.monitors import MonitorSet
+    from pytest_avscenario.sim import World
+
+    case = Case(params, index=0, seed=seed, sampler="scout", test=fn.__name__)
+    world = World(seed=case.seed, rng=case.rng, driver=driver, name=fn.__name__)
+    t0 = time.perf_counter()
+    error = None
+    try:
+        fn(case=case, world=world)
+    except AssertionError as exc:
+        error = f"assert: {exc}"
+    wall = time.perf_counter() - t0
+    traj = world.trajectory
+    verdict = MonitorSet(list(spec.monitors), priority=spec.priority).evaluate(traj)
+    if png:
+        world.render_png(png)
+        if shrink_png:
+            _shrink(png)
+    if gif:
+        world.render_gif(gif, every=2)
+    return verdict, wall, error, world
+
+
+def _shrink(path, width=720):
+    """Downscale and quantize a PNG so the kept frames stay a few tens of KB."""
+    from PIL import Image
+
+    im = Image.open(path).convert("RGB")
+    if im.width > width:
+        im = im.resize((width, round(im.height * width / im.width)), Image.LANCZOS)
+    im = im.quantize(colors=32)
+    im.save(path, optimize=True)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("module")
+    ap.add_argument("-n", type=int, default=0, help="Halton samples after the nominal case")
+    ap.add_argument("--sampler", default="halton")
+    ap.add_argument("--driver", default="autopilot")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--params", default=None, help="JSON overriding nominal values")
+    ap.add_argument("--png", default=None, help="render the (first) case to this PNG")
+    ap.add_argument("--gif", default=None)
+    ap.add_argument("--render-failures", default=None, help="directory: PNG of each failure")
+    ap.add_argument("--quiet", action="store_true")
+    args = ap.parse_args(argv)
+
+    sys.path.insert(0, HERE)
+    from pytest_avscenario import samplers
+    from pytest_avscenario.case import stable_seed
+    from pytest_avscenario.space import FeatureSpace
+
+    module = importlib.import_module(args.module.removesuffix(".py").split("/")[-1])
+    for name, fn, spec in scenario_tests(module):
+        space = FeatureSpace(spec.parameters)
+        nominal = {**space.nominal(), **json.loads(args.params or "{}")}
+        cases = [("nominal", nominal)]
+        if args.n:
+            s = samplers.make(args.sampler, space, seed=args.seed)
+            for k, p in enumerate(s.sample_unit(args.n)):
+                cases.append((f"{args.sampler}-{k:03d}", space.from_unit(p)))
+        counts = {}
+        total = 0.0
+        print(f"== {name} ({args.driver})")
+        for k, (label, params) in enumerate(cases):
+            png = args.png if k == 0 else None
+            verdict, wall, error, world = run_one(fn, spec, params, stable_seed(args.seed, label),
+                                                  args.driver, png=png,
+                                                  gif=args.gif if k == 0 else None)
+            total += wall
+            bad = verdict.violated
+            for m in bad:
+                counts[m] = counts.get(m, 0) + 1
+            if bad and args.render_failures:
+                os.makedirs(args.render_failures, exist_ok=True)
+                world.render_png(os.path.join(args.render_failures, f"{name}-{label}.png"))
+            if not args.quiet or k == 0 or bad:
+                rho = " ".join(f"{m}={v:+.2f}" if math.isfinite(v) else f"{m}={v}"
+                               for m, v in verdict.rho.items())
+                ps = " ".join(f"{p}={v:.3g}" if isinstance(v, float) else f"{p}={v}"
+                              for p, v in params.items())
+                crashed = world.trajectory.meta.get("crashed")
+                print(f"{label:11s} {'FAIL' if bad else 'ok  '} {rho} | {ps}"
+                      f"{' crashed=' + str(crashed) if crashed else ''}"
+                      f"{' ' + error if error else ''} [{wall * 1000:.0f} ms]")
+        print(f"-- {len(cases)} cases, violations {counts}, "
+              f"{total / len(cases) * 1000:.0f} ms/case")
+
+
+if __name__ == "__main__":
+    main()

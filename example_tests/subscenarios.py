@@ -1,0 +1,278 @@
+"""Reusable sub-scenarios for the example suite, and the few behaviours and monitors they need.
+
+A sub-scenario is a plain function that adds its agents and their behaviours to a world and
+returns them: ``crossing_traffic(world, inter, ...)``, ``pedestrian_crossing(world,
+crosswalk, ...)``, ``parked_car_pulling_out(world, road, ...)``, ``oncoming_encroacher(world,
+road, ...)``, ``school_bus_stop(world, road, ...)``. The ten scenario modules use them one at
+a time; ``test_11_composed_route.py`` composes three along one route.
+
+Opportunistic composition: ``trigger=(place, within_m)`` makes a sub-scenario wait until the
+ego comes within ``within_m`` metres of ``place`` (its agents stand still until then, and the
+clocks of their behaviours start at that moment), and :func:`only_while_relevant` masks them
+out of the recording (``present=False``) before that and once the ego has passed the place,
+so the monitors judge each sub-scenario only while it applies. The world of
+``pytest_avscenario.sim`` cannot add or remove agents during a run, so the agents are
+*placed* up front (parked, standing on the kerb, waiting up a side street) and only their
+*relevance* is opportunistic; see README.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pytest_avscenario.monitors import as_monitor
+from pytest_avscenario.sim import behaviors as b
+from pytest_avscenario.sim.behaviors import Behavior
+
+__all__ = [
+    "slow_down", "throttle_encroach", "when_ego_near",
+    "crossing_traffic", "pedestrian_crossing", "parked_car_pulling_out",
+    "oncoming_encroacher", "school_bus_stop", "only_while_relevant",
+    "passes_stopped_school_bus", "parks",
+]
+
+
+# -- behaviours the library does not have (kept small; see README "needs") ---------------------
+
+
+@dataclass(frozen=True)
+class SlowDown(Behavior):
+    """Cruise at the initial speed, brake at ``decel`` from time ``t`` down to ``to_speed``."""
+
+    t: float = 0.0
+    decel: float = 4.0
+    to_speed: float = 0.0
+
+    def control(self, agent, world):
+        if world.t >= self.t - 1e-9 and agent.speed > self.to_speed + 0.05:
+            return -float(self.decel), agent.follow()
+        v = self.to_speed if world.t >= self.t - 1e-9 else agent.initial_speed
+        return agent.idm(v), agent.follow()
+
+
+def slow_down(t: float, decel: float, to_speed: float) -> SlowDown:
+    """Brake at ``decel`` [m/s^2] from time ``t`` [s] until ``to_speed`` [m/s], then hold it."""
+    return SlowDown(t=t, decel=decel, to_speed=to_speed)
+
+
+@dataclass(frozen=True)
+class ThrottleEncroach(Behavior):
+    """Accelerate with ``throttle`` x 3 m/s^2 up to ``max_speed`` while drifting ``offset`` m left."""
+
+    throttle: float = 0.5
+    offset: float = 1.5
+    max_speed: float = 15.0
+    at: float = 0.0
+
+    def control(self, agent, world):
+        accel = 3.0 * self.throttle if agent.speed < self.max_speed else 0.0
+        lead = agent.leader()
+        if lead is not None and lead[0] < 8.0:
+            accel = min(accel, agent.idm(self.max_speed))
+        r = float(self.offset) if world.t >= self.at - 1e-9 else 0.0
+        return accel, agent.follow(r=r, settle=2.0)
+
+
+def throttle_encroach(throttle: float, offset: float, max_speed: float = 15.0,
+                      at: float = 0.0) -> ThrottleEncroach:
+    """An adversary that pulls away with ``throttle`` (0..1 of 3 m/s^2) up to ``max_speed``
+    [m/s], ``offset`` [m] over the centre line from time ``at`` [s]."""
+    return ThrottleEncroach(throttle=throttle, offset=offset, max_speed=max_speed, at=at)
+
+
+class _Shifted:
+    """The world as a behaviour sees it once activated: the same world, its clock shifted."""
+
+    def __init__(self, world: Any, t0: float) -> None:
+        self._world = world
+        self._t0 = t0
+
+    @property
+    def t(self) -> float:
+        return self._world.t - self._t0
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._world, name)
+
+
+@dataclass(frozen=True)
+class WhenEgoNear(Behavior):
+    """Stand still until the ego is within ``within`` m of ``place``, then run ``inner``.
+
+    ``inner``'s clock starts at activation (``brake_at(t=2)`` brakes 2 s after it). The
+    activation and "ego has passed" times are kept in ``state`` for :func:`only_while_relevant`.
+    """
+
+    inner: Any = None
+    place: Any = None
+    within: float = 40.0
+    passed_after: float = 10.0  # [m] the ego is past the place this far along its heading
+
+    kinds = b.VEHICLES + b.PEDESTRIANS
+
+    def bind(self, rng):
+        out = super().bind(rng)
+        return dataclasses.replace(out, inner=self.inner.bind(rng), state={})
+
+    def start(self, agent, world):
+        self.inner.start(agent, world)
+
+    def control(self, agent, world):
+        st = self.state
+        ego = world.agents[0]
+        pos = np.asarray(getattr(self.place, "position", self.place), dtype=float)
+        if "t_on" not in st:
+            if float(np.hypot(*(ego.position - pos))) <= self.within:
+                st["t_on"] = world.t
+            elif agent.kind == "pedestrian":
+                return 0.0
+            else:
+                brake = -min(agent.speed / 0.3, 6.0) if agent.speed > 0 else 0.0
+                return brake, agent.follow()
+        if "t_off" not in st:
+            d = pos - ego.position
+            ahead = d[0] * math.cos(ego.heading) + d[1] * math.sin(ego.heading)
+            if ahead < -self.passed_after:
+                st["t_off"] = world.t
+        return self.inner.control(agent, _Shifted(world, st["t_on"]))
+
+
+def when_ego_near(inner: Behavior, place: Any, within: float = 40.0,
+                  passed_after: float = 10.0) -> WhenEgoNear:
+    """Activate ``inner`` when the ego comes within ``within`` [m] of ``place`` (a spot, a
+    crosswalk, a point); it counts as passed once the ego is ``passed_after`` [m] beyond it."""
+    return WhenEgoNear(inner=inner, place=place, within=within, passed_after=passed_after)
+
+
+def _maybe_triggered(behavior: Behavior, trigger: Any) -> Behavior:
+    if trigger is None:
+        return behavior
+    place, within = trigger
+    return when_ego_near(behavior, place, within)
+
+
+def only_while_relevant(world: Any, agents: list[Any]) -> Any:
+    """The world's trajectory with each triggered agent present only from its activation
+    until the ego passed its place (the rest of the run it is invisible to the monitors)."""
+    tr = world.trajectory
+    present = tr.present.copy()
+    for a in agents:
+        beh = a.behavior
+        st = getattr(beh, "state", {}) if isinstance(beh, WhenEgoNear) else {}
+        i = tr.names.index(a.name)
+        t_on = st.get("t_on", math.inf)
+        t_off = st.get("t_off", math.inf)
+        present[i] = (tr.t >= t_on - 1e-9) & (tr.t <= t_off + 1e-9)
+    return dataclasses.replace(tr, present=present)
+
+
+# -- sub-scenarios -------------------------------------------------------------------------------
+
+
+def crossing_traffic(world: Any, inter: Any, approach: str, *, first_s: float, speed: float,
+                     count: int = 1, spacing: float = 20.0, turn: str = "straight",
+                     lane: int = 0, start_at: float = 0.0, stops: bool = False,
+                     trigger: Any = None) -> list[Any]:
+    """``count`` cars on ``approach`` of ``inter``, the first ``first_s`` m along the lane
+    (i.e. ``approach_length - first_s`` from the box), ``spacing`` m apart, at ``speed`` [m/s].
+
+    They drive ``turn`` through the box without stopping (``stops=False``: the ego's road has
+    the stop sign) and react only to what is ahead of them in their own path.
+    """
+    lane_obj = inter.approach(approach, lane)
+    cars = []
+    for k in range(count):
+        s = first_s - k * spacing
+        if s < 0:
+            break
+        if stops:
+            beh: Behavior = b.turn(turn, speed=speed)
+        elif turn == "straight" and start_at <= 0:
+            beh = b.keep_lane(speed)
+        else:
+            beh = b.cut_across(speed, direction=turn, start_at=start_at)
+        cars.append(world.car(lane_obj, s=s, speed=speed if start_at <= 0 else 0.0,
+                              behavior=_maybe_triggered(beh, trigger)))
+    return cars
+
+
+def pedestrian_crossing(world: Any, crosswalk: Any, *, side: str | None = None,
+                        wait: float = 0.0, wait_in_road: float = 0.0, speed: float = 1.4,
+                        pause_at: float | None = None, trigger: Any = None) -> Any:
+    """A pedestrian on ``crosswalk`` starting from ``side``: waits ``wait`` [s] on the kerb,
+    walks at ``speed`` [m/s], stands ``wait_in_road`` [s] in the first lane it enters."""
+    beh = b.cross(wait=wait, wait_in_road=wait_in_road, speed=speed, pause_at=pause_at)
+    return world.pedestrian(crosswalk, side=side, speed=speed,
+                            behavior=_maybe_triggered(beh, trigger))
+
+
+def parked_car_pulling_out(world: Any, road: Any, *, s: float, at: float, speed: float = 8.0,
+                           trigger: Any = None) -> Any:
+    """A car parked ``s`` m along the forward parking lane that pulls out at ``at`` [s]."""
+    return world.parked_car(road.parking_lane, s=s,
+                            behavior=_maybe_triggered(b.pull_out(at=at, speed=speed), trigger))
+
+
+def oncoming_encroacher(world: Any, road: Any, *, s: float, throttle: float, offset: float,
+                        speed: float = 0.0, max_speed: float = 15.0, at: float = 0.0,
+                        trigger: Any = None) -> Any:
+    """An oncoming car ``s`` m along the backward lane (from the east end) that drives with
+    ``throttle`` and ``offset`` m over the centre line."""
+    return world.car(road.lane(0, "backward"), s=s, speed=speed,
+                     behavior=_maybe_triggered(
+                         throttle_encroach(throttle, offset, max_speed=max_speed, at=at), trigger))
+
+
+def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: float,
+                    stop_at: float, duration: float, trigger: Any = None) -> Any:
+    """A school bus ``s`` m along lane 0 of ``direction`` at ``speed`` [m/s] that stops at
+    ``stop_at`` [s] and shows its stop arm for ``duration`` [s]."""
+    beh = b.bus_stop(t=stop_at, duration=duration, decel=3.0)
+    return world.bus(road.lane(0, direction), s=s, speed=speed,
+                     behavior=_maybe_triggered(beh, trigger), name="bus")
+
+
+# -- monitors the situation needs ---------------------------------------------------------------
+
+
+def passes_stopped_school_bus(bus: str = "bus", margin: float = 2.0):
+    """The ego never drives past a school bus while its stop arm is out.
+
+    rho [m] = min over the steps with the arm out of how far the ego's front bumper stays
+    behind the bus's near end minus ``margin``, measured along the road (x); the ego's own
+    heading decides which end is near. When the ego was already past the bus when the arm came
+    out, the requirement does not apply (rho = +inf).
+    """
+
+    def stops_for_school_bus(tr) -> float:
+        arm = np.asarray(tr.signals[f"{bus}.stop_arm"]) > 0.5
+        if not arm.any():
+            return math.inf
+        e, k = tr.names.index("ego"), tr.names.index(bus)
+        sign = 1.0 if math.cos(tr.heading[e, 0]) >= 0 else -1.0
+        gap = sign * (tr.x[k] - tr.x[e]) - (tr.length[k] + tr.length[e]) / 2
+        first = int(np.flatnonzero(arm)[0])
+        if gap[first] < -tr.length[k]:
+            return math.inf  # already past the bus when it stopped
+        return float(np.min(gap[arm]) - margin)
+
+    return as_monitor(stops_for_school_bus, name="school_bus")
+
+
+def parks(spot_xy: tuple[float, float], heading: float = 0.0, tol_m: float = 0.5,
+          tol_rad: float = 0.15):
+    """The ego ends the run parked in the slot: rho = min(tol_m - final centre distance to the
+    slot centre [m], (tol_rad - |final heading error|) x 10)."""
+
+    def parked(tr) -> float:
+        e = tr.names.index("ego")
+        d = math.hypot(tr.x[e, -1] - spot_xy[0], tr.y[e, -1] - spot_xy[1])
+        dh = abs((tr.heading[e, -1] - heading + math.pi) % (2 * math.pi) - math.pi)
+        return float(min(tol_m - d, (tol_rad - dh) * 10.0))
+
+    return as_monitor(parked, name="parked")
