@@ -149,3 +149,19 @@ def test_stl_formulas_agree_with_the_builtin_metrics(s):
     traj = build(s)
     assert always(gap() >= 5.0).evaluate(traj).rho == distance(5.0).evaluate(traj).rho
     assert always(ttc_to() >= 2.0).evaluate(traj).rho == ttc(2.0).evaluate(traj).rho
+
+
+@settings(max_examples=100, deadline=None)
+@given(scenes())
+def test_footprint_gap_matches_shapely(s):
+    import shapely
+
+    from pytest_avscenario.monitors.metrics import footprint_gap
+
+    traj = build(s)
+    ours = footprint_gap(traj)
+    for a, k in pairs(s):
+        polys = traj.footprints(k)
+        assert ours[a - 1, k] == pytest.approx(shapely.distance(polys[0], polys[a]), abs=1e-9)
+    absent = ~(traj.present[0] & traj.present[1:])
+    assert np.all(ours[absent] == math.inf)
