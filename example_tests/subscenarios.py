@@ -68,21 +68,26 @@ class ThrottleEncroach(Behavior):
     offset: float = 1.5
     max_speed: float = 15.0
     at: float = 0.0
+    duration: float | None = None
 
     def control(self, agent, world):
         accel = 3.0 * self.throttle if agent.speed < self.max_speed else 0.0
         lead = agent.leader()
         if lead is not None and lead[0] < 8.0:
             accel = min(accel, agent.idm(self.max_speed))
-        r = float(self.offset) if world.t >= self.at - 1e-9 else 0.0
+        active = world.t >= self.at - 1e-9 and (
+            self.duration is None or world.t < self.at + self.duration)
+        r = float(self.offset) if active else 0.0
         return accel, agent.follow(r=r, settle=2.0)
 
 
 def throttle_encroach(throttle: float, offset: float, max_speed: float = 15.0,
-                      at: float = 0.0) -> ThrottleEncroach:
+                      at: float = 0.0, duration: float | None = None) -> ThrottleEncroach:
     """An adversary that pulls away with ``throttle`` (0..1 of 3 m/s^2) up to ``max_speed``
-    [m/s], ``offset`` [m] over the centre line from time ``at`` [s]."""
-    return ThrottleEncroach(throttle=throttle, offset=offset, max_speed=max_speed, at=at)
+    [m/s] and drives ``offset`` [m] left of its lane centre from time ``at`` [s] for
+    ``duration`` [s] (None: to the end)."""
+    return ThrottleEncroach(throttle=throttle, offset=offset, max_speed=max_speed, at=at,
+                            duration=duration)
 
 
 class _Shifted:
@@ -230,12 +235,13 @@ def parked_car_pulling_out(world: Any, road: Any, *, s: float, at: float, speed:
 
 def oncoming_encroacher(world: Any, road: Any, *, s: float, throttle: float, offset: float,
                         speed: float = 0.0, max_speed: float = 15.0, at: float = 0.0,
-                        trigger: Any = None) -> Any:
+                        duration: float | None = None, trigger: Any = None) -> Any:
     """An oncoming car ``s`` m along the backward lane (from the east end) that drives with
     ``throttle`` and ``offset`` m over the centre line."""
     return world.car(road.lane(0, "backward"), s=s, speed=speed,
                      behavior=_maybe_triggered(
-                         throttle_encroach(throttle, offset, max_speed=max_speed, at=at), trigger))
+                         throttle_encroach(throttle, offset, max_speed=max_speed, at=at,
+                                           duration=duration), trigger))
 
 
 def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: float,
