@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from highway_env.road.lane import CircularLane, LineType, StraightLane
+from highway_env.road.road import Road
 from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.kinematics import Vehicle
 
@@ -27,7 +28,7 @@ from . import control
 from .drivers import action_pair
 from .errors import DriverError, SimError
 
-__all__ = ["Straight", "Arc", "LineType", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian"]
+__all__ = ["Straight", "Arc", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian"]
 
 
 # -- lanes ----------------------------------------------------------------------------------------
@@ -81,6 +82,42 @@ class Arc(CircularLane):
         r = math.hypot(dx, dy)
         return (float(self.direction * (phi - self.start_phase) * self.radius),
                 float(self.direction * (self.radius - r)))
+
+
+# -- the road -------------------------------------------------------------------------------------
+
+
+class SimRoad(Road):
+    """highway-env's Road with a vectorized broad phase before its pairwise collision test.
+
+    highway-env checks every pair of vehicles every step with numpy calls per pair; with many
+    agents that dominates. Pairs that cannot touch this step (centres further apart than their
+    half diagonals plus what both can travel in ``dt``) are skipped with one array operation;
+    the remaining pairs go through highway-env's own ``handle_collisions`` in the same order,
+    so results equal the plain loop's.
+    """
+
+    BROAD_PHASE_FROM = 5  # agents; below this the per-pair loop is cheaper
+
+    def step(self, dt: float) -> None:
+        vehicles = self.vehicles
+        for v in vehicles:
+            v.step(dt)
+        n = len(vehicles)
+        if n < self.BROAD_PHASE_FROM:
+            for i, v in enumerate(vehicles):
+                for other in vehicles[i + 1:]:
+                    v.handle_collisions(other, dt)
+        else:
+            pos = np.array([v.position for v in vehicles])
+            reach = np.array([v.diagonal / 2 + abs(v.speed) * dt for v in vehicles])
+            d = np.hypot(pos[:, None, 0] - pos[None, :, 0], pos[:, None, 1] - pos[None, :, 1])
+            close = np.triu(d <= reach[:, None] + reach[None, :], k=1)
+            for i, j in zip(*np.nonzero(close)):
+                vehicles[i].handle_collisions(vehicles[j], dt)
+        for v in vehicles:
+            for o in self.objects:
+                v.handle_collisions(o, dt)
 
 
 # -- vehicles -------------------------------------------------------------------------------------
@@ -157,28 +194,29 @@ class _Agent:
         stopped cars); crossing traffic is not seen, as in highway-env's IDM.
         """
         px, py = float(self.position[0]), float(self.position[1])
-        reach = horizon + self.route_lane.length
+        # Anything within the horizon along the route is within it as the crow flies too.
+        reach = horizon + self.LENGTH + 12.0
         best: tuple[float, float] | None = None
-        lanes = [(self.plan[self.route_index], -self.route_s)]
+        here = self.plan[self.route_index].geometry
+        lanes = [(here, -self.route_s)]
         if self.route_index + 1 < len(self.plan):
-            lanes.append((self.plan[self.route_index + 1],
-                          self.route_lane.length - self.route_s))
+            lanes.append((self.plan[self.route_index + 1].geometry, here.length - self.route_s))
         for o in self.world._movers:
             if o is self:
                 continue
-            ox, oy = float(o.position[0]), float(o.position[1])
-            if abs(ox - px) > reach or abs(oy - py) > reach:
+            pos = o.position
+            if abs(pos[0] - px) > reach or abs(pos[1] - py) > reach:
                 continue
-            for lane, offset in lanes:
-                s_o, r_o = lane.geometry.local_coordinates(o.position)
+            for g, offset in lanes:
+                s_o, r_o = g.local_coordinates(pos)
                 if abs(r_o) > (self.WIDTH + o.WIDTH) / 2 + 0.2:
                     continue
-                if s_o < -o.LENGTH / 2 or s_o > lane.length + o.LENGTH / 2:
+                if s_o < -o.LENGTH / 2 or s_o > g.length + o.LENGTH / 2:
                     continue
                 ahead = s_o + offset
                 if ahead <= 0.0:
                     break
-                rel = math.cos(o.heading - lane.geometry.heading_at(s_o))
+                rel = math.cos(o.heading - g.heading_at(s_o))
                 if rel < 0.5 and o.speed > 0.5 and o.kind != "pedestrian":
                     break
                 gap = ahead - (self.LENGTH + o.LENGTH) / 2

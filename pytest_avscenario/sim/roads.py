@@ -51,7 +51,8 @@ class LaneIndex:
         boxes = []
         for lane in self.order:
             g = lane.geometry
-            ss = np.linspace(0.0, g.length, max(2, int(g.length // 5) + 2))
+            curved = math.isfinite(getattr(g, "radius", math.inf))
+            ss = np.linspace(0.0, g.length, 17 if curved else 2)
             half = g.width_at(0.0) / 2 + 0.05
             pts = np.array([g.position(s, r) for s in ss for r in (-half, half)])
             boxes.append([pts[:, 0].min(), pts[:, 1].min(), pts[:, 0].max(), pts[:, 1].max()])

@@ -70,11 +70,10 @@ class World:
         return RoadNetwork()
 
     def _finish_road(self, road: Any, net: Any) -> Any:
-        from highway_env.road.road import Road
-
+        from .engine import SimRoad
         from .roads import LaneIndex
 
-        self._road = Road(network=net, vehicles=[], np_random=np.random.default_rng(self.seed),
+        self._road = SimRoad(network=net, vehicles=[], np_random=np.random.default_rng(self.seed),
                           record_history=False)
         self._index = LaneIndex(road.all_lanes)
         self.road = road
