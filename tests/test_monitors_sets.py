@@ -206,3 +206,23 @@ def test_verdict_json_round_trip_keeps_infinities():
     text = json.dumps(v.to_json(), allow_nan=False)
     back = Verdict.from_json(json.loads(text))
     assert back.rho == v.rho and back.results["ttc"] == v.results["ttc"]
+
+
+def test_builtin_monitors_pickle_for_worker_processes():
+    import pickle
+
+    from pytest_avscenario.monitors import collision, off_road, reaches, time_headway
+
+    traj = following()
+    for m in (distance(), ttc(), progress(), lane_keeping(), collision(), time_headway(),
+              off_road(), reaches((50, 0), radius=2.0), MonitorSet([distance(), ttc()])):
+        clone = pickle.loads(pickle.dumps(m))
+        assert clone.evaluate(traj) == m.evaluate(traj)
+
+
+@pytest.mark.parametrize("bad", ["", 5, None])
+def test_monitor_names_must_be_non_empty_strings(bad):
+    with pytest.raises(MonitorError, match="name"):
+        distance(name=bad)
+    with pytest.raises(MonitorError, match="name"):
+        distance().named(bad)

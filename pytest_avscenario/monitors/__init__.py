@@ -17,6 +17,21 @@ the simulator, and are vectorized over steps and agents.
 * :class:`MonitorSet` evaluates several into a :class:`Verdict` and carries their priority;
 * :func:`rho_to_json` / :func:`rho_from_json` / :func:`rho_to_str` / :func:`rho_from_str`
   write ``±inf`` explicitly in every report.
+
+Without a simulator (positions [m], velocities [m/s]; NaN and ``present=False`` where an
+agent is not in the scene)::
+
+    import numpy as np
+    from pytest_avscenario.sim.trajectory import Trajectory
+    from pytest_avscenario.monitors import MonitorSet, distance, ttc, always, gap
+
+    t = np.arange(0, 10, 0.1)
+    traj = Trajectory.from_arrays(t, agents={
+        "ego": {"x": 12 * t, "y": 0 * t, "vx": 12.0, "vy": 0.0, "lane_offset": 0.1},
+        "lead": {"x": 30 + 8 * t, "y": 0 * t, "vx": 8.0, "vy": 0.0},
+    })
+    MonitorSet([distance(5.0), ttc(2.0), always(gap("lead") >= 5.0).named("gap")],
+               priority=["ttc", "distance"]).evaluate(traj).rho
 """
 
 from .base import FunctionMonitor, Monitor, MonitorError, MonitorResult, as_monitor

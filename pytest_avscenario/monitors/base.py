@@ -121,10 +121,8 @@ class Monitor(abc.ABC):
 
     def named(self, name: str) -> "Monitor":
         """A copy of this monitor reported under ``name`` (e.g. two distance thresholds)."""
-        if not isinstance(name, str) or not name:
-            raise MonitorError(f"a monitor name must be a non-empty string, got {name!r}")
         clone = copy.copy(self)
-        clone.name = name
+        clone.name = check_name(name)
         return clone
 
     def __call__(self, trajectory: Trajectory) -> float:
@@ -140,7 +138,7 @@ class FunctionMonitor(Monitor):
 
     def __init__(self, fn: Callable[[Trajectory], Any], name: str | None = None):
         self.fn = fn
-        self.name = name or _callable_name(fn)
+        self.name = check_name(name) if name is not None else _callable_name(fn)
 
     def _evaluate(self, trajectory: Trajectory) -> MonitorResult:
         out = self.fn(trajectory)
@@ -226,6 +224,13 @@ def check_threshold(name: str, value: Any, what: str = "threshold") -> float:
     if not math.isfinite(value):
         raise MonitorError(f"{name}: {what} must be finite, got {value!r}")
     return value
+
+
+def check_name(name: Any) -> str:
+    """A monitor name for reports: a non-empty string."""
+    if not isinstance(name, str) or not name.strip():
+        raise MonitorError(f"a monitor name must be a non-empty string, got {name!r}")
+    return name
 
 
 def check_positive(name: str, value: Any, what: str, *, allow_zero: bool = False) -> float:

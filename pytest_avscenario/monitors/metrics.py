@@ -21,6 +21,7 @@ from .base import (
     Monitor,
     MonitorError,
     MonitorResult,
+    check_name,
     check_positive,
     check_present_finite,
     check_threshold,
@@ -204,7 +205,7 @@ class DistanceMonitor(_PairwiseMin):
     def __init__(self, threshold: float = 5.0, *, footprint: bool = False, name: str = "distance"):
         self.threshold = check_threshold(name, threshold)
         self.footprint = bool(footprint)
-        self.name = name
+        self.name = check_name(name)
         self._what = "footprint gap" if self.footprint else "centre distance"
 
     def _fields(self) -> tuple[str, ...]:
@@ -223,7 +224,7 @@ class TTCMonitor(_PairwiseMin):
     def __init__(self, threshold: float = 2.0, *, radius: float = 5.0, name: str = "ttc"):
         self.threshold = check_threshold(name, threshold)
         self.radius = check_positive(name, radius, "radius")
-        self.name = name
+        self.name = check_name(name)
 
     def _fields(self) -> tuple[str, ...]:
         return ("x", "y", "vx", "vy")
@@ -253,7 +254,7 @@ def ttc(threshold: float = 2.0, *, radius: float = 5.0, name: str = "ttc") -> Mo
 class ProgressMonitor(Monitor):
     def __init__(self, threshold: float = 11.0, *, name: str = "progress"):
         self.threshold = check_threshold(name, threshold)
-        self.name = name
+        self.name = check_name(name)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         present = np.flatnonzero(traj.present[0])
@@ -280,7 +281,7 @@ def progress(threshold: float = 11.0, *, name: str = "progress") -> Monitor:
 class LaneKeepingMonitor(Monitor):
     def __init__(self, threshold: float = 0.5, *, name: str = "lane_keeping"):
         self.threshold = check_threshold(name, threshold)
-        self.name = name
+        self.name = check_name(name)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         present = traj.present[0]
@@ -329,7 +330,7 @@ class CollisionMonitor(Monitor):
 
     def __init__(self, *, use_crash_flag: bool = True, name: str = "collision"):
         self.use_crash_flag = bool(use_crash_flag)
-        self.name = name
+        self.name = check_name(name)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "heading"))
@@ -369,7 +370,7 @@ class TimeHeadwayMonitor(Monitor):
     def __init__(self, seconds: float = 1.0, *, min_speed: float = 0.1, name: str = "time_headway"):
         self.threshold = check_positive(name, seconds, "seconds", allow_zero=True)
         self.min_speed = check_positive(name, min_speed, "min_speed")
-        self.name = name
+        self.name = check_name(name)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "heading", "speed"))
@@ -423,7 +424,7 @@ class OffRoadMonitor(Monitor):
     threshold = 0.0
 
     def __init__(self, *, name: str = "off_road"):
-        self.name = name
+        self.name = check_name(name)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         off = traj.present[0] & ~traj.on_road[0]
@@ -449,7 +450,7 @@ class ReachesMonitor(Monitor):
     threshold = 0.0
 
     def __init__(self, place: Any, radius: float | None = None, *, name: str = "reaches"):
-        self.name = name
+        self.name = check_name(name)
         self.place, self.radius, self._desc = _parse_place(name, place, radius)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
