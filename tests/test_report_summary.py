@@ -151,3 +151,9 @@ def test_summary_json_and_pointer(rows, tests_info, tmp_path):
     assert data[0]["violations"]["ttc"] == 1 and data[2]["epsilon"] is None
     assert format_pointer(tmp_path).startswith("avscenario report: ")
     assert str(tmp_path / "index.html") in format_pointer(tmp_path)
+
+
+def test_rows_in_json_form_count_the_same(rows, tests_info):
+    from pytest_avscenario.report.table import row_to_json
+
+    assert summarize([row_to_json(r) for r in rows], tests_info) == summarize(rows, tests_info)

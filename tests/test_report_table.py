@@ -229,3 +229,12 @@ def test_fsync_is_opt_in_and_covers_both_files(tmp_path, monkeypatch, fsync):
         calls.clear()
         table.append(make_row(index=1))
     assert len(calls) == (2 if fsync else 0)  # the JSONL and the test's CSV
+
+
+def test_rows_already_in_json_form_are_accepted(tmp_path):
+    wire = row_to_json(make_row(rho={"ttc": math.inf, "distance": -2.0}))
+    assert wire["rho"]["ttc"] == "inf"
+    with ErrorTable(tmp_path) as table:
+        back = table.append(wire)
+    assert back["rho"] == {"ttc": math.inf, "distance": -2.0}
+    assert read_rows(tmp_path)[0]["rho"]["ttc"] == math.inf

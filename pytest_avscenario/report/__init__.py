@@ -8,6 +8,7 @@ terminal table and JUnit suite properties, :mod:`.junit` adds properties to the 
 :mod:`.plots` and :mod:`.html` draw the pictures and the static ``index.html``.
 """
 
+from .build import finish_report
 from .coverage import covering_radius, covering_radius_bounds, epsilon_coverage, fraction_within
 from .summary import SummaryRow, TestInfo, format_pointer, format_table, suite_properties, summarize
 from .table import (
@@ -25,6 +26,7 @@ from .table import (
 )
 
 __all__ = [
+    "finish_report",
     "epsilon_coverage",
     "covering_radius",
     "covering_radius_bounds",

@@ -36,7 +36,9 @@ def _figure(width_in: float, height_in: float):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width_in, height_in), dpi=100, layout="constrained")
+    # No layout engine: constrained/tight layout measure every tick label and cost seconds
+    # on a scatter matrix; fixed margins (set by each plot) cost nothing.
+    fig = Figure(figsize=(width_in, height_in), dpi=100)
     FigureCanvasAgg(fig)
     return fig
 
@@ -117,6 +119,7 @@ def plot_feature_space(
             getattr(ax, f"set_{which}lim")(-0.5, len(labels) - 0.5)
 
     if k == 1:
+        fig.subplots_adjust(left=0.16, right=0.97, bottom=0.12, top=0.9)
         ax = fig.add_subplot(1, 1, 1)
         xs = [float(r.get("index", i)) for i, r in enumerate(rows)]
         scatter(ax, xs, cols[names[0]][0])
@@ -124,35 +127,38 @@ def plot_feature_space(
         label_axis(ax, "y", names[0])
         ax.legend(loc="best", fontsize=8)
     else:
-        axes = fig.subplots(n_panels, n_panels, squeeze=False)
+        grid = fig.add_gridspec(n_panels, n_panels, left=0.9 / fig.get_figwidth(), right=0.98,
+                                bottom=0.7 / fig.get_figheight(), top=1 - 0.45 / fig.get_figheight(),
+                                wspace=0.08, hspace=0.08)
+        first = None
         for row_i in range(n_panels):
-            for col_j in range(n_panels):
-                ax = axes[row_i][col_j]
+            for col_j in range(row_i + 1):  # lower triangle only: each pair once
+                ax = fig.add_subplot(grid[row_i, col_j])
+                first = first or ax
                 yi, xj = row_i + 1, col_j
-                if xj >= yi:  # upper triangle: the lower one already shows that pair
-                    ax.set_axis_off()
-                    continue
                 scatter(ax, cols[names[xj]][0], cols[names[yi]][0])
+                ax.locator_params(nbins=4)
+                ax.tick_params(labelsize=7)
                 if row_i == n_panels - 1:
                     label_axis(ax, "x", names[xj])
-                elif cols[names[xj]][1] is not None:
-                    ax.set_xticks(range(len(cols[names[xj]][1])))
-                    ax.set_xticklabels([])
-                    ax.set_xlim(-0.5, len(cols[names[xj]][1]) - 0.5)
+                else:
+                    _hide_labels(ax, "x", cols[names[xj]][1])
                 if col_j == 0:
                     label_axis(ax, "y", names[yi])
-                elif cols[names[yi]][1] is not None:
-                    ax.set_yticks(range(len(cols[names[yi]][1])))
-                    ax.set_yticklabels([])
-                    ax.set_ylim(-0.5, len(cols[names[yi]][1]) - 0.5)
-                ax.tick_params(labelsize=7)
-        handles, labels = axes[0][0].get_legend_handles_labels()
-        if n_panels > 1:
-            axes[0][n_panels - 1].legend(handles, labels, loc="upper right", fontsize=8)
-        else:
-            axes[0][0].legend(loc="best", fontsize=8)
+                else:
+                    _hide_labels(ax, "y", cols[names[yi]][1])
+        handles, labels = first.get_legend_handles_labels()
+        fig.legend(handles, labels, loc="upper right", fontsize=8, frameon=False)
     fig.suptitle(title or "sampled feature space", fontsize=10)
     return _save(fig, path)
+
+
+def _hide_labels(ax, which: str, labels) -> None:
+    # Inner panels share their neighbours' scales; their tick labels would only collide.
+    if labels is not None:
+        getattr(ax, f"set_{which}ticks")(range(len(labels)))
+        getattr(ax, f"set_{which}lim")(-0.5, len(labels) - 0.5)
+    getattr(ax, f"set_{which}ticklabels")([])
 
 
 def _finite_limits(values: Sequence[float]) -> tuple[float, float]:
@@ -187,7 +193,9 @@ def plot_rho_over_index(
     metrics = list(metrics)
     samplers = list(dict.fromkeys(str(r.get("sampler")) for r in rows))
     markers = dict(zip(samplers, "o s D v P X *".split() * 4))
-    fig = _figure(7.5, 1.9 * len(metrics) + 0.8)
+    height = 1.9 * len(metrics) + 1.1
+    fig = _figure(7.5, height)
+    fig.subplots_adjust(left=0.11, right=0.98, top=1 - 0.4 / height, bottom=0.75 / height, hspace=0.12)
     axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)
     for ax, metric in zip((a[0] for a in axes), metrics):
         lo, hi = _finite_limits([r["rho"].get(metric) for r in rows])
@@ -212,7 +220,8 @@ def plot_rho_over_index(
         ax.set_ylim(lo, hi)
         ax.set_ylabel(f"ρ {metric}", fontsize=9)
         ax.tick_params(labelsize=7)
-    fig.legend(handles=_rho_legend(samplers, markers, rows, metrics), loc="outside lower center",
+        ax.locator_params(axis="y", nbins=5)
+    fig.legend(handles=_rho_legend(samplers, markers, rows, metrics), loc="lower center",
                ncols=6, fontsize=7, frameon=False)
     axes[-1][0].set_xlabel("case index")
     fig.suptitle(title or "robustness per metric", fontsize=10)

@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from .coverage import DEFAULT_TOL
+from .table import rho_from_json
 
 __all__ = [
     "TestInfo",
@@ -187,7 +188,10 @@ def _summary_resolution(d: int) -> int:
 
 
 def _violated(rho: Any) -> bool:
-    return rho is not None and not (isinstance(rho, float) and math.isnan(rho)) and float(rho) < 0
+    # Rows may carry rho as floats or in JSON form ("inf", "-inf"); NaN is not a violation
+    # verdict we can stand behind, so it does not count.
+    value = rho_from_json(rho)
+    return value is not None and not math.isnan(value) and value < 0
 
 
 def metric_columns(summary: Sequence[SummaryRow]) -> list[str]:

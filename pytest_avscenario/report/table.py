@@ -144,7 +144,9 @@ def normalize_row(row: Mapping[str, Any]) -> dict[str, Any]:
     out["index"] = int(row["index"])
     out["seed"] = None if row.get("seed") is None else int(row["seed"])
     out["params"] = dict(row["params"])
-    out["rho"] = {str(k): rho_from_json(rho_to_json(v)) for k, v in row["rho"].items()}
+    # rho_from_json takes floats and JSON-form strings alike, so a row that already went
+    # through row_to_json (as it does on its way from an xdist worker) is accepted as is.
+    out["rho"] = {str(k): rho_from_json(v) for k, v in row["rho"].items()}
     out["sim_time_s"] = float(row.get("sim_time_s") or 0.0)
     out["error"] = None if row.get("error") is None else str(row["error"])
     return out
