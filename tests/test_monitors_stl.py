@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from pytest_avscenario.monitors import (
@@ -277,3 +277,26 @@ def test_plain_function_of_series_is_a_monitor_too():
     traj = sig_traj([1.0, 2.0], [0.0, 0.0])
     m = as_monitor(lambda tr: float(tr.signals["a"].min()) - 0.5, name="a_min")
     assert m.evaluate(traj).rho == 0.5
+
+
+@settings(max_examples=80, deadline=None)
+@given(signals, windows, windows)
+def test_sign_of_rho_agrees_with_boolean_semantics(ab, w1, w2):
+    # the boolean reading of each formula, built from the same brute-force references on
+    # 0/1 truth values (min/max of truth values = and/or; an empty always is true)
+    a, b = map(np.asarray, ab)
+    assume(np.all(a != 0) and np.all(b != 0))
+    t = np.arange(len(a), dtype=float)
+    traj = sig_traj(a, b)
+    ta, tb = (a >= 0).astype(float), (b >= 0).astype(float)
+    win = lambda w: (0.0, math.inf) if w is None else w
+    cases = [
+        (always(A, w1), ref_always(ta, t, *win(w1))),
+        (eventually(B, w1), ref_eventually(tb, t, *win(w1))),
+        (until(A, B, w1), ref_until(ta, tb, t, *win(w1))),
+        (always(implies(A, eventually(B, w2)), w1),
+         ref_always(np.maximum(1 - ta, ref_eventually(tb, t, *win(w2))), t, *win(w1))),
+    ]
+    for formula, truth in cases:
+        rho = formula.evaluate(traj).rho
+        assert (rho >= 0) == (truth[0] >= 1), formula.name
