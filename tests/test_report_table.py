@@ -209,6 +209,16 @@ def test_a_new_run_starts_from_empty_tables_and_keeps_user_files(tmp_path):
     prepare_report_dir(tmp_path)
     assert not (tmp_path / "tables").exists() and not (tmp_path / "errors.jsonl").exists()
     assert (tmp_path / "notes.txt").read_text() == "mine"
+    # A report directory pointed at a project: its own tables/ and plots/ survive.
+    (tmp_path / "tables").mkdir()
+    (tmp_path / "tables" / "budget.csv").write_text("x")
+    (tmp_path / "plots").mkdir()
+    (tmp_path / "plots" / "figure-1.png").write_text("x")
+    with ErrorTable(tmp_path) as table:
+        table.append(make_row())
+    prepare_report_dir(tmp_path)
+    assert sorted(p.name for p in (tmp_path / "tables").iterdir()) == ["budget.csv"]
+    assert (tmp_path / "plots" / "figure-1.png").exists()
     with ErrorTable(tmp_path) as table:
         table.append(make_row(index=5))
     assert [r["index"] for r in read_rows(tmp_path)] == [5]

@@ -41,7 +41,6 @@ import json
 import math
 import os
 import re
-import shutil
 import tempfile
 import threading
 import warnings
@@ -226,11 +225,19 @@ def file_slug(test: str, max_len: int = 80) -> str:
     return f"{readable[:max_len]}-{digest}"
 
 
+# What a run of ours writes in tables/ and plots/: "<readable>-<8 hex>" plus our suffixes.
+_OWN_FILES = {
+    TABLES_DIR: re.compile(r".+-[0-9a-f]{8}(\.shrink)?\.csv$"),
+    "plots": re.compile(r".+-[0-9a-f]{8}\.(space|rho)\.png$"),
+}
+
+
 def prepare_report_dir(directory: str | os.PathLike) -> Path:
     """Create the report directory and remove what a previous run of ours left in it.
 
-    Only our own files go (the tables, plots, index, summary); anything else a user keeps
-    there is untouched.
+    Only files we write are deleted (by name pattern), and ``tables/`` / ``plots/`` only when
+    that leaves them empty: pointing ``--avs-report`` at a directory that holds other things
+    (even the project root) never deletes them.
     """
     root = Path(directory)
     root.mkdir(parents=True, exist_ok=True)
@@ -239,8 +246,17 @@ def prepare_report_dir(directory: str | os.PathLike) -> Path:
             (root / name).unlink()
         except FileNotFoundError:
             pass
-    for sub in (TABLES_DIR, "plots"):
-        shutil.rmtree(root / sub, ignore_errors=True)
+    for sub, pattern in _OWN_FILES.items():
+        folder = root / sub
+        if not folder.is_dir():
+            continue
+        for f in folder.iterdir():
+            if f.is_file() and pattern.match(f.name):
+                f.unlink()
+        try:
+            folder.rmdir()
+        except OSError:
+            pass  # not empty: somebody else's files live there too
     return root
 
 
