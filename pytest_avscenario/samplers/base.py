@@ -81,6 +81,8 @@ def scalar_rho(rho: Rho) -> float | None:
     """
     if rho is None:
         return None
+    if type(rho) is float:  # the common case, without the Mapping ABC check
+        return None if rho != rho else rho
     if isinstance(rho, Mapping):
         vals = [float(v) for v in rho.values()]
         if not vals or any(math.isnan(v) for v in vals):
@@ -253,7 +255,8 @@ class ActiveSampler(Sampler):
 
     def tell_unit(self, u: np.ndarray, rho: Rho) -> None:
         self.n_told += 1
-        self._check_metrics(rho)
+        if self.known_metrics is not None:
+            self._check_metrics(rho)
         r = scalar_rho(rho)
         if r is None:
             self.n_invalid += 1

@@ -5,8 +5,8 @@ distribution over them, initially uniform; a case is drawn by picking a bucket p
 from its distribution and a point uniformly inside. Every ``batch`` valid cases the elite set
 — the ``elite`` fraction of all cases told so far with the lowest rho — is counted per
 dimension and bucket, and each distribution moves toward those frequencies by ``smoothing``
-(the smoothed cross-entropy update), then is floored at ``floor / buckets`` so no bucket is
-ever starved. Elites are a quantile of rho, not "rho < 0": the sampler learns from its first
+(the smoothed cross-entropy update), then ``floor`` of the uniform is mixed in so no bucket
+is ever starved. Elites are a quantile of rho, not "rho < 0": the sampler learns from its first
 batch on, where the reference learns nothing until a counterexample has been found.
 
 Points of one batch are drawn together when the distribution changes, so ask is a list pop.
@@ -29,7 +29,7 @@ class CrossEntropySampler(ActiveSampler):
     Options: ``buckets`` (per continuous dimension, default 5 like VerifAI), ``elite``
     (quantile of lowest rho that forms the elite set, default 0.2), ``smoothing`` (step
     toward the elite frequencies in (0, 1], default 0.3), ``batch`` (valid cases between
-    updates, default 10), ``floor`` (minimum probability relative to uniform, default 0.1),
+    updates, default 10), ``floor`` (share of the uniform mixed in after each update, default 0.1),
     plus ``metrics`` and ``priority`` (checked; ``ce`` minimizes the worst metric).
     """
 
@@ -47,8 +47,8 @@ class CrossEntropySampler(ActiveSampler):
         self.grid = Buckets(self.space, self.n_buckets)
         g = self.grid
         self._k = np.maximum(g.k, 1)[:, None].astype(float)
-        self.prob = np.where(g.valid, g.width, 0.0)  # uniform on the unit cube
-        self.prob /= np.maximum(self.prob.sum(1, keepdims=True), 1e-300)
+        prob = np.where(g.valid, g.width, 0.0)  # uniform on the unit cube
+        self._set_prob(prob / np.maximum(prob.sum(1, keepdims=True), 1e-300))
         # valid cases told: unit points and rho, in arrays grown by doubling
         self._n = 0
         self._U = np.zeros((16, g.d))
@@ -65,12 +65,22 @@ class CrossEntropySampler(ActiveSampler):
 
     def _draw(self, m: int) -> np.ndarray:
         g = self.grid
-        cdf = np.cumsum(self.prob, 1)
-        cdf[:, -1] = np.inf  # round-off must never push a draw past the last bucket
         r = self.rng.random((2, m, g.d))
-        b = (r[0][:, :, None] >= cdf[None]).sum(2)
+        # inverse CDF per dimension in one searchsorted: dimension i's CDF is shifted by 4i
+        b = np.searchsorted(self._cdf, r[0] + g._shift, "right") - self._cdf_start
         b = np.minimum(b, g.k - 1)
-        return g.lo[g.rows, b] + r[1] * g.width[g.rows, b]
+        fi = b + g.row_offset
+        return g.flat_lo[fi] + r[1] * g.flat_width[fi]
+
+    def _set_prob(self, p: np.ndarray) -> None:
+        self.prob = p
+        g = self.grid
+        cdf = np.cumsum(p, 1)
+        # interior edges only (the last bucket takes the rest, whatever the round-off)
+        self._cdf = np.concatenate(
+            [cdf[i, : g.k[i] - 1] + 4.0 * i for i in range(g.d)] or [np.zeros(0)])
+        self._cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
+            if g.d else np.zeros(0, dtype=int)
 
     # -- learning -----------------------------------------------------------------------
     def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
@@ -94,11 +104,13 @@ class CrossEntropySampler(ActiveSampler):
         m = max(1, int(math.ceil(self.elite * n)))
         elite = np.argpartition(rho, m - 1)[:m] if m < n else np.arange(n)
         b = g.index_many(self._U[elite])  # (m, d)
-        freq = np.zeros_like(self.prob)
-        np.add.at(freq, (np.broadcast_to(g.rows, b.shape), b), 1.0 / m)
+        freq = np.bincount((b + g.row_offset).ravel(), minlength=g.d * g.B)
+        freq = freq.reshape(g.d, g.B) / m
         p = (1.0 - self.smoothing) * self.prob + self.smoothing * freq
-        p = np.where(g.valid, np.maximum(p, self.floor / self._k), 0.0)
-        self.prob = p / p.sum(1, keepdims=True)
+        # mixing in `floor` of the uniform keeps every bucket at >= floor / k exactly
+        uniform = np.where(g.valid, 1.0 / self._k, 0.0)
+        p = (1.0 - self.floor) * p + self.floor * uniform
+        self._set_prob(p / p.sum(1, keepdims=True))
         self._queue = []  # the rest of the batch came from the old distribution
 
     # -- state --------------------------------------------------------------------------
@@ -112,7 +124,7 @@ class CrossEntropySampler(ActiveSampler):
 
     def restore(self, state: Mapping[str, Any]) -> None:
         super().restore(state)
-        self.prob = np.array(state["prob"], dtype=float).reshape(self.prob.shape)
+        self._set_prob(np.array(state["prob"], dtype=float).reshape(self.prob.shape))
         self._n = len(state["rho"])
         cap = max(16, 1 << max(self._n - 1, 0).bit_length())
         self._U = np.zeros((cap, self.grid.d))

@@ -30,16 +30,18 @@ class SimulatedAnnealingSampler(ActiveSampler):
     ``min_step`` (default 0.02), ``shrink`` (step factor per proposal, default 0.97),
     ``temperature`` (initial, in units of typical |delta rho|, default 1.0), ``cooling``
     (per proposal, default 0.9), ``restart`` (proposals without improvement before a restart,
-    default 30), plus ``metrics`` and ``priority`` (checked; ``sa`` minimizes the worst metric).
+    default 30), ``jump`` (probability that an integer or categorical coordinate is redrawn
+    uniformly in a proposal, default 0.2), plus ``metrics`` and ``priority`` (checked; ``sa``
+    minimizes the worst metric).
     """
 
     name = "sa"
     options = ActiveSampler.options + ("step", "min_step", "shrink", "temperature", "cooling",
-                                       "restart")
+                                       "restart", "jump")
 
     def __init__(self, space, seed=0, step: float = 0.15, min_step: float = 0.02,
                  shrink: float = 0.97, temperature: float = 1.0, cooling: float = 0.9,
-                 restart: int = 30, **options: Any):
+                 restart: int = 30, jump: float = 0.2, **options: Any):
         super().__init__(space, seed=seed, **options)
         self.step0 = check_float(step, "sa step", 0.0, 1.0, lo_open=True)
         self.min_step = check_float(min_step, "sa min_step", 0.0, self.step0)
@@ -47,6 +49,8 @@ class SimulatedAnnealingSampler(ActiveSampler):
         self.temp0 = check_float(temperature, "sa temperature")
         self.cooling = check_float(cooling, "sa cooling", 0.0, 1.0)
         self.patience = check_int(restart, "sa restart")
+        self.jump = check_float(jump, "sa jump", 0.0, 1.0)
+        self._discrete = ~self.space.continuous_mask()
         self.x: np.ndarray | None = None  # current case (unit cube) and its rho
         self.fx = math.inf
         self.best = math.inf  # best rho of the current walk
@@ -63,9 +67,13 @@ class SimulatedAnnealingSampler(ActiveSampler):
         self.n_asked += 1
         if self.x is None:
             return self.rng.random(self.d)
+        z = self.rng.random(2 * self.d)
         y = self.x + self.step * self.rng.standard_normal(self.d)
         y = np.abs(y) % 2.0  # reflect at 0 and 1 (a step may cross the cube several times)
-        return np.where(y > 1.0, 2.0 - y, y)
+        y = np.where(y > 1.0, 2.0 - y, y)
+        # a shrunken Gaussian step can no longer leave an integer/categorical stratum, so
+        # those coordinates are also redrawn uniformly now and then (a jump to another value)
+        return np.where(self._discrete & (z[: self.d] < self.jump), z[self.d:], y)
 
     # -- learning -----------------------------------------------------------------------
     def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
