@@ -1,0 +1,412 @@
+"""The replay database: counterexamples kept between runs as plain JSON files.
+
+Every failing case (minimized when shrinking succeeded) is stored so the next run replays
+it first, like Hypothesis's example database but readable and reviewable: one JSON file
+per (test, counterexample) in ``.avscenario/`` at the rootdir, holding the parameters, the
+rho values, the case seed, the feature space it was found in (description and
+fingerprint, so a changed scenario is noticed instead of replayed blindly), the versions
+that found it and whether it was minimized. Files are written atomically (a temporary
+file in the same directory, then ``os.replace``), so concurrent pytest-xdist workers and a
+CI cache merged from several jobs never show a half-written entry. File names are a hash
+of (test, parameters) — never user text — and file contents are only ever parsed as
+strict JSON: nothing read is executed, and no path is taken from a file's content.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import re
+import stat
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+from .monitors.serialize import rho_from_json, rho_to_json
+from .space import FeatureSpace
+
+__all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "space_changes"]
+
+#: version of the entry format this module writes and reads
+FORMAT = 1
+#: what an entry's "kind" field says; JSON without it is some other tool's file
+_KIND = "pytest-avscenario counterexample"
+#: <12 hex of the test id>-<20 hex of (test, params)>.json
+_NAME = re.compile(r"^([0-9a-f]{12})-([0-9a-f]{20})\.json$")
+#: entries are a few kB; anything far larger is not ours and is not read into memory
+_MAX_BYTES = 4 * 1024 * 1024
+
+
+class DatabaseError(OSError):
+    """The replay database directory cannot be used (it is a file, or cannot be read or
+    written); the message names the path and what to do."""
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One stored counterexample. ``path`` is where it lives (derived from the test and
+    parameters, never read from the file); ``created`` is a Unix timestamp."""
+
+    test: str
+    params: dict
+    rho: dict[str, float]
+    seed: int
+    fingerprint: str
+    space: dict
+    minimized: bool
+    versions: dict[str, str]
+    format: int
+    path: Path
+    created: float
+
+    def to_json(self) -> dict[str, Any]:
+        """The file content (plain JSON; ±inf rho as strings)."""
+        return {
+            "kind": _KIND,
+            "format": self.format,
+            "test": self.test,
+            "params": self.params,
+            "rho": {k: rho_to_json(v) for k, v in self.rho.items()},
+            "seed": self.seed,
+            "fingerprint": self.fingerprint,
+            "space": self.space,
+            "minimized": self.minimized,
+            "versions": self.versions,
+            "created": self.created,
+        }
+
+
+class _Invalid(ValueError):
+    """A file or snapshot item that is not a readable entry (the message says why)."""
+
+
+def entry_name(test: str, params: Mapping[str, Any]) -> str:
+    """The file name of the entry for (test, params): hashes only, so it cannot escape the
+    directory whatever the test id or parameter values contain."""
+    test_hash = hashlib.sha256(test.encode("utf-8", "surrogatepass")).hexdigest()[:12]
+    blob = json.dumps([test, _plain(params)], sort_keys=True, ensure_ascii=True,
+                      separators=(",", ":"), allow_nan=False)
+    case_hash = hashlib.sha256(blob.encode()).hexdigest()[:20]
+    return f"{test_hash}-{case_hash}.json"
+
+
+class ReplayDB:
+    """Counterexamples in one directory (created on the first save).
+
+    ``entries()`` re-lists the directory on every call but parses only new or changed
+    files. ``warnings`` collects one message per skipped file (path and reason), each file
+    reported once per instance.
+    """
+
+    def __init__(self, directory: str | os.PathLike):
+        self.directory = Path(directory)
+        self.warnings: list[str] = []
+        self._warned: set[str] = set()
+        # file name -> ((mtime_ns, size), Entry or None when invalid)
+        self._cache: dict[str, tuple[tuple[int, int], Entry | None]] = {}
+        self._snapshot: list[Entry] | None = None
+        self._check_directory()
+
+    # ------------------------------------------------------------------ reading
+    def entries(self, test: str | None = None) -> list[Entry]:
+        """Valid entries, oldest first then by file name; ``test`` filters by test id."""
+        if self._snapshot is not None:
+            found = list(self._snapshot)
+        else:
+            found = list(self._scan())
+        if test is not None:
+            found = [e for e in found if e.test == test]
+        return sorted(found, key=lambda e: (e.created, e.path.name))
+
+    def _scan(self) -> Iterable[Entry]:
+        self._check_directory()
+        try:
+            listing = list(os.scandir(self.directory))
+        except FileNotFoundError:
+            return []
+        except OSError as exc:
+            raise DatabaseError(
+                f"cannot read the replay database directory {self.directory}: "
+                f"{exc.strerror or exc}; fix its permissions or pass another --avs-db"
+            ) from exc
+        seen = set()
+        out = []
+        for item in listing:
+            if not _NAME.match(item.name):
+                continue  # temporary files, READMEs, other tools' files: not ours
+            seen.add(item.name)
+            entry = self._load(item)
+            if entry is not None:
+                out.append(entry)
+        for name in set(self._cache) - seen:
+            del self._cache[name]
+        return out
+
+    def _load(self, item: os.DirEntry) -> Entry | None:
+        path = self.directory / item.name
+        try:
+            st = item.stat(follow_symlinks=False)
+        except OSError as exc:
+            self._warn(path, f"cannot be read ({exc.strerror or exc})")
+            return None
+        stamp = (st.st_mtime_ns, st.st_size)
+        cached = self._cache.get(item.name)
+        if cached is not None and cached[0] == stamp:
+            return cached[1]
+        entry = None
+        try:
+            if not stat.S_ISREG(st.st_mode):
+                raise _Invalid("is not a regular file (symlinks are not followed)")
+            if st.st_size > _MAX_BYTES:
+                raise _Invalid(f"is {st.st_size} bytes, too large to be an entry")
+            with open(path, "rb") as f:
+                raw = f.read(_MAX_BYTES + 1)
+            entry = _parse(raw, path)
+        except _Invalid as exc:
+            self._warn(path, str(exc))
+        except OSError as exc:
+            self._warn(path, f"cannot be read ({exc.strerror or exc})")
+        self._cache[item.name] = (stamp, entry)
+        return entry
+
+    def _warn(self, path: Path, why: str) -> None:
+        if path.name in self._warned:
+            return
+        self._warned.add(path.name)
+        self.warnings.append(f"skipped {path}: {why}")
+
+    # ------------------------------------------------------------------ writing
+    def save(self, test: str, params: Mapping[str, Any], rho: Mapping[str, float], seed: int,
+             space: FeatureSpace, minimized: bool, versions: Mapping[str, str]) -> Entry:
+        """Store a counterexample; saving the same (test, params) again rewrites the same
+        file (keeping its creation time), so the database holds it once."""
+        if not isinstance(test, str) or not test:
+            raise ValueError(f"test must be a non-empty string, got {test!r}")
+        params = _plain(params)
+        if not isinstance(params, dict):
+            raise ValueError(f"params must be a mapping, got {type(params).__name__}")
+        name = entry_name(test, params)
+        path = self.directory / name
+        created = time.time()
+        existing = self._read_existing(path)
+        if existing is not None and existing.test == test and existing.params == params:
+            created = existing.created
+        entry = Entry(
+            test=test,
+            params=params,
+            rho={str(k): float(v) for k, v in rho.items()},
+            seed=_as_int(seed, "seed"),
+            fingerprint=space.fingerprint(),
+            space=_plain(space.describe()),
+            minimized=bool(minimized),
+            versions={str(k): str(v) for k, v in versions.items()},
+            format=FORMAT,
+            path=path,
+            created=float(created),
+        )
+        text = json.dumps(entry.to_json(), indent=2, sort_keys=True, allow_nan=False)
+        self._write_atomically(path, text.encode("utf-8"))
+        return entry
+
+    def _read_existing(self, path: Path) -> Entry | None:
+        try:
+            with open(path, "rb") as f:
+                return _parse(f.read(_MAX_BYTES + 1), path)
+        except (OSError, _Invalid):
+            return None
+
+    def _write_atomically(self, path: Path, data: bytes) -> None:
+        self._check_directory()
+        tmp = None
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            # Same directory, so os.replace is an atomic rename on one file system; the
+            # ".tmp" name does not match the entry pattern, so readers never see it.
+            fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".part", dir=self.directory)
+            with os.fdopen(fd, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+            os.chmod(tmp, 0o644)  # mkstemp's 0600 would hide entries from a shared CI cache
+            os.replace(tmp, path)
+            tmp = None
+        except OSError as exc:
+            raise DatabaseError(
+                f"cannot write the replay database {self.directory}: {exc.strerror or exc}; "
+                "make it a writable directory, pass another --avs-db, or --avs-db=none"
+            ) from exc
+        finally:
+            if tmp is not None:
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
+
+    def delete(self, entry: Entry) -> None:
+        """Remove a stored counterexample (already gone is fine: another worker did it)."""
+        name = entry_name(entry.test, entry.params)
+        path = self.directory / name  # recomputed: an Entry's path field is never trusted
+        try:
+            os.unlink(path)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            raise DatabaseError(
+                f"cannot delete {path} from the replay database: {exc.strerror or exc}"
+            ) from exc
+        self._cache.pop(name, None)
+        if self._snapshot is not None:
+            self._snapshot = [e for e in self._snapshot if e.path.name != name]
+
+    # ------------------------------------------------------------------ xdist
+    def snapshot(self) -> list[dict]:
+        """All valid entries as plain JSON (what pytest-xdist ships to its workers)."""
+        return [e.to_json() for e in self.entries()]
+
+    @classmethod
+    def from_snapshot(cls, directory: str | os.PathLike, data: Iterable[Mapping]) -> "ReplayDB":
+        """A database whose ``entries()`` are ``data`` (from :meth:`snapshot`), so every
+        worker collects the same replays; saves and deletes still go to ``directory``."""
+        db = cls(directory)
+        entries = []
+        for i, item in enumerate(data):
+            try:
+                if not isinstance(item, Mapping):
+                    raise _Invalid("is not a JSON object")
+                name = entry_name(str(item.get("test")), item.get("params") or {})
+                entries.append(_entry_from_json(dict(item), db.directory / name))
+            except (_Invalid, ValueError, TypeError) as exc:
+                db.warnings.append(f"skipped snapshot item {i}: {exc}")
+        db._snapshot = entries
+        return db
+
+    # ------------------------------------------------------------------ helpers
+    def _check_directory(self) -> None:
+        d = self.directory
+        if d.exists() and not d.is_dir():
+            raise DatabaseError(
+                f"the replay database {d} is not a directory; remove that file "
+                "or pass another path with --avs-db"
+            )
+        for parent in d.parents:
+            if parent.exists():
+                if not parent.is_dir():
+                    raise DatabaseError(
+                        f"the replay database {d} cannot be created: {parent} is a file"
+                    )
+                break
+
+    def __repr__(self) -> str:
+        return f"ReplayDB({str(self.directory)!r})"
+
+
+def space_changes(old: Mapping[str, Any], new: FeatureSpace) -> list[str]:
+    """Names of parameters added, removed or changed between a stored space description
+    and the current space: new parameters in declaration order, then removed ones."""
+    new_desc = new.describe()
+    old = dict(old) if isinstance(old, Mapping) else {}
+    changed = [n for n, d in new_desc.items() if n not in old or _canon(old[n]) != _canon(d)]
+    removed = [n for n in old if n not in new_desc]
+    return changed + removed
+
+
+# --------------------------------------------------------------------------- parsing
+
+
+def _reject_constant(name: str) -> Any:
+    raise _Invalid(f"contains {name}, which is not JSON")
+
+
+def _parse(raw: bytes, path: Path) -> Entry:
+    if len(raw) > _MAX_BYTES:
+        raise _Invalid("is too large to be an entry")
+    if not raw.strip():
+        raise _Invalid("is empty")
+    try:
+        data = json.loads(raw.decode("utf-8"), parse_constant=_reject_constant)
+    except UnicodeDecodeError:
+        raise _Invalid("is not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise _Invalid(f"is not valid JSON (truncated or corrupt: {exc.msg} at "
+                       f"line {exc.lineno} column {exc.colno})") from None
+    entry = _entry_from_json(data, path)
+    if entry_name(entry.test, entry.params) != path.name:
+        raise _Invalid("its name does not match its test and parameters (renamed or edited)")
+    return entry
+
+
+def _entry_from_json(data: Any, path: Path) -> Entry:
+    if not isinstance(data, dict) or data.get("kind") != _KIND:
+        raise _Invalid("is not a pytest-avscenario entry (foreign JSON)")
+    fmt = data.get("format")
+    if fmt != FORMAT:
+        raise _Invalid(f"has entry format version {fmt!r}; this pytest-avscenario reads "
+                       f"version {FORMAT}")
+
+    def field(name: str, kinds: type | tuple[type, ...]) -> Any:
+        value = data.get(name)
+        # bool is an int in Python, but a seed of `true` is a malformed file
+        if not isinstance(value, kinds) or (isinstance(value, bool) and kinds is not bool):
+            raise _Invalid(f"has a missing or malformed {name!r} field")
+        return value
+
+    test = field("test", str)
+    params = field("params", dict)
+    rho_raw = field("rho", dict)
+    try:
+        rho = {str(k): rho_from_json(v) for k, v in rho_raw.items()}
+    except (TypeError, ValueError):
+        raise _Invalid("has a malformed 'rho' field") from None
+    seed = field("seed", int)
+    fingerprint = field("fingerprint", str)
+    space = field("space", dict)
+    minimized = field("minimized", bool)
+    versions = field("versions", dict)
+    if not all(isinstance(v, str) for v in versions.values()):
+        raise _Invalid("has a malformed 'versions' field")
+    created = field("created", (int, float))
+    if not math.isfinite(created):
+        raise _Invalid("has a malformed 'created' field")
+    return Entry(test=test, params=params, rho=rho, seed=seed, fingerprint=fingerprint,
+                 space=space, minimized=minimized, versions=dict(versions), format=fmt,
+                 path=path, created=float(created))
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready copy: numpy scalars to Python, tuples to lists; non-finite floats and
+    non-JSON values are refused (a case's parameters are always plain and finite)."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError(f"parameters must be finite to be stored, got {value!r}")
+        return value
+    if value is None or isinstance(value, str):
+        return value
+    raise ValueError(f"{value!r} ({type(value).__name__}) cannot be stored as JSON")
+
+
+def _canon(value: Any) -> str:
+    try:
+        return json.dumps(_plain(value), sort_keys=True)
+    except ValueError:
+        return repr(value)
+
+
+def _as_int(value: Any, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{what} must be an int, got {value!r}")
+    return int(value)
