@@ -322,3 +322,32 @@ def test_tracked_lane_agrees_with_highway_envs_full_scan():
             s2, r2 = theirs.local_coordinates(p)
             agree += mine.geometry is theirs or abs(abs(r1) - abs(r2)) < 0.05
     assert agree / total > 0.97
+
+
+def test_turn_yielding_to_the_ego_goes_after_it_passed():
+    w = World(seed=1, driver="idm")
+    inter = w.intersection()
+    w.ego(inter.stop_line("south").before(10), speed=10.0, route=inter.route("south", "straight"))
+    w.car(inter.stop_line("north").before(3.0), speed=0.0,
+          behavior=b.turn("left", yield_to_ego=True, stop_time=0.5))
+    tr = w.run(12.0)
+    car = tr.agent("car1")
+    go = first(car.speed > 0.3)
+    assert tr.ego.y[go] > 0.0  # the ego is through the centre before the turner moves
+    assert not tr.crashed.any() and car.lane[-1] == "east.out[0]"
+
+
+def test_a_car_placed_standing_turns_at_the_speed_limit():
+    w = World(seed=1, driver="idm")
+    inter = w.intersection(speed_limit=9.0)
+    w.ego(inter.exit("south"), s=60)
+    w.car(inter.stop_line("west").before(40), speed=0.0, behavior=b.turn("straight", stop=False))
+    tr = w.run(12.0)
+    assert tr.agent("car1").speed.max() == pytest.approx(9.0, abs=0.3)
+
+
+def test_lanes_of_another_world_are_rejected():
+    w1, w2 = World(seed=1, driver="idm"), World(seed=1, driver="idm", name="t_other")
+    r1, _ = w1.straight_road(), w2.straight_road()
+    with pytest.raises(SimError, match="another world's road"):
+        w2.ego(r1.lane(0))

@@ -332,3 +332,13 @@ def test_misuse_is_explained():
     w.car(road.lane(1), s=40, behavior=b.brake_at(decel=3.0))
     with pytest.raises(SimError, match="brake_at needs a time"):
         w.run(1.0)
+
+
+def test_autopilot_is_resolved_lazily_by_name():
+    auto = pytest.importorskip("pytest_avscenario.sim.drivers.autopilot")
+    from pytest_avscenario.sim.drivers import resolve
+
+    drv = resolve("autopilot")
+    assert isinstance(drv.target, auto.Autopilot)
+    w = following(driver="autopilot", seconds=3.0)
+    assert w.trajectory.meta["ego_driver"].startswith("PolicyDriver(Autopilot")

@@ -190,7 +190,7 @@ class Turn(Behavior):
 
     def control(self, agent, world):
         st = self.state
-        v = self.speed if self.speed is not None else agent.initial_speed
+        v = self.speed if self.speed is not None else agent.cruise_speed
         v = min(v, agent.curve_speed_cap())
         hold = None
         if (self.stop or self.go_when_ego_within is not None) and not st.get("released"):
@@ -221,8 +221,9 @@ def turn(direction: str, *, stop: bool = True, stop_time: float = 1.0,
     """Drive through the intersection turning ``direction`` ("left", "right", "straight").
 
     With ``stop`` it halts at the stop line for ``stop_time`` [s] (all-way stop); with
-    ``yield_to_ego`` it also waits while the ego is within 30 m of the centre and closer to
-    it than itself. Speeds [m/s] are capped in the turn for 2.5 m/s^2 lateral acceleration.
+    ``yield_to_ego`` it also waits while the ego is inside the intersection or driving toward
+    it within 30 m of its centre. ``speed`` [m/s] defaults to the initial speed (the speed limit for a car
+    placed standing) and is capped in the turn for 2.5 m/s^2 lateral acceleration.
     """
     return Turn(direction=direction, stop=stop, stop_time=stop_time, speed=speed,
                 yield_to_ego=yield_to_ego)
@@ -253,7 +254,7 @@ class CutAcross(Behavior):
     def control(self, agent, world):
         if world.t < self.start_at - 1e-9:
             return control.track_speed(agent.speed, 0.0), agent.follow()
-        v = self.speed if self.speed is not None else agent.initial_speed
+        v = self.speed if self.speed is not None else agent.cruise_speed
         v = min(v, agent.curve_speed_cap()) if self.direction != "straight" else v
         return control.track_speed(agent.speed, v), agent.follow()
 
@@ -263,6 +264,7 @@ def cut_across(speed: float | None = None, *, direction: str = "straight",
     """Cross the intersection at ``speed`` [m/s] without stopping or yielding (a red-light runner).
 
     The agent stands still until ``start_at`` [s]; ``direction`` may also be "left"/"right".
+    ``speed`` defaults to the initial speed (the speed limit for a car placed standing).
     """
     return CutAcross(speed=speed, direction=direction, start_at=start_at)
 

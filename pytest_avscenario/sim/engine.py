@@ -163,6 +163,13 @@ class _Agent:
 
     # -- helpers for behaviours -----------------------------------------------------------------
     @property
+    def cruise_speed(self) -> float:
+        """[m/s] the initial speed, or the lane's speed limit for an agent placed standing."""
+        if self.initial_speed > 0:
+            return self.initial_speed
+        return float(self.route_lane.geometry.speed_limit)
+
+    @property
     def route_lane(self) -> Any:
         return self.plan[self.route_index]
 

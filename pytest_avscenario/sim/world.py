@@ -139,7 +139,7 @@ class World:
             raise SimError(f"cannot place a vehicle on {place!r}: give a lane "
                            "(road.lane(0), inter.approach('south')), a spot (lane.at(s)) "
                            "or a stop line", test=self.name, agent=agent)
-        if spot.lane.index not in self._index.lanes:
+        if self._index.lanes.get(spot.lane.index) is not spot.lane:
             raise SimError(f"lane {spot.lane.id!r} belongs to another world's road",
                            test=self.name, agent=agent)
         if not (math.isfinite(spot.s) and 0.0 <= spot.s <= spot.lane.length):
@@ -238,7 +238,8 @@ class World:
     def ego(self, place: Any, s: float = 0.0, speed: float = 0.0, driver: Any = None,
             route: Any = None, target_speed: float | None = None, goal: dict | None = None, *,
             r: float = 0.0, allow_reverse: bool = False, name: str = "ego") -> Any:
-        """Place the AV under test at ``place`` (a lane, a spot, a stop line), ``s`` [m] along it.
+        """Place the AV under test at ``place``: a lane (``s`` [m] along it), or a spot or stop
+        line (``s`` [m] further along its lane, e.g. ``inter.stop_line("south").before(20)``).
 
         ``driver`` overrides the world's default driver; ``route`` (e.g.
         ``inter.route("south", "left")``) defaults to straight on. ``target_speed`` [m/s] is
@@ -402,12 +403,17 @@ class World:
         return _distance(self._ego, centre if centre is not None else agent)
 
     def ego_in_conflict(self, agent: Any) -> bool:
-        """Whether the ego is near the intersection (30 m) and closer to its centre than ``agent``."""
-        d_ego = self.ego_distance_to_centre(agent)
+        """Whether the ego is inside the intersection or approaching it within 30 m."""
         centre = getattr(self.road, "centre", None)
-        if centre is None:
+        if centre is None or self._ego is None:
             return False
-        return d_ego < 30.0 and d_ego < _distance(agent, centre)
+        e = self._ego
+        d = _distance(e, centre)
+        if d < self.road.half + 3.0:
+            return True
+        dx, dy = centre.x - float(e.position[0]), centre.y - float(e.position[1])
+        approaching = math.cos(e.heading) * dx + math.sin(e.heading) * dy > 0 and e.speed > 0.1
+        return approaching and d < 30.0
 
     # -- observation -------------------------------------------------------------------------------
     def _state(self, a: Any, kind: str | None = None) -> AgentState:
