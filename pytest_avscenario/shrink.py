@@ -93,8 +93,9 @@ class _Axis:
     name: str
     kind: str  # "continuous", "integer" or "categorical"
     nominal: Any
-    failing: Any
+    failing: Any  # as a number of the axis's kind, for the path arithmetic
     bits: int  # binary digits of k; 0 for categorical (the flag alone encodes it)
+    exact: Any = None  # the failing value exactly as given (k = K reproduces the original)
 
     @property
     def top(self) -> int:
@@ -105,8 +106,9 @@ class _Axis:
         if not departs or (self.kind != "categorical" and k == 0):
             return self.nominal
         if self.kind == "categorical" or k == self.top:
-            # exactly the failing value (no float round-off at the end of the path)
-            return self.failing
+            # the failing value as given: no float round-off at the end of the path, and
+            # the memo recognises the original case
+            return self.exact
         if self.kind == "integer":
             span = self.failing - self.nominal
             if abs(span) <= self.top:
@@ -136,18 +138,16 @@ def _axes(space: FeatureSpace, failing: Mapping[str, Any], resolution: int) -> l
                 continue
             # Index 0 is the nominal option, 1 the failing one; the other options would
             # come after, but shrinking never raises a choice, so only the flag is drawn.
-            axes.append(_Axis(name, "categorical", nominal, value, 0))
+            axes.append(_Axis(name, "categorical", nominal, value, 0, value))
         elif dist.kind == "integer":
-            value = int(value)
-            if value == nominal:
+            if int(value) == nominal:
                 continue
-            bits = min(steps_bits, max(1, abs(value - nominal).bit_length()))
-            axes.append(_Axis(name, "integer", int(nominal), value, bits))
+            bits = min(steps_bits, max(1, abs(int(value) - nominal).bit_length()))
+            axes.append(_Axis(name, "integer", int(nominal), int(value), bits, value))
         else:
-            value = float(value)
-            if value == float(nominal):
+            if float(value) == float(nominal):
                 continue
-            axes.append(_Axis(name, "continuous", float(nominal), value, steps_bits))
+            axes.append(_Axis(name, "continuous", float(nominal), float(value), steps_bits, value))
     return axes
 
 
@@ -282,8 +282,12 @@ class _Budget:
 
 
 def _key(params: Mapping[str, Any]) -> str:
-    # repr keeps 1 and 1.0 and True apart (a Choice may hold any of them)
-    return repr(sorted((k, type(v).__name__, repr(v)) for k, v in params.items()))
+    # repr keeps 1 and 1.0 and True apart (a Choice may hold any of them); numpy scalars
+    # count as the Python number they hold, so the original case is recognised
+    def plain(v: Any) -> Any:
+        return v.item() if hasattr(v, "item") and hasattr(v, "dtype") else v
+
+    return repr(sorted((k, type(plain(v)).__name__, repr(plain(v))) for k, v in params.items()))
 
 
 def minimize(

@@ -258,3 +258,14 @@ def test_canary_survives_a_forced_hypothesis_seed(monkeypatch):
         warnings.simplefilter("error", ShrinkSeedingWarning)
         r = minimize(following_space(), FAILING, both)
     assert r.improved
+
+
+def test_numpy_and_float_valued_inputs_are_recognised_as_the_original():
+    import numpy as np
+
+    space = FeatureSpace({"gap": Uniform(10.0, 40.0, nominal=30.0), "n": IntRange(1, 40, nominal=2)})
+    failing = {"gap": np.float64(12.0), "n": 31.0}
+    pred = Counting(lambda p: p["gap"] < GAP_BOUNDARY and p["n"] >= 7)
+    r = minimize(space, failing, pred, budget=200)
+    assert all(not (p["gap"] == 12.0 and p["n"] == 31) for p in pred.calls)
+    assert r.minimized["n"] == 7 and GAP_BOUNDARY - 0.02 < r.minimized["gap"] < GAP_BOUNDARY
