@@ -110,7 +110,8 @@ class WhenEgoNear(Behavior):
     """Stand still until the ego is within ``within`` m of ``place``, then run ``inner``.
 
     ``inner``'s clock starts at activation (``brake_at(t=2)`` brakes 2 s after it). The
-    activation and "ego has passed" times are kept in ``state`` for :func:`only_while_relevant`.
+    activation time and the time the ego has passed the agent (``passed_after`` m beyond it
+    along the ego's heading) are kept in ``state`` for :func:`only_while_relevant`.
     """
 
     inner: Any = None
@@ -140,7 +141,7 @@ class WhenEgoNear(Behavior):
                 brake = -min(agent.speed / 0.3, 6.0) if agent.speed > 0 else 0.0
                 return brake, agent.follow()
         if "t_off" not in st:
-            d = pos - ego.position
+            d = agent.position - ego.position
             ahead = d[0] * math.cos(ego.heading) + d[1] * math.sin(ego.heading)
             if ahead < -self.passed_after:
                 st["t_off"] = world.t
@@ -150,7 +151,8 @@ class WhenEgoNear(Behavior):
 def when_ego_near(inner: Behavior, place: Any, within: float = 40.0,
                   passed_after: float = 10.0) -> WhenEgoNear:
     """Activate ``inner`` when the ego comes within ``within`` [m] of ``place`` (a spot, a
-    crosswalk, a point); it counts as passed once the ego is ``passed_after`` [m] beyond it."""
+    crosswalk, a point); it stops counting once the ego is ``passed_after`` [m] beyond the
+    agent."""
     return WhenEgoNear(inner=inner, place=place, within=within, passed_after=passed_after)
 
 
@@ -163,7 +165,7 @@ def _maybe_triggered(behavior: Behavior, trigger: Any) -> Behavior:
 
 def only_while_relevant(world: Any, agents: list[Any]) -> Any:
     """The world's trajectory with each triggered agent present only from its activation
-    until the ego passed its place (the rest of the run it is invisible to the monitors)."""
+    until the ego has passed it (the rest of the run it is invisible to the monitors)."""
     tr = world.trajectory
     present = tr.present.copy()
     for a in agents:
