@@ -269,3 +269,14 @@ def test_numpy_and_float_valued_inputs_are_recognised_as_the_original():
     r = minimize(space, failing, pred, budget=200)
     assert all(not (p["gap"] == 12.0 and p["n"] == 31) for p in pred.calls)
     assert r.minimized["n"] == 7 and GAP_BOUNDARY - 0.02 < r.minimized["gap"] < GAP_BOUNDARY
+
+
+def test_broken_seeding_keeps_the_original_and_warns(monkeypatch):
+    # what a Hypothesis with another database format would do: nothing replayed
+    from pytest_avscenario import shrink
+
+    monkeypatch.setattr(shrink, "_choices_bytes", lambda choices: b"\xff\xff")
+    pred = Counting(both)
+    with pytest.warns(ShrinkSeedingWarning, match="did not replay"):
+        r = minimize(following_space(), FAILING, pred)
+    assert r.minimized == FAILING and not r.improved and pred.calls == []
