@@ -185,6 +185,18 @@ def test_bo_option_ranges(opts):
         samplers.make("bo", MIXED, **opts)
 
 
+@pytest.mark.parametrize("name", ["ce", "sa", "bo"])
+def test_single_objective_samplers_chase_the_top_priority_metric(name):
+    s = samplers.make(name, {"x": Uniform(0, 1)}, metrics=["a", "b"], priority=["a", "b"])
+    seen = []
+    s._learn = lambda u, r, rho: seen.append(r)
+    s.tell_unit(np.array([0.5]), {"a": 2.0, "b": -1.0})
+    t = samplers.make(name, {"x": Uniform(0, 1)}, metrics=["a", "b"])
+    t._learn = lambda u, r, rho: seen.append(r)
+    t.tell_unit(np.array([0.5]), {"a": 2.0, "b": -1.0})
+    assert seen == [2.0, -1.0]
+
+
 # -- mab: bucket choice ----------------------------------------------------------------------
 
 def test_mab_plays_the_bucket_with_the_highest_upper_confidence_bound():
@@ -292,10 +304,11 @@ def test_mab_rewards_only_buckets_whose_pattern_is_still_maximal():
     s.tell_unit(np.array([0.1]), {**ok, "lane": -0.2})   # bucket 0 violates lane
     s.tell_unit(np.array([0.4]), {**ok, "ttc": -0.2})    # bucket 1 violates ttc (unordered)
     assert s.maximal == {P("lane"), P("ttc")}
-    assert s.arm_values()[0, :2] == pytest.approx([0.5, 0.5])
+    # credit = share of the priority weight: collision 1, ttc and lane 1/2 each (of 2)
+    assert s.arm_values()[0, :2] == pytest.approx([0.25 / 2, 0.25 / 2])
     s.tell_unit(np.array([0.9]), {**ok, "collision": -1.0})  # bucket 3: the top metric
     assert s.maximal == {P("collision")}
-    assert s.arm_values()[0] == pytest.approx([0.0, 0.0, 0.0, 0.5])
+    assert s.arm_values()[0] == pytest.approx([0.0, 0.0, 0.0, 0.5 / 2])
     # a later lesser pattern earns no counterexample credit
     s.tell_unit(np.array([0.6]), {**ok, "lane": -0.5})
     assert s.arm_values()[0, 2] == 0.0

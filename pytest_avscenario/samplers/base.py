@@ -227,11 +227,13 @@ class ActiveSampler(Sampler):
     highest first, or ``(higher, lower)`` pairs), so the plugin can pass both uniformly;
     samplers without a multi-objective mode validate the priority and otherwise ignore it.
     Feedback is reduced to the worst metric (``scalar_rho``) unless a sampler reads the
-    mapping itself. ``None`` (or any NaN) is an invalid case: counted in ``n_invalid`` and
+    mapping itself (``multi_objective = True``); with a priority order, to the worst of the
+    top-ranked metrics, so a single-objective search goes for the failures that matter most. ``None`` (or any NaN) is an invalid case: counted in ``n_invalid`` and
     never treated as a pass.
     """
 
     active = True
+    multi_objective = False  # True: _learn reads the metric mapping and the priority itself
     options: tuple[str, ...] = ("metrics", "priority")
 
     def __init__(self, space: FeatureSpace, seed: int | np.random.Generator = 0,
@@ -258,6 +260,9 @@ class ActiveSampler(Sampler):
         if self.known_metrics is not None:
             self._check_metrics(rho)
         r = scalar_rho(rho)
+        if r is not None and self.multi and not self.multi_objective and isinstance(rho, Mapping):
+            top = [v for m, v in rho.items() if self.order.level.get(m, 0) == 0]
+            r = min(map(float, top)) if top else r
         if r is None:
             self.n_invalid += 1
         self._learn(np.asarray(u, dtype=float), r, rho)

@@ -141,7 +141,8 @@ class BayesianOptimizationSampler(ActiveSampler):
     (LCB weight, default 2), ``xi`` (EI margin in standardized units, default 0.01),
     ``init`` (random cases first, default 5), ``starts`` (local optimizer starts, default 5),
     ``candidates`` (screening points, default 500), ``max_points`` (cases in the fit,
-    default 300), plus ``metrics`` and ``priority`` (checked; ``bo`` minimizes the worst metric).
+    default 300), plus ``metrics`` and ``priority`` (``bo`` minimizes the worst metric, or with a
+    priority the worst top-ranked one).
     """
 
     name = "bo"

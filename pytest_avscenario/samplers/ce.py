@@ -30,7 +30,8 @@ class CrossEntropySampler(ActiveSampler):
     (quantile of lowest rho that forms the elite set, default 0.2), ``smoothing`` (step
     toward the elite frequencies in (0, 1], default 0.3), ``batch`` (valid cases between
     updates, default 10), ``floor`` (share of the uniform mixed in after each update, default 0.1),
-    plus ``metrics`` and ``priority`` (checked; ``ce`` minimizes the worst metric).
+    plus ``metrics`` and ``priority`` (``ce`` minimizes the worst metric, or with a
+    priority the worst top-ranked one).
     """
 
     name = "ce"
@@ -47,6 +48,9 @@ class CrossEntropySampler(ActiveSampler):
         self.grid = Buckets(self.space, self.n_buckets)
         g = self.grid
         self._k = np.maximum(g.k, 1)[:, None].astype(float)
+        self._interior = np.arange(g.B)[None, :] < (g.k - 1)[:, None]
+        self._cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
+            if g.d else np.zeros(0, dtype=int)
         prob = np.where(g.valid, g.width, 0.0)  # uniform on the unit cube
         self._set_prob(prob / np.maximum(prob.sum(1, keepdims=True), 1e-300))
         # valid cases told: unit points and rho, in arrays grown by doubling
@@ -75,12 +79,8 @@ class CrossEntropySampler(ActiveSampler):
     def _set_prob(self, p: np.ndarray) -> None:
         self.prob = p
         g = self.grid
-        cdf = np.cumsum(p, 1)
         # interior edges only (the last bucket takes the rest, whatever the round-off)
-        self._cdf = np.concatenate(
-            [cdf[i, : g.k[i] - 1] + 4.0 * i for i in range(g.d)] or [np.zeros(0)])
-        self._cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
-            if g.d else np.zeros(0, dtype=int)
+        self._cdf = (np.cumsum(p, 1) + g._shift[:, None])[self._interior]
 
     # -- learning -----------------------------------------------------------------------
     def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:

@@ -11,9 +11,13 @@ random until it stumbles on one.
 Multi-objective mode (a ``priority`` order over the metrics; Viswanadha et al., RV'21): a
 case's violation pattern is the set of metrics it violates; the sampler keeps the patterns
 that no other pattern seen so far dominates under the priority order
-(:class:`.priority.PriorityOrder`) and a bucket's counterexample reward is the number of its
-cases whose pattern is currently maximal, so arms that produced what is now a lesser failure
-lose that credit. Near misses are scored per metric, weighted ``2**-level`` by rank.
+(:class:`.priority.PriorityOrder`), and a case earns counterexample credit only while its
+pattern is maximal, so arms that produced what is now a lesser failure lose that credit.
+Each metric weighs ``2 ** -level`` (level 0 = top priority): a pattern's credit is
+``1 - near_miss`` times its share of the total weight, and the near-miss part is the
+weighted mean closeness over all metrics — so a bucket that violates a low-priority metric
+close to a high-priority one keeps pulling the search toward the high-priority failure.
+With one objective this reduces to the rule above (1 for a counterexample).
 Patterns are sets of metric names, never traversal positions.
 """
 
@@ -47,6 +51,7 @@ class MultiArmedBanditSampler(ActiveSampler):
     """
 
     name = "mab"
+    multi_objective = True
     options = ActiveSampler.options + ("buckets", "exploration", "near_miss", "jitter")
 
     def __init__(self, space, seed=0, buckets: int = 5, exploration: float = 0.3,
@@ -100,7 +105,7 @@ class MultiArmedBanditSampler(ActiveSampler):
             # either way; adding the arm's current mean leaves the mean unchanged
             self.nm_sum[fi] += self._mean[fi]
         else:
-            pattern, score = self._judge(r, rho)
+            pattern, closeness = self._judge(r, rho)
             if pattern:
                 counts = self.patterns.get(pattern)
                 if counts is None:
@@ -110,11 +115,9 @@ class MultiArmedBanditSampler(ActiveSampler):
                 else:
                     counts[fi] += 1.0
                     if pattern in self.maximal:
-                        self.ce_sum[fi] += 1.0
-                if pattern not in self.maximal:
-                    self.nm_sum[fi] += self.near_miss * score
-            elif score > 0.0:
-                self.nm_sum[fi] += self.near_miss * score
+                        self.ce_sum[fi] += self._credit(pattern)
+            if closeness > 0.0:
+                self.nm_sum[fi] += self.near_miss * closeness
         self._mean[fi] = (self.ce_sum[fi] + self.nm_sum[fi]) / pulls
         self._rsqrt[fi] = np.sqrt(2.0 / pulls)
 
@@ -123,25 +126,44 @@ class MultiArmedBanditSampler(ActiveSampler):
         self.maximal = new
         self.ce_sum = np.zeros_like(self.nm_sum)
         for p in new:
-            self.ce_sum += self.patterns[p]
+            self.ce_sum += self._credit(p) * self.patterns[p]
         self._refresh()
 
+    def _weight(self, metric: str) -> float:
+        return 2.0 ** -self.order.level.get(metric, 0)
+
+    def _credit(self, pattern: Pattern) -> float:
+        """Counterexample reward of a maximal pattern: (1 - near_miss) times the share of the
+        priority weight its metrics carry (1 for a single objective)."""
+        if not self.multi:
+            return 1.0 - self.near_miss
+        total = sum(self._weight(m) for m in self.order.metrics)
+        return (1.0 - self.near_miss) * sum(self._weight(m) for m in pattern) / total
+
     def _judge(self, r: float, rho: Rho) -> tuple[Pattern, float]:
-        """Violation pattern of one valid case and its near-miss score in [0, 1]."""
+        """Violation pattern of one valid case and its closeness to failing, in [0, 1].
+
+        Closeness is 1 for a violated metric and exp(-rho / scale) otherwise, averaged over
+        the metrics with weight ``2 ** -level`` (level 0 = top priority)."""
         if not (self.multi and isinstance(rho, Mapping)):
             if self.multi and _SINGLE not in self.order.level:
-                self.order = self.order.with_metric(_SINGLE)
+                self._add_metric(_SINGLE)
             return (frozenset((_SINGLE,)) if r < 0 else frozenset()), self._closeness(_SINGLE, r)
         for m in rho:
             if m not in self.order.level:
-                self.order = self.order.with_metric(m)  # unranked metric seen first here
+                self._add_metric(m)  # unranked metric seen first here
         violated = frozenset(m for m, v in rho.items() if float(v) < 0)
         num = den = 0.0
         for m, v in rho.items():
-            w = 2.0 ** -self.order.level[m]
+            w = self._weight(m)
             num += w * self._closeness(m, float(v))
             den += w
         return violated, num / den
+
+    def _add_metric(self, name: str) -> None:
+        self.order = self.order.with_metric(name)
+        if self.patterns:
+            self._update_maximal()  # credits are shares of the total weight
 
     def _closeness(self, metric: str, v: float) -> float:
         """exp(-rho/scale) for rho >= 0: 1 at the boundary, -> 0 far from it."""

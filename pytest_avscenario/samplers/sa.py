@@ -31,8 +31,8 @@ class SimulatedAnnealingSampler(ActiveSampler):
     ``temperature`` (initial, in units of typical |delta rho|, default 1.0), ``cooling``
     (per proposal, default 0.9), ``restart`` (proposals without improvement before a restart,
     default 30), ``jump`` (probability that an integer or categorical coordinate is redrawn
-    uniformly in a proposal, default 0.2), plus ``metrics`` and ``priority`` (checked; ``sa``
-    minimizes the worst metric).
+    uniformly in a proposal, default 0.2), plus ``metrics`` and ``priority`` (``sa``
+    minimizes the worst metric, or with a priority the worst top-ranked one).
     """
 
     name = "sa"
@@ -51,6 +51,7 @@ class SimulatedAnnealingSampler(ActiveSampler):
         self.patience = check_int(restart, "sa restart")
         self.jump = check_float(jump, "sa jump", 0.0, 1.0)
         self._discrete = ~self.space.continuous_mask()
+        self._any_discrete = bool(self._discrete.any())
         self.x: np.ndarray | None = None  # current case (unit cube) and its rho
         self.fx = math.inf
         self.best = math.inf  # best rho of the current walk
@@ -67,13 +68,16 @@ class SimulatedAnnealingSampler(ActiveSampler):
         self.n_asked += 1
         if self.x is None:
             return self.rng.random(self.d)
-        z = self.rng.random(2 * self.d)
         y = self.x + self.step * self.rng.standard_normal(self.d)
-        y = np.abs(y) % 2.0  # reflect at 0 and 1 (a step may cross the cube several times)
-        y = np.where(y > 1.0, 2.0 - y, y)
-        # a shrunken Gaussian step can no longer leave an integer/categorical stratum, so
-        # those coordinates are also redrawn uniformly now and then (a jump to another value)
-        return np.where(self._discrete & (z[: self.d] < self.jump), z[self.d:], y)
+        if y.min() < 0.0 or y.max() > 1.0:
+            y = np.abs(y) % 2.0  # reflect at 0 and 1 (a step may cross the cube repeatedly)
+            y = np.where(y > 1.0, 2.0 - y, y)
+        if self._any_discrete:
+            # a shrunken Gaussian step can no longer leave an integer/categorical stratum,
+            # so those coordinates are also redrawn uniformly now and then
+            z = self.rng.random(2 * self.d)
+            y = np.where(self._discrete & (z[: self.d] < self.jump), z[self.d:], y)
+        return y
 
     # -- learning -----------------------------------------------------------------------
     def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
