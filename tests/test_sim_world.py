@@ -12,6 +12,13 @@ from pytest_avscenario.sim import behaviors as b
 from pytest_avscenario.sim.observation import Observation
 
 
+def first(mask) -> int:
+    """Index of the first True (fails the test if none)."""
+    mask = np.asarray(mask)
+    assert mask.any(), "condition never held"
+    return int(np.argmax(mask))
+
+
 def following(driver="idm", gap=30.0, lead_speed=10.0, brake=3.0, decel=6.0, seconds=10.0,
               seed=1, name="test_follow"):
     w = World(seed=seed, driver=driver, name=name)
@@ -342,3 +349,35 @@ def test_autopilot_is_resolved_lazily_by_name():
     assert isinstance(drv.target, auto.Autopilot)
     w = following(driver="autopilot", seconds=3.0)
     assert w.trajectory.meta["ego_driver"].startswith("PolicyDriver(Autopilot")
+
+
+def test_agents_appear_and_disappear_on_time_or_condition():
+    w = World(seed=1, driver="idm", name="t_appear")
+    road = w.straight_road()
+    w.ego(road.lane(0), s=0.0, speed=10.0)
+    spot = road.lane(0).at(60.0)
+    w.car(road.lane(0), s=100.0, speed=10.0, appear=w.ego_within(spot, 20.0),
+          disappear=w.ego_past(spot, 5.0), name="late")
+    w.car(road.lane(0), s=8.0, speed=10.0, appear=2.0, disappear=4.0, name="timed")
+    # Appears on top of the ego at t=0? It waits until its spot is free.
+    w.car(road.lane(0), s=2.0, speed=0.0, behavior=b.stopped(), appear=0.0, name="blocked")
+    tr = w.run(10.0)
+    late, timed, blocked = tr.agent("late"), tr.agent("timed"), tr.agent("blocked")
+    on = first(late.present)
+    assert abs(tr.ego.x[on - 1] - 60.0) <= 20.0 + 1.0 and abs(tr.ego.x[on - 2] - 60.0) > 20.0
+    off = first(~late.present[on:]) + on
+    assert tr.ego.x[off] - 2.5 > 65.0 and tr.ego.x[off - 1] - 2.5 <= 65.0 + 1.0
+    assert np.isnan(late.x[:on]).all() and late.x[on] == 100.0 and late.lane[0] == ""
+    assert np.isnan(late.x[off:]).all() and not late.on_road[off:].any()
+    assert timed.present[20:40].all() and not timed.present[:20].any() and not timed.present[40:].any()
+    assert timed.x[20] == 8.0  # spawns in its placed state
+    assert not blocked.present[0] and blocked.present[-1] and not tr.crashed.any()
+
+
+def test_bad_appear_values():
+    w = World(seed=1, driver="idm", name="t_appear")
+    road = w.straight_road()
+    with pytest.raises(SimError, match=r"t_appear.*'car1'.*appear=-1"):
+        w.car(road.lane(0), s=10, appear=-1)
+    with pytest.raises(SimError, match=r"disappear='soon'"):
+        w.car(road.lane(0), s=10, disappear="soon", name="c2")

@@ -26,6 +26,7 @@ from .trajectory import Trajectory
 __all__ = ["World"]
 
 _TWO_PI = 2 * math.pi
+_ABSENT = (math.nan,) * 7 + (-1,)
 
 
 class World:
@@ -174,21 +175,56 @@ class World:
                            agent=agent)
         return v
 
-    def _check_overlap(self, new: Any) -> None:
+    def _overlapping(self, new: Any, others: list[Any]) -> Any:
+        """The first of ``others`` whose footprint intersects ``new``'s, or None."""
         from highway_env import utils
 
         poly = new.polygon()
         zero = np.zeros(2)
-        for other in self._all():
+        for other in others:
             if other is new:
                 continue
             if np.hypot(*(other.position - new.position)) > (other.diagonal + new.diagonal) / 2:
                 continue
             if utils.are_polygons_intersecting(poly, other.polygon(), zero, zero)[0]:
-                raise SimError(
-                    f"overlaps {other.name!r} at t=0 (centres {np.round(new.position, 2).tolist()} "
-                    f"and {np.round(other.position, 2).tolist()} m); move one of them",
-                    test=self.name, agent=new.name)
+                return other
+        return None
+
+    def _check_overlap(self, new: Any) -> None:
+        if new.appear is not None:
+            return  # checked when it appears
+        other = self._overlapping(new, [a for a in self._all() if a.appear is None])
+        if other is not None:
+            raise SimError(
+                f"overlaps {other.name!r} at t=0 (centres {np.round(new.position, 2).tolist()} "
+                f"and {np.round(other.position, 2).tolist()} m); move one of them",
+                test=self.name, agent=new.name)
+
+    def _when(self, value: Any, what: str, name: str) -> Any:
+        if value is None or callable(value):
+            return value
+        try:
+            t = float(value)
+        except (TypeError, ValueError):
+            t = math.nan
+        if not (math.isfinite(t) and t >= 0):
+            raise SimError(f"{what}={value!r}: give a time >= 0 [s] or a callable(world) -> bool",
+                           test=self.name, agent=name)
+        return t
+
+    def _due(self, cond: Any) -> bool:
+        if callable(cond):
+            return bool(cond(self))
+        return self.t >= cond - 1e-9
+
+    def ego_within(self, place: Any, d: float) -> Callable[["World"], bool]:
+        """A condition for ``appear=``/``disappear=``: the ego is within ``d`` [m] of ``place``."""
+        return lambda w: w._ego is not None and _distance(w._ego, place) <= d
+
+    def ego_past(self, place: Any, by: float = 0.0) -> Callable[["World"], bool]:
+        """A condition: all of the ego (its rear) is ``by`` [m] past ``place`` along its route."""
+        return lambda w: (w._ego is not None
+                          and w._ego.distance_along_route(place) + w._ego.LENGTH / 2 < -by)
 
     def _bind(self, behavior: Any, kind: str, name: str) -> Any:
         from .behaviors import Behavior
@@ -224,8 +260,11 @@ class World:
         return lanes, lanes.index(spot.lane)
 
     def _register(self, agent: Any, spot: Spot | None, lanes: list[Lane], k: int, kind: str,
-                  name: str, behavior: Any, initial: float) -> Any:
+                  name: str, behavior: Any, initial: float, appear: Any = None,
+                  disappear: Any = None) -> Any:
         agent.road = self._road
+        agent.appear = self._when(appear, "appear", name)
+        agent.disappear = self._when(disappear, "disappear", name)
         agent._attach(self, name, kind, spot.lane if spot is not None else None, lanes, behavior,
                       initial, route_index=k)
         self._check_overlap(agent)
@@ -279,55 +318,71 @@ class World:
         return name
 
     def _vehicle(self, cls: Any, kind: str, place: Any, s: float, speed: float, behavior: Any,
-                 name: str | None, r: float, route: Any = None) -> Any:
+                 name: str | None, r: float, route: Any = None, appear: Any = None,
+                 disappear: Any = None) -> Any:
         name = self._name(kind, name)
         spot = self._spot(place, s, r, name)
         v = self._check_speed(speed, name)
         lanes, k = self._route_for(spot, route, name)
         bound = self._bind(behavior, kind, name)
         agent = cls(spot.position, spot.heading, v)
-        return self._register(agent, spot, lanes, k, kind, name, bound, v)
+        return self._register(agent, spot, lanes, k, kind, name, bound, v, appear, disappear)
 
     def car(self, lane: Any, s: float = 0.0, speed: float = 0.0, behavior: Any = None, *,
-            name: str | None = None, r: float = 0.0, route: Any = None) -> Any:
+            name: str | None = None, r: float = 0.0, route: Any = None, appear: Any = None,
+            disappear: Any = None) -> Any:
         """A 5 x 2 m car on ``lane`` (or a spot) at ``s`` [m], ``speed`` [m/s].
 
         Without a behaviour it keeps its lane at its initial speed (IDM behind others).
+        ``appear``/``disappear`` (a time [s] or a ``callable(world) -> bool``, e.g.
+        ``world.ego_within(inter.centre, 60)``, ``world.ego_past(spot, 20)``) spawn it later
+        and remove it; absent, it is recorded with ``present`` False and NaN kinematics.
+        It appears in its placed state once the condition holds and its spot is free.
         """
         from .behaviors import keep_lane
         from .engine import Actor
 
         self._need_road("world.car()")
         return self._vehicle(Actor, "car", lane, s, speed,
-                             behavior if behavior is not None else keep_lane(), name, r, route)
+                             behavior if behavior is not None else keep_lane(), name, r, route,
+                             appear, disappear)
 
     def bus(self, lane: Any, s: float = 0.0, speed: float = 0.0, behavior: Any = None, *,
-            name: str | None = None, r: float = 0.0, route: Any = None) -> Any:
-        """A 12 x 2.55 m school bus; its ``stop_arm`` is recorded as signal ``"<name>.stop_arm"``."""
+            name: str | None = None, r: float = 0.0, route: Any = None, appear: Any = None,
+            disappear: Any = None) -> Any:
+        """A 12 x 2.55 m school bus; its ``stop_arm`` is recorded as signal ``"<name>.stop_arm"``.
+
+        Other arguments as :meth:`car`.
+        """
         from .behaviors import keep_lane
         from .engine import Bus
 
         self._need_road("world.bus()")
         return self._vehicle(Bus, "bus", lane, s, speed,
-                             behavior if behavior is not None else keep_lane(), name, r, route)
+                             behavior if behavior is not None else keep_lane(), name, r, route,
+                             appear, disappear)
 
     def parked_car(self, lane: Any, s: float = 0.0, behavior: Any = None, *,
-                   name: str | None = None) -> Any:
+                   name: str | None = None, appear: Any = None, disappear: Any = None) -> Any:
         """A standing 5 x 2 m car, usually on ``road.parking_lane``; ``b.pull_out`` moves it."""
         from .behaviors import stopped
         from .engine import Actor
 
         self._need_road("world.parked_car()")
         return self._vehicle(Actor, "parked", lane, s, 0.0,
-                             behavior if behavior is not None else stopped(), name, 0.0)
+                             behavior if behavior is not None else stopped(), name, 0.0,
+                             None, appear, disappear)
 
     def pedestrian(self, path: Any, side: str | None = None, speed: float = 1.4,
-                   behavior: Any = None, *, name: str | None = None) -> Any:
+                   behavior: Any = None, *, name: str | None = None, appear: Any = None,
+                   disappear: Any = None) -> Any:
         """A pedestrian (0.6 m) walking ``path`` at ``speed`` [m/s].
 
         ``path`` is a crosswalk (walked from ``side``, default its first side), a
         :class:`~.places.Path` or a list of (x, y) points [m]. Without a behaviour it walks
-        straight away; ``b.cross(wait=..., wait_in_road=...)`` adds the waits.
+        straight away; ``b.cross(wait=..., wait_in_road=...)`` adds the waits (times in
+        behaviours are simulation times, also for agents that appear later).
+        ``appear``/``disappear`` as for :meth:`car`.
         """
         from .behaviors import walk
         from .engine import Pedestrian
@@ -356,6 +411,8 @@ class World:
         bound = self._bind(behavior if behavior is not None else walk(), "pedestrian", name)
         agent = Pedestrian(pts, v)
         agent.road = self._road
+        agent.appear = self._when(appear, "appear", name)
+        agent.disappear = self._when(disappear, "disappear", name)
         agent._attach(self, name, "pedestrian", None, [], bound, v)
         self._check_overlap(agent)
         self._others.append(agent)
@@ -428,7 +485,9 @@ class World:
         x, y = float(ego.position[0]), float(ego.position[1])
         near = []
         rng2 = self.sensor_range ** 2
-        for i, o in enumerate(self._others):
+        for i, o in enumerate(self._movers):
+            if o is ego:
+                continue
             dx, dy = float(o.position[0]) - x, float(o.position[1]) - y
             d2 = dx * dx + dy * dy
             if d2 <= rng2:
@@ -474,8 +533,11 @@ class World:
         self.dt = dt
         ego = self._ego
         agents = [ego] + self._others
-        self._movers = agents
-        self._road.vehicles = list(agents)
+        for a in agents:
+            a.active = a.appear is None
+            a.gone = False
+        self._agents_in_order = agents
+        self._sync_active()
         self._route_geoms = tuple(l.geometry for l in ego.plan)
         self._stop_cache = {}
         self.t = 0.0
@@ -489,15 +551,25 @@ class World:
                     raise SimError(f"behaviour {a.behavior.name}: {exc}", test=self.name,
                                    agent=a.name) from exc
         rec = _Recorder(self, agents, n_steps + 1)
-        rec.write(0)
         road = self._road
         reason = None
         k = 0
+        # Arrivals and departures happen at sample times, so an agent's first recorded sample
+        # is its placed state and its last one the state it left in.
+        late = [a for a in agents if not a.active]
+        leaving = [a for a in agents if a.disappear is not None]
+        if late and self._arrivals(late):
+            late = [a for a in late if not a.active]
+        rec.write(0)
         for k in range(1, n_steps + 1):
             self.t = (k - 1) * dt
             road.act()
             road.step(dt)
             self.t = k * dt
+            if leaving and self._departures(leaving):
+                leaving = [a for a in leaving if not a.gone]
+            if late and self._arrivals(late):
+                late = [a for a in late if not a.active]
             rec.write(k)
             if stop_on_collision and ego.crashed:
                 reason = "collision"
@@ -507,6 +579,31 @@ class World:
                 break
         self.trajectory = rec.finish(k + 1, seconds=seconds, stopped=reason)
         return self.trajectory
+
+    def _sync_active(self) -> None:
+        active = [a for a in self._agents_in_order if a.active]
+        self._movers = active
+        self._road.vehicles = list(active)
+
+    def _arrivals(self, late: list[Any]) -> bool:
+        changed = False
+        for a in late:
+            if self._due(a.appear) and self._overlapping(a, self._movers) is None:
+                a.active = True
+                self._sync_active()
+                changed = True
+        return changed
+
+    def _departures(self, leaving: list[Any]) -> bool:
+        changed = False
+        for a in leaving:
+            if a.active and self._due(a.disappear):
+                a.active = False
+                a.gone = True
+                changed = True
+        if changed:
+            self._sync_active()
+        return changed
 
     # -- rendering ---------------------------------------------------------------------------------
     def render_png(self, path: str, step: int | None = None, **kw: Any) -> str:
@@ -534,7 +631,7 @@ class _Recorder:
         self.code = world._index.code
         A = len(agents)
         self.kin = np.empty((n, A, 8))  # x, y, vx, vy, speed, heading, lane_offset, lane code
-        self.flags = np.zeros((n, A, 2), dtype=bool)  # crashed, on_road
+        self.flags = np.zeros((n, A, 3), dtype=bool)  # crashed, on_road, present
         self.buses = [a for a in agents if a.kind == "bus"]
         self.arm = np.zeros((n, len(self.buses)))
         self.cmd = np.zeros((n, 2))  # ego commanded acceleration, steering
@@ -544,6 +641,10 @@ class _Recorder:
         rows = []
         fl = []
         for a in self.agents:
+            if not a.active:
+                rows.append(_ABSENT)
+                fl.append((False, False, False))
+                continue
             p = a.position
             h = a.heading
             v = a.speed
@@ -553,7 +654,7 @@ class _Recorder:
             rows.append((p[0], p[1], v * c, v * s, v, (h + math.pi) % _TWO_PI - math.pi,
                          a.lane_r if li is not None else math.nan,
                          code[li] if li is not None else -1))
-            fl.append((a.crashed, a.is_on_road))
+            fl.append((a.crashed, a.is_on_road, True))
         self.kin[k] = rows
         self.flags[k] = fl
         if self.buses:
@@ -599,7 +700,7 @@ class _Recorder:
             speed=np.ascontiguousarray(kin[:, :, 4]), heading=np.ascontiguousarray(kin[:, :, 5]),
             lane=lane, lane_offset=np.ascontiguousarray(kin[:, :, 6]),
             crashed=np.ascontiguousarray(flags[:, :, 0]),
-            present=np.ones(codes.shape, dtype=bool),
+            present=np.ascontiguousarray(flags[:, :, 2]),
             on_road=np.ascontiguousarray(flags[:, :, 1]),
             signals=signals, meta=meta,
         )
