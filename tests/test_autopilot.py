@@ -84,6 +84,7 @@ class Run:
     offset: list = field(default_factory=list)
     min_dist: float = math.inf
     collided: bool = False
+    first_collision: tuple | None = None
     reasons: list = field(default_factory=list)
     driver: Autopilot | None = None
 
@@ -121,6 +122,8 @@ def simulate(route, ego_s=0.0, ego_r=0.0, speed=10.0, actors=(), seconds=10.0,
         for a in actors:
             run.min_dist = min(run.min_dist, math.hypot(a.x - me.x, a.y - me.y))
             if _overlap(box, _corners(a.x, a.y, a.heading, a.length, a.width)):
+                if not run.collided:
+                    run.first_collision = (t, a.name)
                 run.collided = True
         ego.act({"acceleration": acc, "steering": steer})
         ego.step(DT)
@@ -265,3 +268,24 @@ def test_is_deterministic():
                      actors=[Actor("lead", 30.0, 0.0, 0.0, 10.0, accel=brake_at(2.0, 6.0))],
                      seconds=6.0) for _ in range(2)]
     assert runs[0].x == runs[1].x and runs[0].y == runs[1].y
+
+
+# -- parallel parking ---------------------------------------------------------------------------
+
+
+def parking_scene(gap: float):
+    """Ego lane at y = -1.75 heading east; a kerb-side slot of ``gap`` m between two cars."""
+    lane = StraightLane([0.0, -1.75], [300.0, -1.75])
+    y_park = -4.75
+    rear_x = 60.0
+    front_x = rear_x + 5.0 + gap
+    rear = Actor("rear", rear_x, y_park, 0.0, 0.0, kind="parked")
+    front = Actor("front", front_x, y_park, 0.0, 0.0, kind="parked")
+    goal = {"kind": "park", "x": (rear_x + front_x) / 2, "y": y_park, "heading": 0.0}
+    return lane, [rear, front], goal
+
+
+def pose_error(run, goal):
+    dpos = math.hypot(run.x[-1] - goal["x"], run.y[-1] - goal["y"])
+    dh = abs((run.heading[-1] - goal["heading"] + math.pi) % (2 * math.pi) - math.pi)
+    return dpos, math.degrees(dh)

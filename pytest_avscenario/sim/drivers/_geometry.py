@@ -61,9 +61,11 @@ def pursuit_steering(
 
 
 def _is_straight(lane: Any) -> bool:
-    # Duck-typed: a straight lane exposes start/end and a constant heading. Checking the
-    # class by name keeps highway-env out of this module's imports.
-    return type(lane).__name__ == "StraightLane"
+    # Duck-typed so highway-env stays out of this module's imports: highway-env's
+    # StraightLane and its subclasses expose start/end/direction; SineLane, a subclass that
+    # wiggles, adds an amplitude.
+    return (hasattr(lane, "start") and hasattr(lane, "end") and hasattr(lane, "direction")
+            and not hasattr(lane, "amplitude"))
 
 
 class RoutePath:
@@ -194,42 +196,67 @@ def parking_path(
     lateral: float,
     end_x: float,
     radius: float,
+    length: float,
     step: float = 0.2,
 ) -> np.ndarray:
-    """Reverse parking path in the slot frame, as points (x, y, heading) [m, m, rad].
+    """Reverse parking reference in the slot frame, as rows (x, y, body heading) [m, m, rad].
 
     Slot frame: origin on the slot's centre line, +x along the traffic direction, the
     driving lane at +y (``lateral`` [m] > 0 from the slot's centre line). The car starts at
-    (``start_x``, ``lateral``) heading 0 and ends at (``end_x``, 0) heading 0, reversing all
-    the way: a straight part if the start is further forward than needed, then an arc of
-    ``radius`` [m] swinging the tail toward the kerb, then the mirrored counter-steer arc.
-    Two equal opposite arcs of turn angle phi shift the car by 2R(1 - cos phi) sideways over
-    2R sin phi lengthwise. When the start is too close for ``radius`` the arcs are tightened
-    to fit (the caller picks a start that makes this a small correction).
+    (``start_x``, ``lateral``) heading 0 and ends near (``end_x``, 0) heading 0, reversing all
+    the way: straight while the start is further forward than needed, then steering so the
+    body turns at 1/``radius`` per metre (tail toward the kerb), then the mirrored counter-
+    steer until the body is straight again.
+
+    The points are produced by integrating highway-env's own kinematics (the *centre* moves
+    along heading + beta + pi when reversing), not by drawing circles: with a constant slip
+    angle -b the centre's path is an arc of radius R cos(b) whose tangent is offset from the
+    body by b, and each steering change kinks it. Two such arcs turning the body by phi shift
+    the car 2 R cos(b) (1 - cos phi) sideways over 2 R cos(b) sin phi lengthwise. When the
+    start is too close for ``radius`` the turn is tightened to fit.
     """
     if lateral <= 0.0:
         raise ValueError("parking_path expects the car on the +y side of the slot")
+    half = 0.5 * length
+
+    def solve(r: float) -> tuple[float, float, float]:
+        b = math.asin(min(0.99, half / r))
+        reff = r * math.cos(b)
+        phi = math.acos(max(-1.0, 1.0 - lateral / (2.0 * reff)))
+        return b, phi, 2.0 * reff * math.sin(phi)
+
+    b, phi, need = solve(radius)
     span = start_x - end_x
-    phi = math.acos(max(-1.0, 1.0 - lateral / (2.0 * radius)))
-    need = 2.0 * radius * math.sin(phi)
     if span < need:
-        # Fit the arcs into the available length: tan(phi/2) = lateral / span.
-        phi = 2.0 * math.atan2(lateral, max(span, 1e-3))
-        radius = span / (2.0 * math.sin(phi))
-        need = span
-    pts: list[tuple[float, float, float]] = []
-    xa = end_x + need  # where the arcs begin
-    n_straight = max(1, int(math.ceil((start_x - xa) / step)))
-    for k in range(n_straight + 1):
-        pts.append((start_x - (start_x - xa) * k / n_straight, lateral, 0.0))
-    n_arc = max(4, int(math.ceil(radius * phi / step)))
-    c1x, c1y = xa, lateral - radius
-    for k in range(1, n_arc + 1):
-        a = math.pi / 2 + phi * k / n_arc
-        pts.append((c1x + radius * math.cos(a), c1y + radius * math.sin(a), a - math.pi / 2))
-    a1 = math.pi / 2 + phi
-    c2x, c2y = c1x + 2 * radius * math.cos(a1), c1y + 2 * radius * math.sin(a1)
-    for k in range(1, n_arc + 1):
-        g = 1.5 * math.pi + phi * (1 - k / n_arc)
-        pts.append((c2x + radius * math.cos(g), c2y + radius * math.sin(g), g - 1.5 * math.pi))
+        # Tighten: bisect the radius whose manoeuvre fits in the available length.
+        lo, hi = half * 1.01, radius
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if solve(mid)[2] > span:
+                hi = mid
+            else:
+                lo = mid
+        radius = lo
+        b, phi, need = solve(radius)
+    ds = 0.01
+    x, y, h = start_x, lateral, 0.0
+    pts = [(x, y, h)]
+    travelled = 0.0
+    next_mark = step
+    straight = max(0.0, span - need)
+    # Phases as (slip angle, end test); reversing: the centre moves along h + beta + pi and
+    # the body turns at -v sin(beta) / (L/2) per unit time, i.e. -2 sin(beta)/L per metre.
+    phases = ((0.0, lambda: travelled >= straight),
+              (-b, lambda: h >= phi),
+              (b, lambda: h <= 0.0))
+    for beta, done in phases:
+        while not done():
+            x -= ds * math.cos(h + beta)
+            y -= ds * math.sin(h + beta)
+            h -= ds * math.sin(beta) / half
+            travelled += ds
+            if travelled >= next_mark:
+                pts.append((x, y, h))
+                next_mark += step
+    pts.append((x, y, 0.0))
     return np.array(pts)

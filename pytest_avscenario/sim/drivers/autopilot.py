@@ -176,7 +176,9 @@ class Autopilot:
             if self._parker is None or key != self._goal_key:
                 self._parker = _Parker(obs.goal, o, ego, seen)
                 self._goal_key = key
-            if self._parker.phase != "approach":
+            if self._parker.phase == "approach":
+                self._parker.plan(ego, seen)
+            else:
                 accel, steer = self._parker.act(ego, dt)
                 self._accel = accel
                 self.last_reason = "park:" + self._parker.phase
@@ -454,19 +456,30 @@ class _Parker:
         self.gx, self.gy = float(goal["x"]), float(goal["y"])
         self.gh = float(goal.get("heading", 0.0))
         self.c, self.s = math.cos(self.gh), math.sin(self.gh)
+        self.slot_length = goal.get("length")
+        self.length = L = ego.length
+        kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
+        # Keep 10% of the steering range for feedback.
+        self.radius = 1.0 / (0.9 * kappa_max)
+        self.end_x = 0.0
+        self.phase = "approach"
+        self._track: np.ndarray | None = None
+        self._arc: np.ndarray | None = None
+        self._k = 0
+        self._dir = -1.0
+        self.plan(ego, seen)
+
+    def plan(self, ego: Any, seen: _Perceived) -> None:
+        """(Re)compute the start point from the ego's lateral offset and the parked cars."""
+        o, L = self.o, self.length
         _, ye, _ = self._frame(ego.x, ego.y, ego.heading, 1.0)
         self.side = 1.0 if ye >= 0.0 else -1.0
-        self.lateral = abs(ye)
-        L = ego.length
-        kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
-        # Keep 15% of the steering range for feedback.
-        self.radius = 1.0 / (0.85 * kappa_max)
-        slot_len = goal.get("length")
-        self.end_x = 0.0
-        if slot_len is not None:
-            self.end_x = min(0.0, -0.5 * float(slot_len) + o.parking_clearance + 0.5 * L)
+        self.lateral = max(abs(ye), 0.5)
+        if self.slot_length is not None:
+            self.end_x = min(0.0, -0.5 * float(self.slot_length) + o.parking_clearance + 0.5 * L)
         elif seen.n:
-            # The nearest parked agent behind the slot bounds how far back we may reverse.
+            # Reverse in as far as the car behind the slot allows (more room for the nose to
+            # swing in past the car in front), then pull forward to the goal.
             best = None
             for a in seen.agents:
                 x, y, h = self._frame(a.x, a.y, math.atan2(a.s, a.c), self.side)
@@ -474,14 +487,11 @@ class _Parker:
                     front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
                     best = front if best is None else max(best, front)
             if best is not None:
-                self.end_x = min(0.0, max(-2.0, best + o.parking_clearance + 0.5 * L))
-        phi = math.acos(max(-1.0, 1.0 - self.lateral / (2.0 * self.radius)))
-        self.start_x = self.end_x + 2.0 * self.radius * math.sin(phi)
-        self.phase = "approach"
-        self._track: np.ndarray | None = None
-        self._arc: np.ndarray | None = None
-        self._k = 0
-        self._dir = -1.0
+                self.end_x = min(0.0, max(-3.0, best + o.parking_clearance + 0.5 * L))
+        # Length the two reverse arcs need (see parking_path): 2 R cos(b) sin(phi).
+        reff = self.radius * math.cos(math.asin(min(0.99, 0.5 * L / self.radius)))
+        phi = math.acos(max(-1.0, 1.0 - self.lateral / (2.0 * reff)))
+        self.start_x = self.end_x + 2.0 * reff * math.sin(phi)
 
     def _frame(self, x: float, y: float, h: float, side: float) -> tuple[float, float, float]:
         dx, dy = x - self.gx, y - self.gy
@@ -501,7 +511,8 @@ class _Parker:
         x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
         if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.7 \
                 and x < self.start_x + 30.0:
-            self._begin(parking_path(max(x, self.start_x), y, self.end_x, self.radius), -1.0)
+            self._begin(parking_path(max(x, self.start_x), y, self.end_x, self.radius,
+                                     self.length), -1.0)
             self.phase = "reverse"
 
     def _begin(self, pts: np.ndarray, direction: float) -> None:
@@ -551,7 +562,10 @@ class _Parker:
         kk = min(k, len(pts) - 2)
         seg = max(arc[kk + 1] - arc[kk], 1e-6)
         kappa_ref = _wrap(pts[kk + 1, 2] - pts[kk, 2]) / seg
-        th, ph = pts[kk, 2] + (0.0 if self._dir > 0 else math.pi), pts[kk, 2]
+        # Reference direction of motion from the points (it differs from the body heading
+        # by the slip angle).
+        th = math.atan2(pts[kk + 1, 1] - pts[kk, 1], pts[kk + 1, 0] - pts[kk, 0])
+        ph = pts[kk, 2]
         e_y = -(x - pts[kk, 0]) * math.sin(th) + (y - pts[kk, 1]) * math.cos(th)
         e_h = _wrap(h - ph)
         kappa = kappa_ref - 0.3 * e_y - 1.5 * e_h
