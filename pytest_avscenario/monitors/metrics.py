@@ -462,11 +462,11 @@ class ReachesMonitor(Monitor):
             raise MonitorError(f"monitor {self.name!r}: the ego is never present")
         k = int(np.argmax(margin))
         v = float(margin[k])
-        return MonitorResult(
-            self.name, v, 0.0, fmt_t(traj, k), traj.names[0],
-            f"ego {'reached' if v >= 0 else 'came within'} {max(d[k], 0.0):.3g} m of "
-            f"{self._desc} at t={traj.t[k]:.2f} s",
-        )
+        where = (f"{-d[k]:.3g} m inside {self._desc}" if d[k] < 0
+                 else f"{d[k]:.3g} m from {self._desc}")
+        radius = f" (radius {self.radius:g} m)" if self.radius else ""
+        return MonitorResult(self.name, v, 0.0, fmt_t(traj, k), traj.names[0],
+                             f"ego's best approach: {where}{radius} at t={traj.t[k]:.2f} s")
 
 
 def _parse_place(name: str, place: Any, radius: float | None) -> tuple[Any, float, str]:
