@@ -191,6 +191,13 @@ def test_actions_are_clipped_and_braking_never_reverses():
     tr = w.run(2.0)
     assert tr.ego.speed[-1] == pytest.approx(-2.0) and tr.ego.x[-1] < 50.0
 
+    # A parking goal allows reversing by default.
+    w = World(seed=1, driver=lambda o: (-1.0, 0.0))
+    road = w.two_way_road()
+    w.ego(road.lane(0), s=50.0, speed=0.0, goal={"kind": "park", "x": 40.0, "y": -4.75})
+    tr = w.run(2.0)
+    assert tr.ego.speed[-1] == pytest.approx(-2.0)
+
 
 def test_until_and_stop_on_collision_end_the_run_early():
     w = World(seed=1, driver="idm")

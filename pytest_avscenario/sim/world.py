@@ -276,7 +276,7 @@ class World:
 
     def ego(self, place: Any, s: float = 0.0, speed: float = 0.0, driver: Any = None,
             route: Any = None, target_speed: float | None = None, goal: dict | None = None, *,
-            r: float = 0.0, allow_reverse: bool = False, name: str = "ego") -> Any:
+            r: float = 0.0, allow_reverse: bool | None = None, name: str = "ego") -> Any:
         """Place the AV under test at ``place``: a lane (``s`` [m] along it), or a spot or stop
         line (``s`` [m] further along its lane, e.g. ``inter.stop_line("south").before(20)``).
 
@@ -284,7 +284,9 @@ class World:
         ``inter.route("south", "left")``) defaults to straight on. ``target_speed`` [m/s] is
         handed to the driver (and is the "idm" driver's desired speed; default ``speed`` or
         the speed limit); ``goal`` is passed through to the observation. Braking stops the
-        ego at 0 m/s unless ``allow_reverse``.
+        ego at 0 m/s unless ``allow_reverse`` (default: only for a parking goal,
+        ``goal={"kind": "park", ...}``) — so a driver that holds a stop by commanding a
+        deceleration does not creep backwards.
         """
         self._need_road("world.ego()")
         if self._ego is not None:
@@ -308,6 +310,8 @@ class World:
         agent.driver = drv
         agent.goal = goal
         agent.target_speed_request = target_speed
+        if allow_reverse is None:
+            allow_reverse = isinstance(goal, dict) and goal.get("kind") == "park"
         agent.allow_reverse = bool(allow_reverse)
         self._counts["ego"] = 1
         return self._register(agent, spot, lanes, k, "ego", self._name_free(name), None, v)
