@@ -77,7 +77,11 @@ class RoutePath:
     ``tx``, ``ty``, and ``curvature`` [1/m] (signed, left positive).
     """
 
-    def __init__(self, route: Sequence[Any], ds: float = 1.0, extension: float = 150.0):
+    def __init__(self, route: Sequence[Any], ds: float = 1.0, extension: float = 150.0,
+                 start: tuple[int, float] = (0, 0.0), change_length: float = 25.0):
+        """``start`` = (route index, s [m]) where the ego is when the path is built: a lane
+        change the route asks for (a lane followed by a parallel neighbour rather than by
+        its successor) begins 2 m ahead of it and blends over ``change_length`` metres."""
         if not route:
             raise ValueError("the autopilot needs a route with at least one lane")
         self.ds = float(ds)
@@ -85,19 +89,49 @@ class RoutePath:
         knots_xy: list[np.ndarray] = []
         offsets: list[float] = []
         acc = 0.0
-        for lane in route:
+        s_from = 0.0  # where on the current lane the path enters it
+        for k, lane in enumerate(route):
             length = float(lane.length)
-            offsets.append(acc)
-            n = 1 if _is_straight(lane) else max(2, int(math.ceil(length / _ARC_SAMPLE_M)))
-            ss = np.linspace(0.0, length, n + 1)
+            s_to = length
+            nxt = route[k + 1] if k + 1 < len(route) else None
+            change = None
+            if nxt is not None:
+                end = np.asarray(lane.position(length, 0.0), dtype=float)
+                if float(np.hypot(*(np.asarray(nxt.position(0.0, 0.0)) - end))) > 1.0:
+                    s1, r1 = nxt.local_coordinates(end)
+                    if abs(r1) < 2.5 * float(nxt.width_at(s1)) and -1.0 < s1 <= nxt.length + 1.0:
+                        # A parallel neighbour: change lanes from here (or from the entry).
+                        here = start[1] + 2.0 if start[0] == k else s_from
+                        s_to = min(max(here, s_from), max(s_from, length - change_length))
+                        change = s_to
+            offsets.append(acc - s_from)
+            n = 1 if _is_straight(lane) else max(2, int(math.ceil((s_to - s_from) / _ARC_SAMPLE_M)))
+            ss = np.linspace(s_from, s_to, n + 1)
             xy = np.array([lane.position(float(s), 0.0) for s in ss], dtype=float)
             # Consecutive lanes share their junction point; drop the duplicate knot so the
             # interpolation below sees strictly increasing arc length.
             if knots_s:
                 ss, xy = ss[1:], xy[1:]
-            knots_s.append(acc + ss)
+            knots_s.append(acc + ss - s_from)
             knots_xy.append(xy)
-            acc += length
+            acc += s_to - s_from
+            s_from = 0.0
+            if change is not None:
+                # Smoothstep blend between the two centre lines over change_length.
+                m = max(4, int(math.ceil(change_length)))
+                u = np.linspace(0.0, 1.0, m + 1)[1:]
+                w = u * u * (3.0 - 2.0 * u)
+                pts = []
+                for ui, wi in zip(u, w):
+                    s = change + ui * change_length
+                    a = np.asarray(lane.position(s, 0.0), dtype=float)
+                    s_n, _ = nxt.local_coordinates(a)
+                    bpt = np.asarray(nxt.position(s_n, 0.0), dtype=float)
+                    pts.append((1.0 - wi) * a + wi * bpt)
+                knots_s.append(acc + u * change_length)
+                knots_xy.append(np.array(pts))
+                acc += change_length
+                s_from = float(nxt.local_coordinates(pts[-1])[0])
         self.offsets = tuple(offsets)
         self.route_length = acc
         ks = np.concatenate(knots_s)

@@ -155,11 +155,11 @@ class Autopilot:
             return _EMPTY
         return self._history[0]
 
-    def _route_path(self, route: tuple) -> RoutePath | None:
+    def _route_path(self, route: tuple, obs: Any) -> RoutePath | None:
         if not route:
             return None
         if route is not self._route and route != self._route:
-            self._path = RoutePath(route)
+            self._path = RoutePath(route, start=(obs.route_index, obs.s))
             self._route = route
             self._stop_state.clear()
         return self._path
@@ -184,7 +184,7 @@ class Autopilot:
                 self.last_reason = "park:" + self._parker.phase
                 return accel, steer
 
-        path = self._route_path(obs.route)
+        path = self._route_path(obs.route, obs)
         v = ego.speed
         if path is None:  # no route: hold the heading and stop
             self.last_reason = "no route"
@@ -354,7 +354,8 @@ class Autopilot:
             ext_par = a.hl * cos_rel + a.hw * sin_rel
             ext_perp = a.hl * sin_rel + a.hw * cos_rel
             # Lead: the nearest agent ahead overlapping the ego's corridor, whatever its lane.
-            if s_a > s_ego and abs(lat) < 0.5 * W + ext_perp + 0.3:
+            in_corridor = abs(lat) < 0.5 * W + ext_perp + 0.3
+            if in_corridor and s_a > s_ego:
                 gap = s_a - s_ego - 0.5 * L - ext_par
                 if gap < lead_gap:
                     lead_gap, lead_v = gap, max(v_par, 0.0)
@@ -365,8 +366,10 @@ class Autopilot:
                 if d_bus > 0.0 and v * v / (2.0 * d_bus) <= o.max_decel:
                     stops.append((max(d_bus - o.bus_distance, 0.0), "school bus"))
             speed_a = math.hypot(a.vx, a.vy)
-            if abs(v_perp) < max(0.5, 0.15 * speed_a) and v_par >= -0.1:
-                continue  # travels along the route our way, or stands: the lead logic's job
+            if in_corridor and abs(v_perp) < max(0.5, 0.15 * speed_a) and v_par >= -0.1:
+                continue  # ahead or behind on our path, going our way: the lead logic's job
+            if speed_a < 0.1 and abs(lat) > 0.5 * W + 1.5 + a.hl + a.hw:
+                continue  # standing clear of the path: no constant-velocity conflict
             cand.append((a, ext_par))
         if lead_gap < math.inf:
             a_lead = self._idm_interaction(v, lead_v, lead_gap)
