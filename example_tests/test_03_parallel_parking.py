@@ -4,11 +4,11 @@ Situation: a two-way road, one lane each way, with a parking lane along the sout
 cars are parked there with a free slot of ``slot_length`` m (bumper to bumper) between them,
 centred 125 m from the road's start. The ego drives east in the kerb-side lane,
 starting ``d_ego`` m before the slot centre at 6 m/s, with the goal of parking in the slot (heading
-east, centred). A fourth car follows it ``follower_gap`` m behind at ``follower_speed`` and
-has to wait while the ego manoeuvres.
+east, centred). A fourth car comes the other way in the oncoming lane, ``oncoming_s`` m
+beyond the slot at ``oncoming_speed``, passing while the ego pulls up or reverses.
 
-Parameters: ``slot_length`` [m] U(6.5, 10); ``d_ego`` [m] U(20, 60); ``follower_gap`` [m]
-U(8, 40); ``follower_speed`` [m/s] U(4, 9).
+Parameters: ``slot_length`` [m] U(6.5, 10); ``d_ego`` [m] U(20, 60); ``oncoming_s`` [m]
+U(20, 120); ``oncoming_speed`` [m/s] U(4, 12).
 
 Monitors: the paper's four; ``parked`` — the ego ends within 0.5 m of the slot centre and
 within 0.15 rad of the kerb's heading; ``collision``; ``clearance`` — the footprints stay
@@ -32,8 +32,8 @@ KERB_Y = -4.75  # [m] centre line of the forward parking lane (3.5 m lane + half
 @scenario(
     slot_length=Uniform(6.5, 10.0, nominal=8.5),  # [m] free kerb between the parked cars
     d_ego=Uniform(20.0, 60.0, nominal=40.0),  # [m] ego centre before the slot centre
-    follower_gap=Uniform(8.0, 40.0, nominal=30.0),  # [m] centre to centre behind the ego
-    follower_speed=Uniform(4.0, 9.0, nominal=6.0),  # [m/s]
+    oncoming_s=Uniform(20.0, 120.0, nominal=80.0),  # [m] oncoming car beyond the slot
+    oncoming_speed=Uniform(4.0, 12.0, nominal=8.0),  # [m/s]
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(),
@@ -50,7 +50,9 @@ def test_parallel_parking(case, world):
     world.ego(road.lane(0), s=s_ego, speed=6.0, target_speed=6.0,
               goal={"kind": "park", "x": SLOT_CENTRE, "y": KERB_Y, "heading": 0.0,
                     "length": case.slot_length})
-    world.car(road.lane(0), s=max(s_ego - case.follower_gap, 0.0), speed=case.follower_speed)
+    backward = road.lane(0, "backward")  # measured from the east end
+    world.car(backward, s=backward.length - SLOT_CENTRE - case.oncoming_s,
+              speed=case.oncoming_speed)
     world.run(seconds=35)
 
 
