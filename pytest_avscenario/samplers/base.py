@@ -151,14 +151,14 @@ class Sampler:
             out[name] = a + x * w if kind == 1 else dist.from_unit(x)
         return out
 
-    def _unit(self, params: Mapping[str, Any]) -> np.ndarray:
+    def _unit(self, params: Mapping[str, Any]) -> list[float]:
         vals = []
         for name, kind, a, w, dist in self._conv:
             if kind == 1:
                 vals.append((float(params[name]) - a) / w)
             elif kind == 2:
                 vals.append(dist.to_unit(params[name]))
-        return np.array(vals, dtype=float)
+        return vals
 
     def sample_unit(self, n: int) -> np.ndarray:
         """``n`` points at once (passive samplers override this with a vectorized draw)."""
@@ -265,9 +265,11 @@ class ActiveSampler(Sampler):
             r = min(map(float, top)) if top else r
         if r is None:
             self.n_invalid += 1
-        self._learn(np.asarray(u, dtype=float), r, rho)
+        self._learn(u, r, rho)
 
-    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:  # pragma: no cover
+    def _learn(self, u: Any, r: float | None, rho: Rho) -> None:  # pragma: no cover
+        """Learn from one case: ``u`` its unit point (an array, or a list of floats when it
+        came through ``tell``), ``r`` its scalar rho (None: invalid), ``rho`` as told."""
         raise NotImplementedError
 
     def state(self) -> dict[str, Any]:

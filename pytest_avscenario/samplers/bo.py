@@ -257,7 +257,8 @@ class BayesianOptimizationSampler(ActiveSampler):
         return Z[int(np.argmin(v))].copy()
 
     # -- learning -----------------------------------------------------------------------
-    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
+    def _learn(self, u: Any, r: float | None, rho: Rho) -> None:
+        u = np.asarray(u, dtype=float)
         if self.pending:
             P = np.asarray(self.pending, dtype=float).reshape(-1, self.d)
             j = int(np.argmin(np.abs(P - u).sum(1))) if self.d else 0

@@ -51,21 +51,28 @@ class CrossEntropySampler(ActiveSampler):
         self._interior = np.arange(g.B)[None, :] < (g.k - 1)[:, None]
         self._cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
             if g.d else np.zeros(0, dtype=int)
+        self._floor_uniform = self.floor * np.where(g.valid, 1.0 / self._k, 0.0)
         prob = np.where(g.valid, g.width, 0.0)  # uniform on the unit cube
         self._set_prob(prob / np.maximum(prob.sum(1, keepdims=True), 1e-300))
         # valid cases told: unit points and rho, in arrays grown by doubling
         self._n = 0
         self._U = np.zeros((16, g.d))
         self._R = np.zeros(16)
-        self._queue: list[np.ndarray] = []
+        self._queue: list[list[float]] = []  # points of the current batch, reversed
         self._since = 0
 
     # -- proposing ----------------------------------------------------------------------
-    def ask_unit(self) -> np.ndarray:
+    def _next(self) -> list[float]:
         self.n_asked += 1
         if not self._queue:
-            self._queue = list(self._draw(self.batch)[::-1])
+            self._queue = self._draw(self.batch)[::-1].tolist()
         return self._queue.pop()
+
+    def ask_unit(self) -> np.ndarray:
+        return np.array(self._next(), dtype=float)
+
+    def ask(self) -> dict[str, Any]:
+        return self._params(self._next())
 
     def _draw(self, m: int) -> np.ndarray:
         g = self.grid
@@ -83,7 +90,7 @@ class CrossEntropySampler(ActiveSampler):
         self._cdf = (np.cumsum(p, 1) + g._shift[:, None])[self._interior]
 
     # -- learning -----------------------------------------------------------------------
-    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
+    def _learn(self, u: Any, r: float | None, rho: Rho) -> None:
         if r is None:
             return  # an invalid case is no evidence: neither elite nor pass
         if self._n == len(self._R):
@@ -106,11 +113,10 @@ class CrossEntropySampler(ActiveSampler):
         b = g.index_many(self._U[elite])  # (m, d)
         freq = np.bincount((b + g.row_offset).ravel(), minlength=g.d * g.B)
         freq = freq.reshape(g.d, g.B) / m
-        p = (1.0 - self.smoothing) * self.prob + self.smoothing * freq
+        # each row of prob, freq and the uniform sums to 1, so the mixtures stay normalized;
         # mixing in `floor` of the uniform keeps every bucket at >= floor / k exactly
-        uniform = np.where(g.valid, 1.0 / self._k, 0.0)
-        p = (1.0 - self.floor) * p + self.floor * uniform
-        self._set_prob(p / p.sum(1, keepdims=True))
+        p = (1.0 - self.smoothing) * self.prob + self.smoothing * freq
+        self._set_prob((1.0 - self.floor) * p + self._floor_uniform)
         self._queue = []  # the rest of the batch came from the old distribution
 
     # -- state --------------------------------------------------------------------------
@@ -119,7 +125,7 @@ class CrossEntropySampler(ActiveSampler):
         st.update(prob=self.prob.tolist(), u=self._U[: self._n].tolist(),
                   rho=[json_float(x) for x in self._R[: self._n].tolist()],
                   since=self._since,
-                  queue=[q.tolist() for q in self._queue])
+                  queue=self._queue)
         return st
 
     def restore(self, state: Mapping[str, Any]) -> None:
@@ -133,4 +139,4 @@ class CrossEntropySampler(ActiveSampler):
             self._U[: self._n] = np.array(state["u"], dtype=float).reshape(self._n, self.grid.d)
             self._R[: self._n] = [float(x) for x in state["rho"]]
         self._since = int(state["since"])
-        self._queue = [np.array(q, dtype=float) for q in state["queue"]]
+        self._queue = [[float(x) for x in q] for q in state["queue"]]

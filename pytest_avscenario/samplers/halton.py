@@ -64,7 +64,7 @@ class HaltonSampler(Sampler):
         # the scramble comes from an integer drawn once, so restore rebuilds the same engine
         # even when the caller passed a Generator (which has moved on since)
         self._engine_seed = int(self.rng.integers(2**63)) if self.scramble else 0
-        self._buf: list[np.ndarray] = []
+        self._buf: list[list[float]] = []  # the current block, reversed, as plain floats
         self._engine = self._make_engine() if self.scramble else None
 
     def _make_engine(self) -> Any:
@@ -80,11 +80,17 @@ class HaltonSampler(Sampler):
             return self._engine.random(n)[:, : self.d]
         return halton_points(start, n, self.d)
 
-    def ask_unit(self) -> np.ndarray:
+    def _next(self) -> list[float]:
         if not self._buf:
-            self._buf = list(self._block(self.skip + self.n_asked, _BLOCK)[::-1])
+            self._buf = self._block(self.skip + self.n_asked, _BLOCK)[::-1].tolist()
         self.n_asked += 1
         return self._buf.pop()
+
+    def ask_unit(self) -> np.ndarray:
+        return np.array(self._next(), dtype=float)
+
+    def ask(self) -> dict[str, Any]:
+        return self._params(self._next())
 
     def sample_unit(self, n: int) -> np.ndarray:
         take = min(n, len(self._buf))
@@ -92,7 +98,9 @@ class HaltonSampler(Sampler):
         self.n_asked += take
         rest = self._block(self.skip + self.n_asked, n - take)
         self.n_asked += n - take
-        return np.concatenate([np.reshape(head, (take, self.d)), rest]) if take else rest
+        if not take:
+            return rest
+        return np.concatenate([np.array(head, dtype=float).reshape(take, self.d), rest])
 
     def state(self) -> dict[str, Any]:
         st = super().state()

@@ -73,6 +73,8 @@ class MultiArmedBanditSampler(ActiveSampler):
         self.maximal: set[Pattern] = set()
         self.scale: dict[str, list[float]] = {}  # metric -> [sum |rho|, count] (finite rho)
         self._nr = n + self.grid.d
+        self._rblock = np.zeros((0, self._nr))
+        self._rpos = 0
         self._refresh()
 
     # -- proposing ----------------------------------------------------------------------
@@ -86,17 +88,28 @@ class MultiArmedBanditSampler(ActiveSampler):
         g = self.grid
         n = g.d * g.B
         k = self.exploration * math.sqrt(math.log(self.n_told + 1))
-        r = self.rng.random(self._nr)
-        ucb = self._mean + k * self._rsqrt + (self.jitter + 1e-9) * r[:n]
+        r = self._random_row()
+        ucb = self._mean + k * self._rsqrt
+        ucb += r[:n]  # the tie-breaking jitter, pre-scaled
         fi = ucb.reshape(g.d, g.B).argmax(1) + g.row_offset
         return g.flat_lo[fi] + r[n:] * g.flat_width[fi]
+
+    def _random_row(self) -> np.ndarray:
+        # uniforms are drawn 64 asks at a time (one generator call per ask cost as much as
+        # the rest of ask); the unused rest of a block is part of the state
+        if self._rpos >= len(self._rblock):
+            self._rblock = self.rng.random((64, self._nr))
+            self._rblock[:, : self.grid.d * self.grid.B] *= self.jitter + 1e-9
+            self._rpos = 0
+        self._rpos += 1
+        return self._rblock[self._rpos - 1]
 
     def arm_values(self) -> np.ndarray:
         """Each arm's empirical reward, shape ``(d, B)`` (-inf for padding arms)."""
         return self._mean.reshape(self.grid.d, self.grid.B).copy()
 
     # -- learning -----------------------------------------------------------------------
-    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
+    def _learn(self, u: Any, r: float | None, rho: Rho) -> None:
         fi = self.grid.flat_index(u)
         pulls = self.pulls[fi] + 1.0
         self.pulls[fi] = pulls
@@ -184,6 +197,7 @@ class MultiArmedBanditSampler(ActiveSampler):
         st = super().state()
         st.update(
             pulls=np.where(self._valid, self.pulls, -1.0).tolist(),
+            rblock=self._rblock[self._rpos:].tolist(),
             nm_sum=self.nm_sum.tolist(),
             patterns=[[sorted(p), c.tolist()] for p, c in self.patterns.items()],
             scale=self.scale,
@@ -195,6 +209,8 @@ class MultiArmedBanditSampler(ActiveSampler):
         super().restore(state)
         pulls = np.array(state["pulls"], dtype=float)
         self.pulls = np.where(pulls < 0, np.inf, pulls)
+        self._rblock = np.array(state["rblock"], dtype=float).reshape(-1, self._nr)
+        self._rpos = 0
         self.nm_sum = np.array(state["nm_sum"], dtype=float)
         for m in state.get("metrics", ()):
             if m not in self.order.level:

@@ -80,14 +80,14 @@ class SimulatedAnnealingSampler(ActiveSampler):
         return y
 
     # -- learning -----------------------------------------------------------------------
-    def _learn(self, u: np.ndarray, r: float | None, rho: Rho) -> None:
+    def _learn(self, u: Any, r: float | None, rho: Rho) -> None:
         if self.x is None:
             if r is not None:  # the walk starts at its first valid case
-                self.x, self.fx, self.best = u.copy(), r, r
+                self.x, self.fx, self.best = np.array(u, dtype=float), r, r
             return
         if r is not None:
             if self.accepts(self.fx, r):
-                self.x, self.fx = u.copy(), r
+                self.x, self.fx = np.array(u, dtype=float), r
                 self.n_accepted += 1
             if r < self.best:
                 self.best, self.stall = r, 0
