@@ -19,7 +19,6 @@ Importing this module imports neither highway-env nor pygame.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 

@@ -126,8 +126,10 @@ class SimRoad(Road):
 class _Agent:
     """Mixin: identity, lane tracking, route progress and the helpers behaviours use.
 
-    The world sets ``world``, ``name``, ``kind``, ``route`` (our :class:`~.places.Lane` objects)
-    and calls :meth:`_attach` once placed.
+    :meth:`_attach` sets ``world``, ``name``, ``kind`` and ``plan``: the route as our
+    :class:`~.places.Lane` objects (not ``route``, which highway-env's controlled vehicles, the
+    IDM ego among them, use for their own list of lane indices), with ``route_index`` the lane
+    of it the agent is on and ``route_s``/``route_r`` [m] its coordinates there.
     """
 
     allow_reverse = False

@@ -13,7 +13,7 @@ highway-env (and with it pygame, matplotlib, pandas) is imported only when a roa
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Sequence
+from typing import Any, Callable
 
 import numpy as np
 
