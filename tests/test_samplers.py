@@ -161,7 +161,8 @@ def test_cycle_message_names_the_cycle():
         PriorityOrder.parse([("a", "a")])
 
 
-@pytest.mark.parametrize("opts", [dict(exploration=-1), dict(near_miss=2.0), dict(jitter=float("nan"))])
+@pytest.mark.parametrize("opts", [dict(exploration=-1), dict(near_miss=2.0),
+                                  dict(jitter=float("nan"))])
 def test_mab_option_ranges(opts):
     with pytest.raises(SamplerError):
         samplers.make("mab", MIXED, **opts)

@@ -71,5 +71,5 @@ class Buckets:
         return (U[:, :, None] >= self.inner[None]).sum(2)
 
     def point(self, b: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """The point at relative position ``r`` in [0, 1) inside buckets ``b`` (any leading shape)."""
+        """The point at relative position ``r`` in [0, 1) inside buckets ``b`` (any shape)."""
         return self.lo[self.rows, b] + r * self.width[self.rows, b]

@@ -224,12 +224,12 @@ class ActiveSampler(Sampler):
 
     Every active sampler takes ``metrics=[names]`` (the monitor set's metrics, so feedback
     and the priority order can be checked against them) and ``priority=`` (metric names
-    highest first, or ``(higher, lower)`` pairs), so the plugin can pass both uniformly;
-    samplers without a multi-objective mode validate the priority and otherwise ignore it.
+    highest first, or ``(higher, lower)`` pairs), so the plugin can pass both uniformly.
     Feedback is reduced to the worst metric (``scalar_rho``) unless a sampler reads the
     mapping itself (``multi_objective = True``); with a priority order, to the worst of the
-    top-ranked metrics, so a single-objective search goes for the failures that matter most. ``None`` (or any NaN) is an invalid case: counted in ``n_invalid`` and
-    never treated as a pass.
+    top-ranked metrics, so a single-objective search goes for the failures that matter most.
+    ``None`` (or any NaN) is an invalid case: counted in ``n_invalid`` and never treated as
+    a pass.
     """
 
     active = True

@@ -114,7 +114,8 @@ class GaussianProcess:
         self.s2 = math.exp(self.theta[d])
         self.X = X
         diff = (X[:, None, :] - X[None, :, :]) / self.ell
-        K = self._k(diff * diff, self.s2)[0] + (math.exp(self.theta[d + 1]) + 1e-10) * np.eye(len(y))
+        noise = math.exp(self.theta[d + 1]) + 1e-10
+        K = self._k(diff * diff, self.s2)[0] + noise * np.eye(len(y))
         self._Kinv = _inv_from_cholesky(np.linalg.cholesky(K))
         self.alpha = self._Kinv @ y
 

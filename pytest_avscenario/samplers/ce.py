@@ -27,9 +27,10 @@ class CrossEntropySampler(ActiveSampler):
     """Cross-entropy over per-dimension bucket distributions.
 
     Options: ``buckets`` (per continuous dimension, default 5 like VerifAI), ``elite``
-    (quantile of lowest rho that forms the elite set, default 0.2), ``smoothing`` (step
+    (quantile of lowest rho that forms the elite set, default 0.1), ``smoothing`` (step
     toward the elite frequencies in (0, 1], default 0.3), ``batch`` (valid cases between
-    updates, default 10), ``floor`` (share of the uniform mixed in after each update, default 0.1),
+    updates, default 10), ``floor`` (share of the uniform mixed in after each update,
+    default 0.05),
     plus ``metrics`` and ``priority`` (``ce`` minimizes the worst metric, or with a
     priority the worst top-ranked one).
     """
@@ -37,8 +38,8 @@ class CrossEntropySampler(ActiveSampler):
     name = "ce"
     options = ActiveSampler.options + ("buckets", "elite", "smoothing", "batch", "floor")
 
-    def __init__(self, space, seed=0, buckets: int = 5, elite: float = 0.2,
-                 smoothing: float = 0.3, batch: int = 10, floor: float = 0.1, **options: Any):
+    def __init__(self, space, seed=0, buckets: int = 5, elite: float = 0.1,
+                 smoothing: float = 0.3, batch: int = 10, floor: float = 0.05, **options: Any):
         super().__init__(space, seed=seed, **options)
         self.n_buckets = check_int(buckets, "ce buckets")
         self.elite = check_float(elite, "ce elite", 0.0, 1.0, lo_open=True)

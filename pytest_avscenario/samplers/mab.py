@@ -40,8 +40,8 @@ class MultiArmedBanditSampler(ActiveSampler):
 
     Options: ``buckets`` (per continuous dimension, default 5 like VerifAI), ``exploration``
     (the UCB constant, default 0.3; VerifAI's rule is ``exploration=1``), ``near_miss``
-    (weight of the near-miss reward in [0, 1], default 0.5; 0 gives the reference's 0/1
-    reward), ``jitter`` (default 0.05: UCB values closer than this count as tied and are
+    (weight of the near-miss reward in [0, 1], default 0.8; 0 gives the reference's 0/1
+    reward), ``jitter`` (default 0.1: UCB values closer than this count as tied and are
     chosen between at random), plus ``metrics`` and ``priority``.
 
     Why the jitter: every dimension sees the same reward for a case, so with a deterministic
@@ -55,7 +55,7 @@ class MultiArmedBanditSampler(ActiveSampler):
     options = ActiveSampler.options + ("buckets", "exploration", "near_miss", "jitter")
 
     def __init__(self, space, seed=0, buckets: int = 5, exploration: float = 0.3,
-                 near_miss: float = 0.5, jitter: float = 0.05, **options: Any):
+                 near_miss: float = 0.8, jitter: float = 0.1, **options: Any):
         super().__init__(space, seed=seed, **options)
         self.n_buckets = check_int(buckets, "mab buckets")
         self.exploration = check_float(exploration, "mab exploration")
