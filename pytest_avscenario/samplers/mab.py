@@ -29,10 +29,11 @@ from typing import Any, Mapping
 import numpy as np
 
 from ._buckets import Buckets
-from .base import ActiveSampler, Rho, check_float, check_int
+from .base import ActiveSampler, Rho, _rng_state, check_float, check_int
 from .priority import Pattern
 
-_SINGLE = "rho"  # the pattern name of a counterexample in single-objective mode
+_SINGLE = "rho"
+_RBLOCK = 64  # asks per generator call  # the pattern name of a counterexample in single-objective mode
 
 
 class MultiArmedBanditSampler(ActiveSampler):
@@ -75,6 +76,7 @@ class MultiArmedBanditSampler(ActiveSampler):
         self._nr = n + self.grid.d
         self._rblock = np.zeros((0, self._nr))
         self._rpos = 0
+        self._block_rng: dict[str, Any] | None = None  # generator state before the block
         self._refresh()
 
     # -- proposing ----------------------------------------------------------------------
@@ -98,11 +100,15 @@ class MultiArmedBanditSampler(ActiveSampler):
         # uniforms are drawn 64 asks at a time (one generator call per ask cost as much as
         # the rest of ask); the unused rest of a block is part of the state
         if self._rpos >= len(self._rblock):
-            self._rblock = self.rng.random((64, self._nr))
-            self._rblock[:, : self.grid.d * self.grid.B] *= self.jitter + 1e-9
-            self._rpos = 0
+            self._block_rng = _rng_state(self.rng)
+            self._draw_block()
         self._rpos += 1
         return self._rblock[self._rpos - 1]
+
+    def _draw_block(self) -> None:
+        self._rblock = self.rng.random((_RBLOCK, self._nr))
+        self._rblock[:, : self.grid.d * self.grid.B] *= self.jitter + 1e-9
+        self._rpos = 0
 
     def arm_values(self) -> np.ndarray:
         """Each arm's empirical reward, shape ``(d, B)`` (-inf for padding arms)."""
@@ -195,9 +201,12 @@ class MultiArmedBanditSampler(ActiveSampler):
     # -- state --------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         st = super().state()
+        if 0 < self._rpos < len(self._rblock):
+            # compact: the generator as it was before the current block, and the position
+            st["rng"] = self._block_rng
         st.update(
             pulls=np.where(self._valid, self.pulls, -1.0).tolist(),
-            rblock=self._rblock[self._rpos:].tolist(),
+            block_pos=self._rpos if self._rpos < len(self._rblock) else 0,
             nm_sum=self.nm_sum.tolist(),
             patterns=[[sorted(p), c.tolist()] for p, c in self.patterns.items()],
             scale=self.scale,
@@ -209,8 +218,12 @@ class MultiArmedBanditSampler(ActiveSampler):
         super().restore(state)
         pulls = np.array(state["pulls"], dtype=float)
         self.pulls = np.where(pulls < 0, np.inf, pulls)
-        self._rblock = np.array(state["rblock"], dtype=float).reshape(-1, self._nr)
+        self._rblock = np.zeros((0, self._nr))
         self._rpos = 0
+        if state.get("block_pos"):
+            self._block_rng = state["rng"]
+            self._draw_block()
+            self._rpos = int(state["block_pos"])
         self.nm_sum = np.array(state["nm_sum"], dtype=float)
         for m in state.get("metrics", ()):
             if m not in self.order.level:
