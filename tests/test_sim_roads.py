@@ -351,3 +351,16 @@ def test_lanes_of_another_world_are_rejected():
     r1, _ = w1.straight_road(), w2.straight_road()
     with pytest.raises(SimError, match="another world's road"):
         w2.ego(r1.lane(0))
+
+
+def test_ego_placed_on_a_route_and_broken_routes():
+    w = World(seed=1, driver="idm", name="t_route")
+    inter = w.intersection()
+    w.ego(inter.route("west", "right"), s=50.0, speed=5.0)
+    assert w.agent("ego").plan[-1].id == "south.out[0]"
+    w2 = World(seed=1, driver="idm", name="t_route")
+    inter2 = w2.intersection()
+    with pytest.raises(SimError, match=r"route is broken: 'north.out\[0\]' starts"):
+        w2.ego(inter2.approach("south"), route=[inter2.approach("south"), inter2.exit("north")])
+    with pytest.raises(SimError, match=r"not on its route"):
+        w2.ego(inter2.approach("east"), route=inter2.route("south", "left"))

@@ -257,6 +257,11 @@ class World:
         if spot.lane not in lanes:
             raise SimError(f"placed on {spot.lane.id!r}, which is not on its route "
                            f"{[l.id for l in lanes]}", test=self.name, agent=agent)
+        for a, b in zip(lanes, lanes[1:]):
+            gap = float(np.hypot(*(a.end.position - b.start.position)))
+            if gap > 1.0:
+                raise SimError(f"route is broken: {b.id!r} starts {gap:.1f} m from the end of "
+                               f"{a.id!r}", test=self.name, agent=agent)
         return lanes, lanes.index(spot.lane)
 
     def _register(self, agent: Any, spot: Spot | None, lanes: list[Lane], k: int, kind: str,
@@ -289,6 +294,8 @@ class World:
         deceleration does not creep backwards.
         """
         self._need_road("world.ego()")
+        if isinstance(place, Route) and route is None:
+            route = place
         if self._ego is not None:
             raise SimError("the world already has an ego", test=self.name, agent=name)
         spot = self._spot(place, s, r, name)
