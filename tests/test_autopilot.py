@@ -249,10 +249,20 @@ def test_stops_for_a_school_bus_with_its_stop_arm_out_and_goes_after():
     assert run.x[-1] > 80.0
 
 
-def test_ignores_a_school_bus_without_stop_arm():
+def test_passes_a_standing_school_bus_without_stop_arm_slowly_but_without_stopping():
     bus = Actor("bus", 70.0, 4.0, math.pi, 0.0, kind="bus", length=12.0, width=2.5)
-    run = simulate([straight()], speed=10.0, target_speed=10.0, actors=[bus], seconds=10.0)
-    assert min(run.speed) > 9.0
+    run = simulate([straight()], speed=10.0, target_speed=10.0, actors=[bus], seconds=12.0)
+    assert 3.0 < min(run.speed) < 5.0  # caution: the arm may come out any moment
+    assert run.x[-1] > 90.0
+
+
+def test_a_bus_putting_its_arm_out_right_in_front_is_driven_past():
+    # Too close to stop even at max_decel: it commits (no point stopping alongside).
+    bus = Actor("bus", 40.0, 4.0, math.pi, 0.0, kind="bus", length=12.0, width=2.5,
+                flags=lambda t: {"stop_arm": t >= 2.0})
+    run = simulate([straight()], speed=12.0, target_speed=12.0, actors=[bus], seconds=6.0,
+                   driver=Autopilot(bus_caution_speed=0.0))
+    assert run.x[-1] > 50.0
 
 
 # -- options and cost ---------------------------------------------------------------------------
@@ -289,3 +299,115 @@ def pose_error(run, goal):
     dpos = math.hypot(run.x[-1] - goal["x"], run.y[-1] - goal["y"])
     dh = abs((run.heading[-1] - goal["heading"] + math.pi) % (2 * math.pi) - math.pi)
     return dpos, math.degrees(dh)
+
+
+def test_parallel_parks_between_two_cars():
+    lane, parked, goal = parking_scene(gap=10.0)
+    run = simulate([lane], ego_s=20.0, speed=8.0, target_speed=8.0, actors=parked, goal=goal,
+                   seconds=35.0)
+    dpos, dheading = pose_error(run, goal)
+    assert not run.collided
+    assert dpos < 0.5 and dheading < 10.0
+    assert run.reasons[-1] == "park:done" and abs(run.speed[-1]) < 0.05
+    assert min(run.speed) < -0.5  # it did reverse in
+
+
+def test_parking_in_a_slot_too_short_for_one_manoeuvre_touches_a_car():
+    # Known limit (see the module doc): one reverse manoeuvre needs about L + 4 m of kerb.
+    lane, parked, goal = parking_scene(gap=6.0)
+    run = simulate([lane], ego_s=20.0, speed=8.0, target_speed=8.0, actors=parked, goal=goal,
+                   seconds=35.0)
+    assert run.collided
+
+
+def test_lane_change_when_the_route_steps_to_the_parallel_lane():
+    left, right = StraightLane([0.0, 0.0], [300.0, 0.0]), StraightLane([0.0, -3.5], [300.0, -3.5])
+    run = simulate([left, right], ego_s=10.0, speed=10.0, target_speed=10.0, seconds=8.0)
+    assert abs(run.y[-1] + 3.5) < 0.05
+    assert max(abs(h) for h in run.heading) < 0.3  # a smooth change, no swerve
+
+
+# -- closed loop through the simulator's World ---------------------------------------------------
+
+
+def _world():
+    world_mod = pytest.importorskip("pytest_avscenario.sim.world")
+    return world_mod.World(seed=0, driver="autopilot")
+
+
+def _min_dist(tr):
+    return float(np.nanmin(np.hypot(tr.x[1:] - tr.x[0], tr.y[1:] - tr.y[0])))
+
+
+def test_world_vehicle_following_nominal_case_is_safe():
+    from pytest_avscenario.sim import behaviors as b
+
+    w = _world()
+    road = w.straight_road(lanes=1, length=400)
+    w.ego(road.lane(0), s=0.0, speed=12.0, target_speed=12.0)
+    w.car(road.lane(0), s=30.0, speed=10.0, behavior=b.brake_at(3.0, decel=6.0))
+    tr = w.run(seconds=15)
+    assert not tr.crashed[0].any()
+    assert _min_dist(tr) > 5.0
+    assert np.nanmean(np.abs(tr.lane_offset[0])) < 0.5
+
+
+def test_world_unprotected_left_turn_waits_for_the_oncoming_car():
+    from pytest_avscenario.sim import behaviors as b
+
+    w = _world()
+    inter = w.intersection()
+    w.ego(inter.stop_line("south").before(30), speed=10.0, target_speed=10.0,
+          route=inter.route("south", "left"))
+    w.car(inter.stop_line("north").before(30), speed=10.0, behavior=b.cut_across())
+    tr = w.run(seconds=15)
+    assert not tr.crashed[0].any()
+    # The oncoming car crosses y = 0 going south before the ego's nose reaches the box centre.
+    t_car = tr.t[np.argmax(tr.y[1] < 0.0)]
+    t_ego = tr.t[np.argmax(tr.y[0] > -3.0)]
+    assert t_car < t_ego
+    assert tr.x[0, -1] < -20.0  # and it completed the turn west
+    assert np.nanmean(np.abs(tr.lane_offset[0])) < 0.5
+
+
+def test_world_stops_for_an_oncoming_school_bus_with_its_stop_arm_out():
+    from pytest_avscenario.sim import behaviors as b
+
+    w = _world()
+    road = w.two_way_road()
+    w.ego(road.lane(0), s=20.0, speed=10.0, target_speed=10.0)
+    w.bus(road.lane(0, "backward"), s=200.0, speed=8.0, behavior=b.bus_stop(t=1.0, duration=6.0))
+    tr = w.run(seconds=14)
+    arm = np.asarray(tr.signals["bus1.stop_arm"], dtype=bool)
+    assert arm.any()
+    ego_front = tr.x[0] + 2.5
+    bus_front = tr.x[1] - 6.0
+    assert np.all((bus_front - ego_front)[arm] > 5.0)  # never closer than ~6 m while arm is out
+    assert tr.x[0, -1] > tr.x[1, -1] or tr.x[0, -1] > 100.0  # then drove on
+
+
+def test_world_makes_room_for_an_encroaching_oncoming_car():
+    from pytest_avscenario.sim import behaviors as b
+
+    w = _world()
+    road = w.two_way_road()
+    w.ego(road.lane(0), s=20.0, speed=10.0, target_speed=10.0)
+    w.car(road.lane(0, "backward"), s=150.0, speed=10.0, behavior=b.encroach(2.0, at=1.0))
+    tr = w.run(seconds=12)
+    assert not tr.crashed[0].any()
+    assert tr.y[0].min() < -1.75 - 0.5  # shifted right within its lane
+
+
+def test_world_parallel_parking():
+    w = _world()
+    road = w.two_way_road()
+    pl = road.parking_lane
+    y_park = float(pl.geometry.position(0.0, 0.0)[1])
+    goal = {"kind": "park", "x": 60.0 + 7.5, "y": y_park, "heading": 0.0}
+    w.ego(road.lane(0), s=20.0, speed=8.0, target_speed=8.0, goal=goal)
+    w.parked_car(pl, s=60.0)
+    w.parked_car(pl, s=75.0)
+    tr = w.run(seconds=35)
+    assert not tr.crashed.any()
+    assert math.hypot(tr.x[0, -1] - goal["x"], tr.y[0, -1] - y_park) < 0.5
+    assert abs(math.degrees(tr.heading[0, -1])) < 10.0

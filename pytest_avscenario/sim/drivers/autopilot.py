@@ -65,6 +65,8 @@ class AutopilotOptions:
     stop_margin: float = 1.0  # [m] front bumper stops this far before a line or conflict zone
     stop_dwell: float = 0.5  # [s] standstill at a stop line before it may go
     bus_distance: float = 6.0  # [m] stop this far from a school bus with its stop arm out
+    bus_caution_speed: float = 4.0  # [m/s] speed to be down to when reaching a slow school bus
+    evasive_offset: float = 1.0  # [m] how far it shifts right in its lane for an oncoming car
     parking_speed: float = 1.0  # [m/s] speed of the parking manoeuvre
     parking_clearance: float = 0.6  # [m] kept to the car behind the slot when reversing in
 
@@ -85,7 +87,7 @@ class AutopilotOptions:
 class _Seen:
     """One perceived agent (world frame), reduced to what the planner reads."""
 
-    __slots__ = ("x", "y", "vx", "vy", "c", "s", "hl", "hw", "ped", "arm", "name")
+    __slots__ = ("x", "y", "vx", "vy", "c", "s", "hl", "hw", "ped", "bus", "arm", "name")
 
     def __init__(self, a: Any) -> None:
         self.x, self.y, self.vx, self.vy = float(a.x), float(a.y), float(a.vx), float(a.vy)
@@ -93,6 +95,7 @@ class _Seen:
         self.hl, self.hw = 0.5 * float(a.length), 0.5 * float(a.width)
         self.ped = a.kind == "pedestrian"
         self.arm = bool(a.flags and a.flags.get("stop_arm"))
+        self.bus = a.kind == "bus" or self.arm
         self.name = a.name
 
 
@@ -133,7 +136,9 @@ class Autopilot:
         self._history: deque = deque()
         self._accel = 0.0  # last commanded acceleration [m/s^2]
         self._stop_state: dict[tuple[int, float], list] = {}
-        self._yielding: set[int] = set()
+        self._yielding: set[str] = set()
+        self._dt: float | None = None
+        self._offset = 0.0  # [m] lateral offset from the centre line it steers for (left +)
         self._parker: _Parker | None = None
         self._goal_key: Any = None
         # Read by tests and debugging: why the last command was chosen.
@@ -170,6 +175,7 @@ class Autopilot:
         o = self.options
         ego = obs.ego
         dt = obs.dt if obs.dt > 0 else 0.1
+        self._dt = dt
         seen = self._perceive(obs)
         if obs.goal is not None and obs.goal.get("kind") == "park":
             key = (obs.goal.get("x"), obs.goal.get("y"), obs.goal.get("heading"))
@@ -223,6 +229,7 @@ class Autopilot:
             stops.extend(agent_stops)
         else:
             clear = True
+            self._offset -= max(-0.5 * dt, min(0.5 * dt, self._offset))
         stops.extend(self._stop_lines(obs, path, s_ego, L, v, dt, clear))
         if self._parker is not None:  # approaching the parking start point
             d = self._parker.approach_distance(ego)
@@ -238,6 +245,9 @@ class Autopilot:
         # Pure pursuit on the centre line, from the vehicle centre along its velocity.
         look = max(o.min_lookahead, o.lookahead_time * v)
         px, py = path.point(s_ego + look)
+        if self._offset:
+            tx, ty = path.tangent(s_ego + look)
+            px, py = px - self._offset * ty, py + self._offset * tx
         dx, dy = px - ego.x, py - ego.y
         steer = pursuit_steering(dx, dy, ego.heading, L, o.max_steering, forward=True)
         self.last_reason = reason
@@ -342,6 +352,8 @@ class Autopilot:
         lead_v = 0.0
         stops: list[tuple[float, str]] = []
         cand = []
+        a_bus = math.inf
+        shift = 0.0
         for a in seen.agents:
             dx, dy = a.x - ego.x, a.y - ego.y
             if dx * dx + dy * dy > rng2:
@@ -359,12 +371,31 @@ class Autopilot:
                 gap = s_a - s_ego - 0.5 * L - ext_par
                 if gap < lead_gap:
                     lead_gap, lead_v = gap, max(v_par, 0.0)
-            if a.arm and abs(lat) < 12.0 and s_a + ext_par > s_ego - 0.5 * L:
+            if a.bus and abs(lat) < 12.0 and s_a + ext_par > s_ego - 0.5 * L:
                 d_bus = s_a - ext_par - (s_ego + 0.5 * L)
-                # Stop bus_distance short of it; if that point is already overrun, stop now,
-                # unless even an emergency stop would not end before the bus itself.
-                if d_bus > 0.0 and v * v / (2.0 * d_bus) <= o.max_decel:
-                    stops.append((max(d_bus - o.bus_distance, 0.0), "school bus"))
+                if a.arm:
+                    # Stop bus_distance short of it; if that point is already overrun, stop
+                    # now, unless even an emergency stop would not end before the bus.
+                    if d_bus > 0.0 and v * v / (2.0 * d_bus) <= o.max_decel:
+                        stops.append((max(d_bus - o.bus_distance, 0.0), "school bus"))
+                elif math.hypot(a.vx, a.vy) < o.bus_caution_speed and d_bus > 0.0:
+                    # A school bus slowing or standing may put its arm out any moment: arrive
+                    # slowly enough to stop for it.
+                    # Reach that speed 4 m before the line it would stop at (latency and
+                    # brake build-up eat ~1 m at that speed).
+                    room = max(d_bus - o.bus_distance - 4.0, 0.0)
+                    v_caution = math.sqrt(o.bus_caution_speed ** 2 + 1.4 * o.comfort_decel * room)
+                    if v_caution < v0:
+                        v0 = v_caution
+                        a_caution = o.max_accel * (1.0 - (v / v0) ** o.idm_delta)
+                        if a_caution < a_bus:
+                            a_bus = a_caution
+            if v_par < -1.0 and s_a > s_ego and lat > 0.0:
+                # Oncoming and coming closer than its lane allows: make room on the right
+                # when it would meet us within the horizon.
+                need = 0.5 * W + ext_perp + o.lateral_margin - lat
+                if need > 0.0 and (s_a - s_ego) < (v - v_par) * o.horizon:
+                    shift = max(shift, min(need, o.evasive_offset))
             speed_a = math.hypot(a.vx, a.vy)
             if in_corridor and abs(v_perp) < max(0.5, 0.15 * speed_a) and v_par >= -0.1:
                 continue  # ahead or behind on our path, going our way: the lead logic's job
@@ -374,6 +405,11 @@ class Autopilot:
         if lead_gap < math.inf:
             a_lead = self._idm_interaction(v, lead_v, lead_gap)
             a_lead += o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else 0.0
+        a_lead = min(a_lead, a_bus)
+        # Move toward the wanted lateral offset at 0.5 m/s (a lane-internal nudge, not a swerve).
+        step = 0.05 if self._dt is None else 0.5 * self._dt
+        target = -shift
+        self._offset += max(-step, min(step, target - self._offset))
         clear = True
         yielding = set()
         if cand:
@@ -396,6 +432,8 @@ class Autopilot:
         reach = max(20.0, v * o.horizon + 0.5 * o.max_accel * o.horizon ** 2 + L)
         w = path.window(s_ego - 0.5 * L, s_ego + min(reach, o.sensor_range))
         qx, qy, qtx, qty, qs = path.x[w], path.y[w], path.tx[w], path.ty[w], path.S[w]
+        if self._offset:
+            qx, qy = qx - self._offset * qty, qy + self._offset * qtx
         rows = np.array([(a.x, a.y, a.vx, a.vy, a.c, a.s, a.hl, a.hw,
                           o.pedestrian_margin if a.ped else o.lateral_margin)
                          for a, _ in cand])
