@@ -135,6 +135,14 @@ def test_callable_policy_drives_and_sees_a_full_observation():
     assert o.target_speed == 9.0 and o.goal == {"kind": "park"}
     assert seen[-1].s == pytest.approx(tr.ego.x[-2], abs=1e-9)
     np.testing.assert_allclose(tr.signals["ego.acceleration"][1:], 1.0)
+    # Observations are complete, equal to ones built field by field, and immutable.
+    import dataclasses
+
+    for obj in (o, o.ego, o.agents[0]):
+        again = type(obj)(**{f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)})
+        assert again == obj
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        o.t = 1.0
 
 
 class ActDriver:

@@ -487,10 +487,12 @@ class World:
     def _state(self, a: Any, kind: str | None = None) -> AgentState:
         h = float(a.heading)
         v = float(a.speed)
-        flags = {"stop_arm": bool(a.stop_arm)} if a.kind == "bus" else {}
-        return AgentState(a.name, kind or a.kind, float(a.position[0]), float(a.position[1]),
-                          v * math.cos(h), v * math.sin(h), v, h, float(a.LENGTH),
-                          float(a.WIDTH), flags)
+        p = a.position
+        return _frozen(AgentState, {
+            "name": a.name, "kind": kind or a.kind, "x": float(p[0]), "y": float(p[1]),
+            "vx": v * math.cos(h), "vy": v * math.sin(h), "speed": v, "heading": h,
+            "length": float(a.LENGTH), "width": float(a.WIDTH),
+            "flags": {"stop_arm": bool(a.stop_arm)} if a.kind == "bus" else {}})
 
     def _observe(self, ego: Any) -> Observation:
         x, y = float(ego.position[0]), float(ego.position[1])
@@ -510,13 +512,13 @@ class World:
             stops = tuple(ObsStopLine(j, s, kind) for j in range(ri, len(ego.plan))
                           for s, kind in self._index.stop_marks.get(ego.plan[j].index, ()))
             self._stop_cache[ri] = stops
-        return Observation(
-            t=self.t, dt=self.dt, ego=self._state(ego, "ego"), route=self._route_geoms,
-            route_index=ri, s=float(ego.route_s), r=float(ego.route_r),
-            agents=tuple(self._state(o) for _, _, o in near), stop_lines=stops,
-            speed_limit=float(ego.plan[ri].geometry.speed_limit),
-            target_speed=ego.target_speed_request, goal=ego.goal,
-            sensor_range=self.sensor_range)
+        return _frozen(Observation, {
+            "t": self.t, "dt": self.dt, "ego": self._state(ego, "ego"), "route": self._route_geoms,
+            "route_index": ri, "s": float(ego.route_s), "r": float(ego.route_r),
+            "agents": tuple(self._state(o) for _, _, o in near), "stop_lines": stops,
+            "speed_limit": float(ego.plan[ri].geometry.speed_limit),
+            "target_speed": ego.target_speed_request, "goal": ego.goal,
+            "sensor_range": self.sensor_range})
 
     # -- running -----------------------------------------------------------------------------------
     def run(self, seconds: float, dt: float = 0.1, until: Callable[["World"], bool] | None = None,
@@ -631,6 +633,19 @@ class World:
         from .render import render_gif
 
         return render_gif(self, path, every=every, **kw)
+
+
+def _frozen(cls: Any, values: dict) -> Any:
+    """An instance of the frozen dataclass ``cls`` with every field given in ``values``.
+
+    The generated ``__init__`` of a frozen dataclass sets each field through
+    ``object.__setattr__`` (~0.3 µs a field); observations are built every step of every case,
+    so they are filled in one ``__dict__`` update instead. ``values`` must name every field.
+    """
+    obj = object.__new__(cls)
+    obj.__dict__.update(values)
+    return obj
+
 
 
 class _Recorder:
