@@ -115,7 +115,9 @@ class _Axis:
             if abs(span) <= self.top:
                 # fewer distinct integers than steps: one step per integer, the rest of
                 # the path sits on the failing value (memo hits, no simulations)
-                return self.nominal + int(math.copysign(min(k, abs(span)), span))
+                if k >= abs(span):
+                    return self.exact
+                return self.nominal + int(math.copysign(k, span))
             return self.nominal + int(round(span * k / self.top))
         lo, hi = sorted((self.nominal, self.failing))
         x = self.nominal + (self.failing - self.nominal) * (k / self.top)
