@@ -132,3 +132,21 @@ def test_saved_trajectory_round_trips_with_the_same_digest(case, tmp_path):
     tr.save(tmp_path / "t.npz")
     back = Trajectory.load(tmp_path / "t.npz")
     assert back.digest() == tr.digest()
+
+
+def test_collision_broad_phase_changes_nothing(monkeypatch):
+    from pytest_avscenario.sim.engine import SimRoad
+
+    def crowded():
+        w = World(seed=4, driver=lambda o: (2.0, 0.0))  # drives into the queue ahead
+        road = w.straight_road(lanes=2)
+        w.ego(road.lane(0), s=0.0, speed=12.0)
+        for k in range(7):
+            w.car(road.lane(k % 2), s=15.0 + 9.0 * k, speed=3.0 + k % 3,
+                  behavior=b.change_lane("right" if k % 2 == 0 else "left", at=1.0 + 0.3 * k))
+        return w.run(8.0)
+
+    fast = crowded()
+    assert fast.crashed.any()  # the comparison covers real contacts
+    monkeypatch.setattr(SimRoad, "BROAD_PHASE_FROM", 10**6)
+    assert crowded().digest() == fast.digest()
