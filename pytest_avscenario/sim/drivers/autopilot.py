@@ -69,6 +69,7 @@ class AutopilotOptions:
     evasive_offset: float = 1.0  # [m] how far it shifts right in its lane for an oncoming car
     parking_speed: float = 1.0  # [m/s] speed of the parking manoeuvre
     parking_clearance: float = 0.6  # [m] kept to the car behind the slot when reversing in
+    parking_side_clearance: float = 0.4  # [m] kept to the parked cars when driving past them
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -137,7 +138,7 @@ class Autopilot:
         self._accel = 0.0  # last commanded acceleration [m/s^2]
         self._stop_state: dict[tuple[int, float], list] = {}
         self._yielding: set[str] = set()
-        self._dt: float | None = None
+        self._evade = 0.0  # [m] wanted shift to the right for oncoming traffic
         self._offset = 0.0  # [m] lateral offset from the centre line it steers for (left +)
         self._parker: _Parker | None = None
         self._goal_key: Any = None
@@ -175,7 +176,6 @@ class Autopilot:
         o = self.options
         ego = obs.ego
         dt = obs.dt if obs.dt > 0 else 0.1
-        self._dt = dt
         seen = self._perceive(obs)
         if obs.goal is not None and obs.goal.get("kind") == "park":
             key = (obs.goal.get("x"), obs.goal.get("y"), obs.goal.get("heading"))
@@ -229,7 +229,13 @@ class Autopilot:
             stops.extend(agent_stops)
         else:
             clear = True
-            self._offset -= max(-0.5 * dt, min(0.5 * dt, self._offset))
+            self._evade = 0.0
+        # Lateral offset from the centre line: right for an encroaching oncoming car, toward
+        # the kerb before a parking manoeuvre; reached at 0.5 m/s (a nudge, not a swerve).
+        want = -self._evade
+        if self._parker is not None:
+            want += self._parker.approach_offset(path, s_ego, W)
+        self._offset += max(-0.5 * dt, min(0.5 * dt, want - self._offset))
         stops.extend(self._stop_lines(obs, path, s_ego, L, v, dt, clear))
         if self._parker is not None:  # approaching the parking start point
             d = self._parker.approach_distance(ego)
@@ -406,10 +412,7 @@ class Autopilot:
             a_lead = self._idm_interaction(v, lead_v, lead_gap)
             a_lead += o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else 0.0
         a_lead = min(a_lead, a_bus)
-        # Move toward the wanted lateral offset at 0.5 m/s (a lane-internal nudge, not a swerve).
-        step = 0.05 if self._dt is None else 0.5 * self._dt
-        target = -shift
-        self._offset += max(-step, min(step, target - self._offset))
+        self._evade = shift
         clear = True
         yielding = set()
         if cand:
@@ -538,6 +541,25 @@ class _Parker:
         dx, dy = x - self.gx, y - self.gy
         return (dx * self.c + dy * self.s, side * (-dx * self.s + dy * self.c),
                 side * _wrap(h - self.gh))
+
+    def approach_offset(self, path: RoutePath, s_ego: float, width: float) -> float:
+        """Offset [m] (left +) from the route centre line to drive the approach at.
+
+        Passing the car in front of the slot as closely as safe (0.4 m) shortens the two
+        reverse arcs, hence the kerb length the manoeuvre needs.
+        """
+        if self.phase != "approach":
+            return 0.0
+        x, y = path.point(s_ego)
+        sx, sy, _ = self._frame(x, y, 0.0, self.side)
+        if not -5.0 < sx - self.start_x < 40.0:
+            return 0.0
+        shift = max(0.0, sy - (width + self.o.parking_side_clearance))
+        tx, ty = path.tangent(s_ego)
+        # Toward the slot is the (mirrored) slot frame's -y: side * (sin gh, -cos gh); its
+        # component on the path's left normal (-ty, tx) says which way to shift.
+        toward_left = -self.side * (self.s * ty + self.c * tx)
+        return shift if toward_left > 0 else -shift
 
     def approach_distance(self, ego: Any) -> float | None:
         """Centre distance [m] still to drive before the reverse manoeuvre may start."""
