@@ -1,0 +1,358 @@
+"""The Dask executor: scenario cases simulated on a Dask cluster, judged the same way.
+
+``--avs-executor=dask`` sends each case to a Dask worker, which imports the test module,
+builds the case and a fresh world and runs :func:`~pytest_avscenario.runner.run_case` there
+(see :mod:`.remote` for what crosses the wire). pytest still runs one item per case, in its
+own order; the executor makes that cheap by starting cases *ahead*:
+
+* ``prefetch`` submits every passive case at collection, in pytest's order (earlier items get
+  a higher Dask priority), so all workers stay busy while pytest walks the items. ``run``
+  matches a job to its prefetched future by ``(node id, parameters, seed)``; a job that was
+  not prefetched (an active sampler's case, a shrink candidate) is submitted at once with a
+  priority above every prefetched case, so the item pytest is waiting for never queues
+  behind hundreds of later ones.
+* Finished results are pulled to the client as they complete (one ``gather`` for all that
+  are ready), so a worker that dies afterwards loses nothing already computed.
+* A worker that dies mid-case: the scheduler resubmits the case to another worker, at most
+  ``max_retries`` times on a cluster this executor starts (``distributed.scheduler.allowed-
+  failures``; an existing cluster uses its own setting, Dask's default is 3). When that is
+  exhausted the case comes back as an *error* naming the cause — never as a pass.
+* A scheduler that cannot be reached fails within ``connect_timeout_s`` with a message that
+  says what to check; a scheduler lost during the run (or one left without workers) fails
+  the waiting item, and every later one at once, after the same timeout.
+
+Without an address the executor starts a ``LocalCluster`` with one single-threaded worker
+process per core (simulations are pure Python: threads would share the GIL) and closes it
+in :meth:`close`. Dask is imported only when this module is, i.e. when the executor is made.
+"""
+
+from __future__ import annotations
+
+import collections
+import itertools
+import json
+import logging
+import os
+import time
+from concurrent.futures import CancelledError
+from typing import Any, Sequence
+
+import dask
+import distributed
+
+from ..runner import CaseOutcome
+from .base import CaseJob, Executor
+from .remote import (CaseFields, TestSpec, WireOutcome, pack_spec, run_remote, spec_digest,
+                     to_outcome, warm_up)
+
+#: seconds to reach a scheduler (and to find a worker on it) before giving up
+DEFAULT_CONNECT_TIMEOUT_S = 10.0
+#: environment variable that overrides the default above (no command-line option exists yet)
+TIMEOUT_ENV = "AVS_DASK_TIMEOUT"
+
+# Dask priorities: higher runs first. Prefetched cases get 0, -1, -2, ... (pytest's order);
+# a case someone is already waiting for outranks all of them.
+_URGENT = 1
+
+
+class DaskExecutorError(RuntimeError):
+    """The cluster cannot run cases any more (scheduler lost, no workers)."""
+
+
+class DaskExecutor(Executor):
+    """Runs case jobs on a Dask cluster.
+
+    ``address``: scheduler of an existing cluster (``tcp://host:8786``); None starts a
+    ``LocalCluster`` with ``n_workers`` (default: the cores this process may use) single-
+    threaded worker processes. ``max_retries``: how often a case is resubmitted after the
+    worker running it died (local cluster only). ``connect_timeout_s``: how long to try to
+    reach the scheduler (default 10 s, or ``$AVS_DASK_TIMEOUT``).
+
+    Raises ValueError (which the plugin shows as a usage error) when the scheduler cannot be
+    reached or has no workers.
+    """
+
+    name = "dask"
+
+    def __init__(self, address: str | None = None, *, n_workers: int | None = None,
+                 max_retries: int = 2, connect_timeout_s: float | None = None) -> None:
+        if connect_timeout_s is None:
+            raw = os.environ.get(TIMEOUT_ENV, "")
+            try:
+                connect_timeout_s = float(raw) if raw else DEFAULT_CONNECT_TIMEOUT_S
+            except ValueError:
+                raise ValueError(f"${TIMEOUT_ENV} must be a number of seconds, got {raw!r}") from None
+        if max_retries < 0:
+            raise ValueError(f"max_retries must be >= 0, got {max_retries}")
+        self.address = address
+        self.max_retries = int(max_retries)
+        self.connect_timeout_s = float(connect_timeout_s)
+        self._cluster: Any = None
+        self._client: Any = None
+        self._ahead: dict[tuple, Any] = {}  # match key -> future (submitted, not yet collected)
+        self._results: dict[tuple, WireOutcome] = {}  # match key -> outcome already pulled here
+        self._ready: collections.deque = collections.deque()  # keys whose future finished
+        self._specs: dict[tuple, tuple[bytes, str]] = {}
+        self._counter = itertools.count()
+        self._broken: str | None = None
+        self._warm: list[Any] = []
+        self.stats = collections.Counter()  # submitted, prefetched, matched, on_demand, ...
+        self._start()
+
+    # -- connecting ---------------------------------------------------------------------
+    def _start(self) -> None:
+        timeout = self.connect_timeout_s
+        if self.address is None:
+            workers = self._cores()
+            # the local scheduler reads allowed-failures when it starts: bound the retries
+            try:
+                with dask.config.set({"distributed.scheduler.allowed-failures": self.max_retries}):
+                    self._cluster = distributed.LocalCluster(
+                        n_workers=workers, threads_per_worker=1, processes=True,
+                        dashboard_address=None, silence_logs=logging.ERROR,
+                    )
+            except Exception as exc:
+                raise ValueError(
+                    f"--avs-executor=dask: could not start a local Dask cluster with {workers} "
+                    f"worker process(es): {type(exc).__name__}: {exc}"
+                ) from exc
+            address = self._cluster
+        else:
+            address = self.address
+        try:
+            self._client = distributed.Client(address, timeout=timeout, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            self._close_cluster()
+            raise ValueError(
+                f"--avs-executor=dask: cannot reach the Dask scheduler at {self.address} within "
+                f"{timeout:g} s ({type(exc).__name__}: {exc}). Check the address (tcp://host:port) "
+                "and that `dask scheduler` runs there, or leave out --avs-dask-address to start "
+                f"a local cluster (timeout: ${TIMEOUT_ENV})"
+            ) from None
+        try:
+            self._client.wait_for_workers(1, timeout=timeout)
+        except (OSError, TimeoutError):
+            self.close()
+            raise ValueError(
+                f"--avs-executor=dask: the Dask scheduler at {self.address} has no workers after "
+                f"{timeout:g} s; start some (`dask worker {self.address}`) and run again"
+            ) from None
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        # one import-heavy tiny scene per worker, ahead of every case and not waited for
+        # (the futures are kept: Dask forgets a task nobody holds a future of)
+        try:
+            for worker in self._client.scheduler_info(n_workers=-1)["workers"]:
+                self._warm.append(self._client.submit(
+                    warm_up, key=f"avs-warm-up-{next(self._counter)}", pure=False,
+                    workers=[worker], allow_other_workers=False, priority=_URGENT + 1))
+        except Exception:  # only a head start: cases import what they need anyway
+            pass
+
+    @staticmethod
+    def _cores() -> int:
+        try:
+            return max(1, len(os.sched_getaffinity(0)))
+        except AttributeError:  # not on Linux
+            return max(1, os.cpu_count() or 1)
+
+    @property
+    def capacity(self) -> int:
+        """Worker threads in the cluster now: how many cases run at once (a batch's size)."""
+        try:
+            workers = self._client.scheduler_info(n_workers=-1)["workers"]
+        except Exception:
+            return 1
+        return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+    @property
+    def dashboard_link(self) -> str | None:
+        return getattr(self._client, "dashboard_link", None)
+
+    # -- the executor interface ---------------------------------------------------------
+    def prefetch(self, jobs: Sequence[CaseJob]) -> None:
+        """Submit these cases now, in this order; :meth:`run` collects each later.
+
+        Jobs without a driver (a conftest overrides ``avs_driver``: its value exists only
+        when the item runs) cannot start ahead and are left to :meth:`run`.
+        """
+        self._start_ahead(jobs, urgent=False)
+
+    def submit(self, jobs: Sequence[CaseJob]) -> None:
+        """Start these cases now, ahead of every prefetched one; :meth:`run` collects each.
+
+        For active samplers asking in batches: submit the batch, then ``run`` each job when
+        its item runs (feedback then arrives while later cases of the batch still run).
+        """
+        self._start_ahead(jobs, urgent=True)
+
+    def run(self, job: CaseJob) -> CaseOutcome:
+        """The outcome of ``job``: its prefetched result if any, else simulated now."""
+        if self._broken is not None:
+            raise DaskExecutorError(self._broken)
+        self._harvest()
+        key = self._match_key(job)
+        wire = self._results.pop(key, None)
+        if wire is not None:
+            self.stats["matched"] += 1
+        else:
+            future = self._ahead.pop(key, None)
+            if future is not None:
+                self.stats["matched"] += 1
+            else:
+                self.stats["on_demand"] += 1
+                future = self._submit(job, _URGENT)
+            wire = self._wait(future, job)
+        return to_outcome(wire)
+
+    def close(self) -> None:
+        """Cancel what is still queued, disconnect, and stop a cluster this executor started."""
+        client, self._client = self._client, None
+        if client is not None:
+            try:
+                if self._ahead:
+                    client.cancel(list(self._ahead.values()))
+            except Exception:  # closing must not fail the session
+                pass
+            self._ahead.clear()
+            try:
+                client.close(timeout=5)
+            except Exception:
+                pass
+        self._close_cluster()
+
+    def _close_cluster(self) -> None:
+        cluster, self._cluster = self._cluster, None
+        if cluster is not None:
+            try:
+                cluster.close(timeout=10)
+            except Exception:
+                pass
+
+    # -- submitting ---------------------------------------------------------------------
+    def _start_ahead(self, jobs: Sequence[CaseJob], urgent: bool) -> None:
+        if self._broken is not None:
+            return
+        for i, job in enumerate(jobs):
+            if job.driver is None and ("world" in job.argnames or "avs_driver" in job.argnames):
+                continue
+            key = self._match_key(job)
+            if key in self._ahead or key in self._results:
+                continue
+            self._ahead[key] = self._submit(job, _URGENT if urgent else -i, key)
+            self.stats["prefetched" if not urgent else "submitted_ahead"] += 1
+
+    @staticmethod
+    def _match_key(job: CaseJob) -> tuple:
+        case = job.case
+        return (job.nodeid, json.dumps(dict(case.params), sort_keys=True, default=repr), case.seed)
+
+    def _spec(self, job: CaseJob) -> tuple[bytes, str]:
+        driver_id = job.driver if isinstance(job.driver, (str, type(None))) else id(job.driver)
+        cache_key = (job.module_path, job.function, job.argnames, id(job.monitor_set), driver_id)
+        hit = self._specs.get(cache_key)
+        if hit is None:
+            spec = TestSpec(module_path=job.module_path, rootdir=job.rootdir, function=job.function,
+                            argnames=tuple(job.argnames), monitor_set=job.monitor_set,
+                            driver=job.driver)
+            data = pack_spec(spec)
+            hit = (data, spec_digest(data))
+            if isinstance(driver_id, (str, type(None))):  # objects may die and reuse their id
+                self._specs[cache_key] = hit
+        return hit
+
+    def _submit(self, job: CaseJob, priority: int, key: tuple | None = None) -> Any:
+        data, digest = self._spec(job)
+        case = job.case
+        fields = CaseFields(nodeid=job.nodeid, params=dict(case.params), index=case.index,
+                            seed=case.seed, sampler=case.sampler, origin=case.origin,
+                            test=case.test)
+        name = f"avs-{job.function}-{case.sampler}-{case.index}-{next(self._counter)}"
+        self.stats["submitted"] += 1
+        # fifo_timeout=0: every submission is its own generation, so equal priorities keep
+        # submission order; pure=False: a shrink replay of the same case must really rerun
+        future = self._client.submit(run_remote, data, digest, job.module_path, job.rootdir,
+                                     fields, key=name, pure=False, priority=priority,
+                                     fifo_timeout=0)
+        if key is not None:
+            # runs on the client's event-loop thread: only note the key (deque is thread-safe)
+            future.add_done_callback(lambda _f, k=key: self._ready.append(k))
+        return future
+
+    def _harvest(self) -> None:
+        """Pull every finished prefetched result in one round trip and release its future."""
+        done = []
+        while self._ready:
+            key = self._ready.popleft()
+            future = self._ahead.get(key)
+            if future is not None and future.status == "finished":
+                done.append((key, future))
+        if not done:
+            return
+        try:
+            values = self._client.gather([f for _, f in done], errors="skip")
+        except Exception:  # leave them to _wait, which reports per case
+            return
+        if len(values) != len(done):  # errors="skip" dropped some: match them one by one
+            return
+        for (key, _), wire in zip(done, values):
+            self._results[key] = wire
+            del self._ahead[key]
+
+    # -- waiting ------------------------------------------------------------------------
+    def _wait(self, future: Any, job: CaseJob) -> WireOutcome:
+        """The future's outcome; worker deaths and task errors become error outcomes."""
+        lost_since: float | None = None
+        attempts = 0
+        while True:
+            try:
+                return future.result(timeout=1.0)
+            except TimeoutError:
+                lost_since = self._check_cluster(lost_since)
+            except distributed.KilledWorker as exc:
+                retries = f"{self.max_retries} time(s)" if self._cluster is not None else \
+                    "as often as the scheduler allows (distributed.scheduler.allowed-failures)"
+                return self._error(job, (
+                    f"the Dask worker running this case died, and so did the workers it was "
+                    f"resubmitted to ({retries}): {exc}. The case (or the worker's environment) "
+                    "crashes the process: a segfault, os._exit, running out of memory"))
+            except CancelledError:
+                # the scheduler forgot the task (it restarted, or the client reconnected)
+                if self._client is None or attempts >= self.max_retries:
+                    return self._error(job, "the case was cancelled on the Dask cluster "
+                                            f"{attempts + 1} time(s)")
+                attempts += 1
+                future = self._submit(job, _URGENT)
+            except Exception as exc:  # the task itself failed (e.g. it did not unpickle there)
+                return self._error(job, (
+                    f"the Dask worker could not run the case: {type(exc).__name__}: {exc} — is "
+                    "pytest-avscenario (and everything the test module imports) installed on "
+                    "every worker, and the test file at the same path?"))
+
+    def _check_cluster(self, lost_since: float | None) -> float | None:
+        """None while the cluster looks usable; raises once it has not been for the timeout."""
+        client = self._client
+        ok = client is not None and client.status == "running"
+        why = "lost the connection to the Dask scheduler"
+        if ok:
+            try:
+                ok = bool(client.scheduler_info(n_workers=1)["workers"])
+                why = "the Dask cluster has no workers"
+            except Exception:
+                ok = False
+        if ok:
+            return None
+        now = time.monotonic()
+        if lost_since is None:
+            return now
+        if now - lost_since > self.connect_timeout_s:
+            self._broken = (f"{why} for more than {self.connect_timeout_s:g} s "
+                            f"(address {self.address or 'local cluster'}); the remaining cases "
+                            "cannot run")
+            raise DaskExecutorError(self._broken)
+        return lost_since
+
+    @staticmethod
+    def _error(job: CaseJob, message: str) -> WireOutcome:
+        return WireOutcome(params=dict(job.case.params), verdict="error", infra_error=message)

@@ -1,0 +1,253 @@
+"""The Dask executor: same results as in-process, cases survive dying workers, clear errors.
+
+Plugin-level runs use ``runpytest_subprocess`` (a real process that starts and stops its own
+``LocalCluster`` with two workers); the wire format and the worker-side import are tested
+in this process without a cluster. Skipped when Dask is not installed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed", reason="the Dask executor needs `pip install '.[dask]'`")
+
+from pytest_avscenario.executors import remote  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def cluster_address():
+    """One LocalCluster (two single-threaded worker processes) shared by this file's runs.
+
+    Starting a cluster per run costs seconds of process spawning and imports on a loaded
+    machine; a run given ``--avs-dask-address`` only connects. One death per case is
+    tolerated (allowed-failures=1): the killed-worker test needs one resubmission, the
+    exhausted-retries test needs the second death to end the case.
+    """
+    import dask
+    import distributed
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=40)
+    try:
+        yield cluster.scheduler_address
+    finally:
+        cluster.close(timeout=20)
+
+# Passive (halton) and active (mab) cases; with --avs-seed=5 some violate a monitor and some
+# fail the body's assert: both kinds of failure must come back with the same properties.
+COMPARED = """
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance, ttc
+
+def far_enough(gap):
+    assert gap < 30, "lead too far for this test"
+
+@scenario(gap=Uniform(8.0, 40.0), lead_speed=Uniform(2.0, 8.0), samples=6, sampler=["halton", "mab"],
+          monitors=[distance(5.0), ttc(2.0)])
+def test_follow(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=12.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=case.lead_speed)
+    world.run(seconds=4)
+    far_enough(case.gap)
+"""
+
+
+def _junit_props(path: Path) -> list[tuple]:
+    import xml.etree.ElementTree as ET
+
+    out = []
+    for case in ET.parse(path).getroot().iter("testcase"):
+        props = tuple((p.get("name"), p.get("value")) for p in case.iter("property")
+                      if p.get("name") != "avs.sim_time_s")
+        out.append((case.get("name"), props))
+    return sorted(out)
+
+
+def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, cluster_address):
+    pytester.makepyfile(test_follow=COMPARED)
+    # no report directory: its plots cost seconds; JUnit holds every case's row
+    common = ("-p", "no:cacheprovider", "--avs-seed=5", "--avs-db=none", "--avs-shrink-budget=2",
+              "--avs-samples=3", "--avs-report=none", "-rA")
+    local = pytester.runpytest(*common, "--junitxml=local.xml")
+    remote_run = pytester.runpytest_subprocess(*common, "--avs-executor=dask", "--junitxml=dask.xml",
+                                               f"--avs-dask-address={cluster_address}")
+    outcomes = local.parseoutcomes()
+    assert outcomes.get("failed", 0) >= 2 and outcomes.get("passed", 0) >= 1, local.outlines
+    assert remote_run.parseoutcomes() == outcomes
+    # every item's parameters, seed, robustness, verdict and error text (asserts rewritten on
+    # the worker too), and what shrinking found with its candidates simulated on the cluster
+    local_props = _junit_props(pytester.path / "local.xml")
+    assert _junit_props(pytester.path / "dask.xml") == local_props
+    assert any(("avs.minimized" in dict(props)) for _, props in local_props)
+    # the body's own traceback still points at the failing line of the test module
+    remote_run.stdout.fnmatch_lines(["*AssertionError: lead too far for this test*",
+                                     "test_follow.py:*: AssertionError"])
+
+
+KILLED = """
+import os
+from pathlib import Path
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+
+LOG = Path({log!r})
+MARKER = Path({marker!r})
+
+@scenario(gap=Uniform(20.0, 40.0), samples=6, monitors=[distance(5.0)])
+def test_follow(case, world):
+    with LOG.open("a") as f:
+        f.write(f"{{case.index}} {{os.getpid()}}\\n")
+    if case.index == 2 and not MARKER.exists():
+        MARKER.write_text(str(os.getpid()))
+        os._exit(13)  # the worker process dies in the middle of this case
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=10.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0)
+    world.run(seconds=3)
+"""
+
+
+def test_a_worker_killed_mid_case_is_resubmitted_and_every_case_reports(pytester, cluster_address):
+    log, marker = pytester.path / "runs.log", pytester.path / "killed.marker"
+    pytester.makepyfile(test_killed=KILLED.format(log=str(log), marker=str(marker)))
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--avs-seed=2", "--avs-db=none",
+                                           "--avs-executor=dask", "-v",
+                                           f"--avs-dask-address={cluster_address}")
+    assert marker.exists(), "the scenario never killed its worker"
+    result.assert_outcomes(passed=6)
+    rows = [json.loads(line) for line in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
+    assert sorted(r["index"] for r in rows) == list(range(6))
+    assert all(r["verdict"] == "pass" and r["rho"]["distance"] > 0 for r in rows)
+    runs = [tuple(map(int, line.split())) for line in log.read_text().splitlines()]
+    killed_pid = int(marker.read_text())
+    second = [pid for index, pid in runs if index == 2 and pid != killed_pid]
+    assert len(second) == 1, runs  # case 2 ran again, in another process, exactly once more
+
+
+def test_exhausted_retries_make_an_error_never_a_pass(tmp_path, cluster_address):
+    from pytest_avscenario.case import Case
+    from pytest_avscenario.executors import CaseJob
+    from pytest_avscenario.executors.dask import DaskExecutor
+
+    path = tmp_path / "test_always_dies.py"
+    path.write_text("import os\ndef test_dies(case):\n    os._exit(3)\n")
+    func = remote.import_test_module(str(path), str(tmp_path)).test_dies
+    job = CaseJob(nodeid="test_always_dies.py::test_dies[x]", module_path=str(path),
+                  rootdir=str(tmp_path), function="test_dies", func=func, argnames=("case",),
+                  fixtures={}, case=Case({"x": 1.0}, 0, 7, "halton"), monitor_set=None, driver=None)
+    executor = DaskExecutor(cluster_address)
+    try:
+        outcome = executor.run(job)
+    finally:
+        executor.close()
+    assert outcome.verdict == "error" and not outcome.failed
+    assert "died" in outcome.error and "resubmitted" in outcome.error
+    assert executor.stats["on_demand"] == 1
+
+
+def test_an_unreachable_scheduler_is_a_clear_error_within_the_timeout():
+    from pytest_avscenario.executors import make_executor
+    from pytest_avscenario.executors.dask import DaskExecutor
+
+    t0 = time.monotonic()
+    with pytest.raises(ValueError, match=r"cannot reach the Dask scheduler at tcp://127.0.0.1:9 "
+                                         r"within 1.5 s.*--avs-dask-address"):
+        DaskExecutor("tcp://127.0.0.1:9", connect_timeout_s=1.5)
+    assert time.monotonic() - t0 < 15
+    # the plugin turns this ValueError into a usage error; the default timeout is bounded too
+    with pytest.raises(ValueError, match="AVS_DASK_TIMEOUT must be a number"):
+        os.environ["AVS_DASK_TIMEOUT"] = "soon"
+        try:
+            make_executor("dask", address="tcp://127.0.0.1:9")
+        finally:
+            del os.environ["AVS_DASK_TIMEOUT"]
+
+
+def test_other_fixtures_are_refused_at_collection_under_dask(pytester):
+    pytester.makepyfile(test_tmp="""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=2)
+def test_x(case, tmp_path):
+    pass
+""")
+    result = pytester.runpytest("-p", "no:cacheprovider", "--avs-db=none", "--avs-executor=dask")
+    result.stdout.fnmatch_lines(["*--avs-executor=dask*only*case*world*avs_driver*tmp_path*"])
+    assert result.ret != 0
+
+
+# --------------------------------------------------------------------------- no cluster
+def test_worker_import_mimics_prepend_mode_and_reloads_an_edited_module(tmp_path, monkeypatch):
+    pkg = tmp_path / "suite" / "inner"
+    pkg.mkdir(parents=True)
+    (tmp_path / "suite" / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "helpers_avs_t.py").write_text("VALUE = 1\n")
+    mod_path = pkg / "test_avs_pkgmod.py"
+    mod_path.write_text("from .helpers_avs_t import VALUE\ndef test_v(case):\n    return VALUE\n")
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    try:
+        assert remote.module_name_for(mod_path) == (tmp_path, "suite.inner.test_avs_pkgmod")
+        mod = remote.import_test_module(str(mod_path), str(tmp_path))
+        assert mod.__name__ == "suite.inner.test_avs_pkgmod" and mod.test_v(None) == 1
+        assert remote.import_test_module(str(mod_path), str(tmp_path)) is mod  # unchanged: reused
+        mod_path.write_text("def test_v(case):\n    return 2  # edited\n")
+        os.utime(mod_path, ns=(time.time_ns(), time.time_ns() + 10**9))
+        assert remote.import_test_module(str(mod_path), str(tmp_path)).test_v(None) == 2
+    finally:
+        for name in [n for n in sys.modules if n == "suite" or n.startswith("suite.")]:
+            del sys.modules[name]
+
+
+class Unpicklable(Exception):
+    def __init__(self, a, b):  # pickle calls cls(*args) with one arg: it cannot rebuild this
+        super().__init__(f"{a}/{b}")
+
+
+def test_exceptions_cross_the_wire_with_type_text_and_last_frame():
+    from pytest_avscenario.runner import CaseOutcome
+
+    def body():
+        assert 1 + 1 == 3, "arithmetic"
+
+    for raise_it, kind in ((body, AssertionError), (lambda: (_ for _ in ()).throw(Unpicklable(1, 2)), Exception)):
+        try:
+            raise_it()
+        except Exception as exc:
+            outcome = CaseOutcome(params={"x": 1}, verdict="fail" if kind is AssertionError else "error",
+                                  exc=exc, error=str(exc))
+        wire = pickle.loads(pickle.dumps(remote.to_wire(outcome)))
+        back = remote.to_outcome(wire)
+        assert back.signature == outcome.signature
+        assert isinstance(back.exc, kind) and str(back.exc) == str(outcome.exc)
+        assert back.trajectory is None and back.verdict == outcome.verdict
+
+
+def test_a_conftest_driver_travels_by_value(pytester):
+    conftest = pytester.makeconftest("""
+class BrakeHard:
+    def act(self, observation):
+        return (-6.0, 0.0)
+""")
+    import cloudpickle
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("conftest", conftest)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    sys.modules["conftest"] = mod
+    try:
+        data = remote.pack_spec(remote.TestSpec("m.py", "/", "test_x", ("case",), None, mod.BrakeHard()))
+    finally:
+        del sys.modules["conftest"]
+    driver = cloudpickle.loads(data).driver  # no module called conftest exists here now
+    assert driver.act(None) == (-6.0, 0.0)
