@@ -77,3 +77,18 @@ def test_render_before_run_is_an_error(tmp_path):
     w.ego(road.lane(0))
     with pytest.raises(SimError, match="t_render.*call world.run"):
         w.render_png(tmp_path / "x.png")
+
+
+def test_view_can_be_centred_on_an_agent_or_place(tmp_path):
+    w = World(seed=1, driver="idm")
+    road = w.two_way_road()
+    w.ego(road.lane(0), s=10.0)
+    w.bus(road.lane(0, "backward"), s=100.0)  # at x = 200 m
+    w.run(0.5)
+    far = colours(w.render_png(tmp_path / "ego.png", step=0))
+    assert COLOURS["bus"] not in far  # 190 m ahead: outside the window following the ego
+    near = colours(w.render_png(tmp_path / "bus.png", step=0, centre="bus1", width=60.0))
+    assert COLOURS["bus"] in near
+    inter = scene("intersection")
+    zoom = colours(inter.render_png(tmp_path / "z.png", step=0, centre=inter.road.centre, width=20))
+    assert GRASS not in zoom  # 20 m around the centre is all intersection box and crosswalks

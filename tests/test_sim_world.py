@@ -396,3 +396,9 @@ def test_bad_appear_values():
         w.car(road.lane(0), s=10, appear=-1)
     with pytest.raises(SimError, match=r"disappear='soon'"):
         w.car(road.lane(0), s=10, disappear="soon", name="c2")
+
+
+@pytest.mark.parametrize("seed", [-1, "x", None])
+def test_bad_seeds(seed):
+    with pytest.raises(SimError, match=r"World\(seed="):
+        World(seed=seed, name="t_seed")

@@ -56,24 +56,39 @@ def _surface_class() -> Any:
     return NorthUpSurface
 
 
-def _view(world: Any, step: int) -> tuple[tuple[int, int], float, np.ndarray]:
-    """(size [px], scale [px/m], world point at the top-left corner [m]) for a frame."""
+def _view(world: Any, step: int, centre: Any = None,
+          width: float | None = None) -> tuple[tuple[int, int], float, np.ndarray]:
+    """(size [px], scale [px/m], world point at the top-left corner [m]) for a frame.
+
+    Default: the whole intersection, or a 133 m window following the ego on other roads.
+    ``centre`` (an (x, y) [m], a place, or an agent name) fixes the window's centre and
+    ``width`` [m] its width.
+    """
     tr = world.trajectory
     road = world.road
-    if road.kind == "intersection":
-        half = road.half + min(road.approach_length, 28.0)
-        size = (640, 640)
-        scale = size[0] / (2 * half)
-        return size, scale, np.array([-half, half])
-    size = (800, 320)
-    scale = 6.0
-    cx = float(tr.x[0, step])
-    if not math.isfinite(cx):
-        cx = 0.0
-    w, h = size[0] / scale, size[1] / scale
     box = world._index._box
-    cy = float(box[:, 1].min() + box[:, 3].max()) / 2
-    return size, scale, np.array([cx - w / 3, cy + h / 2])
+    if road.kind == "intersection":
+        size = (640, 640)
+        half = road.half + min(road.approach_length, 28.0)
+        cx, cy = 0.0, 0.0
+        scale = size[0] / (2 * half)
+    else:
+        size = (800, 320)
+        scale = 6.0
+        x0 = float(tr.x[0, step])
+        cx = x0 + size[0] / scale / 6 if math.isfinite(x0) else 0.0
+        cy = float(box[:, 1].min() + box[:, 3].max()) / 2
+    if width is not None:
+        scale = size[0] / float(width)
+    if centre is not None:
+        if isinstance(centre, str):
+            i = tr.names.index(centre)
+            centre = (tr.x[i, step], tr.y[i, step])
+        elif hasattr(centre, "position"):
+            centre = centre.position
+        cx, cy = float(centre[0]), float(centre[1])
+    w, h = size[0] / scale, size[1] / scale
+    return size, scale, np.array([cx - w / 2, cy + h / 2])
 
 
 def _poly(surface: Any, lane: Any, r0: float, r1: float, s0: float, s1: float) -> list:
@@ -84,8 +99,8 @@ def _poly(surface: Any, lane: Any, r0: float, r1: float, s0: float, s1: float) -
     return left + right
 
 
-def frame(world: Any, step: int) -> Any:
-    """The ``pygame.Surface`` of recorded ``step``."""
+def frame(world: Any, step: int, centre: Any = None, width: float | None = None) -> Any:
+    """The ``pygame.Surface`` of recorded ``step`` (view options as :func:`_view`)."""
     pygame = _pygame()
     from highway_env.road.graphics import LaneGraphics
 
@@ -95,7 +110,7 @@ def frame(world: Any, step: int) -> Any:
 
         raise SimError("nothing to render: call world.run() first", test=world.name)
     step = int(step) % tr.n_steps
-    size, scale, origin = _view(world, step)
+    size, scale, origin = _view(world, step, centre, width)
     Surf = _surface_class()
     surface = Surf(size, 0, pygame.Surface(size))
     surface.scaling = scale
@@ -188,17 +203,21 @@ def _image(surface: Any) -> Any:
     return Image.fromarray(np.ascontiguousarray(arr))
 
 
-def render_png(world: Any, path: str, step: int | None = None, frames: int = 6) -> str:
-    """One frame at ``step`` or, with ``step=None``, a grid of ``frames`` evenly spaced frames."""
+def render_png(world: Any, path: str, step: int | None = None, frames: int = 6,
+               centre: Any = None, width: float | None = None) -> str:
+    """One frame at ``step`` or, with ``step=None``, a grid of ``frames`` evenly spaced frames.
+
+    ``centre``/``width`` [m] fix the view (default: follow the ego; whole intersection).
+    """
     from PIL import Image
 
     tr = world.trajectory
     if step is not None:
-        _image(frame(world, step)).save(path)
+        _image(frame(world, step, centre, width)).save(path)
         return os.fspath(path)
     n = tr.n_steps if tr is not None else 0
     steps = sorted(set(np.linspace(0, max(n - 1, 0), frames).round().astype(int).tolist()))
-    images = [_image(frame(world, s)) for s in steps]
+    images = [_image(frame(world, s, centre, width)) for s in steps]
     w, h = images[0].size
     cols = 2 if w > h else 3
     rows = math.ceil(len(images) / cols)
@@ -209,8 +228,9 @@ def render_png(world: Any, path: str, step: int | None = None, frames: int = 6) 
     return os.fspath(path)
 
 
-def render_gif(world: Any, path: str, every: int = 1) -> str:
-    """An animated GIF of every ``every``-th recorded step, at real-time speed."""
+def render_gif(world: Any, path: str, every: int = 1, centre: Any = None,
+               width: float | None = None) -> str:
+    """An animated GIF of every ``every``-th recorded step, at real-time speed (view as PNG)."""
     tr = world.trajectory
     if tr is None:
         from .errors import SimError
@@ -219,7 +239,8 @@ def render_gif(world: Any, path: str, every: int = 1) -> str:
     from PIL import Image
 
     every = max(1, int(every))
-    images = [_image(frame(world, s)).convert("P", palette=Image.Palette.ADAPTIVE, colors=64)
+    images = [_image(frame(world, s, centre, width)).convert("P", palette=Image.Palette.ADAPTIVE,
+                                                             colors=64)
               for s in range(0, tr.n_steps, every)]
     images[0].save(path, save_all=True, append_images=images[1:],
                    duration=max(20, int(round(1000 * tr.dt * every))), loop=0)

@@ -40,7 +40,12 @@ class World:
 
     def __init__(self, seed: int, rng: np.random.Generator | None = None, driver: Any = None,
                  name: str = "") -> None:
-        self.seed = int(seed)
+        try:
+            self.seed = int(seed)
+        except (TypeError, ValueError):
+            raise SimError(f"World(seed={seed!r}): need an integer >= 0", test=str(name)) from None
+        if self.seed < 0:
+            raise SimError(f"World(seed={seed!r}): need an integer >= 0", test=str(name))
         self.rng = rng if rng is not None else np.random.default_rng(self.seed)
         self.driver = driver
         self.name = str(name)
@@ -620,16 +625,19 @@ class World:
 
     # -- rendering ---------------------------------------------------------------------------------
     def render_png(self, path: str, step: int | None = None, **kw: Any) -> str:
-        """Write a PNG of the recorded run: one frame at ``step``, or a strip of 6 frames.
+        """Write a PNG of the recorded run: one frame at ``step``, or a grid of 6 frames.
 
-        Replays ``world.trajectory`` (call :meth:`run` first). Returns the path.
+        Replays ``world.trajectory`` (call :meth:`run` first) offscreen; never opens a display.
+        ``centre=`` (an (x, y) [m], a place or an agent name) and ``width=`` [m] fix the view
+        (default: a window following the ego; the whole intersection). Returns the path.
         """
         from .render import render_png
 
         return render_png(self, path, step=step, **kw)
 
     def render_gif(self, path: str, every: int = 1, **kw: Any) -> str:
-        """Write an animated GIF replaying every ``every``-th recorded step. Returns the path."""
+        """Write an animated GIF replaying every ``every``-th recorded step (view options as
+        :meth:`render_png`). Returns the path."""
         from .render import render_gif
 
         return render_gif(self, path, every=every, **kw)
