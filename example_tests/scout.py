@@ -38,7 +38,7 @@ def scenario_tests(module):
     return out
 
 
-def run_one(fn, spec, params, seed, driver, png=None, gif=None, shrink_png=True):
+def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=960):
     from pytest_avscenario import Case
     from pytest_avscenario.monitors import MonitorSet
     from pytest_avscenario.sim import World
@@ -56,14 +56,14 @@ def run_one(fn, spec, params, seed, driver, png=None, gif=None, shrink_png=True)
     verdict = MonitorSet(list(spec.monitors), priority=spec.priority).evaluate(traj)
     if png:
         world.render_png(png)
-        if shrink_png:
-            _shrink(png)
+        if width:
+            _shrink(png, width)
     if gif:
         world.render_gif(gif, every=2)
     return verdict, wall, error, world
 
 
-def _shrink(path, width=720):
+def _shrink(path, width=960):
     """Downscale and quantize a PNG so the kept frames stay a few tens of KB."""
     from PIL import Image
 
@@ -84,6 +84,7 @@ def main(argv=None):
     ap.add_argument("--params", default=None, help="JSON overriding nominal values")
     ap.add_argument("--png", default=None, help="render the (first) case to this PNG")
     ap.add_argument("--gif", default=None)
+    ap.add_argument("--width", type=int, default=960, help="downscale PNGs to this width [px]")
     ap.add_argument("--render-failures", default=None, help="directory: PNG of each failure")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
@@ -109,14 +110,17 @@ def main(argv=None):
             png = args.png if k == 0 else None
             verdict, wall, error, world = run_one(fn, spec, params, stable_seed(args.seed, label),
                                                   args.driver, png=png,
-                                                  gif=args.gif if k == 0 else None)
+                                                  gif=args.gif if k == 0 else None,
+                                                  width=args.width)
             total += wall
             bad = verdict.violated
             for m in bad:
                 counts[m] = counts.get(m, 0) + 1
             if bad and args.render_failures:
                 os.makedirs(args.render_failures, exist_ok=True)
-                world.render_png(os.path.join(args.render_failures, f"{name}-{label}.png"))
+                out = os.path.join(args.render_failures, f"{name}-{label}.png")
+                world.render_png(out)
+                _shrink(out, args.width)
             if not args.quiet or k == 0 or bad:
                 rho = " ".join(f"{m}={v:+.2f}" if math.isfinite(v) else f"{m}={v}"
                                for m, v in verdict.rho.items())

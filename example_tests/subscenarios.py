@@ -247,10 +247,11 @@ def oncoming_encroacher(world: Any, road: Any, *, s: float, throttle: float, off
 
 
 def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: float,
-                    stop_at: float, duration: float, trigger: Any = None) -> Any:
-    """A school bus ``s`` m along lane 0 of ``direction`` at ``speed`` [m/s] that stops at
-    ``stop_at`` [s] and shows its stop arm for ``duration`` [s]."""
-    beh = b.bus_stop(t=stop_at, duration=duration, decel=3.0)
+                    stop_at: float, duration: float, decel: float = 3.0,
+                    trigger: Any = None) -> Any:
+    """A school bus ``s`` m along lane 0 of ``direction`` at ``speed`` [m/s] that brakes at
+    ``decel`` [m/s^2] from ``stop_at`` [s] and shows its stop arm for ``duration`` [s]."""
+    beh = b.bus_stop(t=stop_at, duration=duration, decel=decel)
     return world.bus(road.lane(0, direction), s=s, speed=speed,
                      behavior=_maybe_triggered(beh, trigger), name="bus")
 
@@ -258,13 +259,16 @@ def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: f
 # -- monitors the situation needs ---------------------------------------------------------------
 
 
-def passes_stopped_school_bus(bus: str = "bus", margin: float = 2.0):
+def passes_stopped_school_bus(bus: str = "bus", margin: float = 2.0, decel: float = 6.0,
+                              reaction: float = 0.5):
     """The ego never drives past a school bus while its stop arm is out.
 
     rho [m] = min over the steps with the arm out of how far the ego's front bumper stays
     behind the bus's near end minus ``margin``, measured along the road (x); the ego's own
-    heading decides which end is near. When the ego was already past the bus when the arm came
-    out, the requirement does not apply (rho = +inf).
+    heading decides which end is near. When the arm came out too late for the ego to stop
+    before the bus after a ``reaction`` time at a firm ``decel`` (the ego's front was already
+    closer than v reaction + v^2 / (2 decel), or past the bus), the requirement does not apply
+    (rho = +inf).
     """
 
     def stops_for_school_bus(tr) -> float:
@@ -275,8 +279,9 @@ def passes_stopped_school_bus(bus: str = "bus", margin: float = 2.0):
         sign = 1.0 if math.cos(tr.heading[e, 0]) >= 0 else -1.0
         gap = sign * (tr.x[k] - tr.x[e]) - (tr.length[k] + tr.length[e]) / 2
         first = int(np.flatnonzero(arm)[0])
-        if gap[first] < -tr.length[k]:
-            return math.inf  # already past the bus when it stopped
+        v = tr.speed[e, first]
+        if gap[first] < v * reaction + v * v / (2 * decel):
+            return math.inf  # too late to stop when the arm came out
         return float(np.min(gap[arm]) - margin)
 
     return as_monitor(stops_for_school_bus, name="school_bus")

@@ -3,16 +3,17 @@
 Situation: a two-way road, one 5.5 m lane each way. The ego drives east at ``ego_speed``. A
 school bus drives either ahead of it in its lane or toward it in the oncoming lane
 (``bus_from``), starting ``d_bus`` m from the ego (centres, along the road) at ``bus_speed``;
-after ``bus_stop_at`` s it brakes to a stop (3 m/s^2), puts its stop arm out for
+after ``bus_stop_at`` s it brakes to a stop at ``bus_decel``, puts its stop arm out for
 ``arm_for`` s, then drives on. Traffic in both directions must stop and stay behind a bus with
 its arm out.
 
-Parameters: ``bus_from`` in {"ahead", "oncoming"}; ``d_bus`` [m] U(25, 110); ``bus_speed``
-[m/s] U(4, 10); ``bus_stop_at`` [s] U(0.5, 6); ``arm_for`` [s] U(3, 10); ``ego_speed`` [m/s]
-U(8, 14).
+Parameters: ``bus_from`` in {"ahead", "oncoming"}; ``d_bus`` [m] U(20, 110); ``bus_speed``
+[m/s] U(4, 13); ``bus_decel`` [m/s^2] U(1.5, 5); ``bus_stop_at`` [s] U(0.5, 6); ``arm_for`` [s]
+U(3, 10); ``ego_speed`` [m/s] U(8, 16).
 
 A failure means the AV drove past the bus's near end (plus 2 m) while the arm was out
-(``school_bus``), came within 5 m (centres) of it, was on course to within 5 m in under 2 s,
+(``school_bus``; excused when the arm came out too late to stop after 0.5 s at 6 m/s^2),
+came within 5 m (centres) of it, was on course to within 5 m in under 2 s,
 made no progress at all (< 11 m), left its lane centre, or collided.
 """
 
@@ -27,11 +28,12 @@ EGO_S = 20.0  # [m]
 
 @scenario(
     bus_from=Choice(["ahead", "oncoming"]),
-    d_bus=Uniform(25.0, 110.0, nominal=70.0),  # [m] bus centre from the ego centre
-    bus_speed=Uniform(4.0, 10.0, nominal=7.0),  # [m/s]
+    d_bus=Uniform(20.0, 110.0, nominal=70.0),  # [m] bus centre from the ego centre
+    bus_speed=Uniform(4.0, 13.0, nominal=7.0),  # [m/s]
+    bus_decel=Uniform(1.5, 5.0, nominal=3.0),  # [m/s^2]
     bus_stop_at=Uniform(0.5, 6.0, nominal=3.0),  # [s]
     arm_for=Uniform(3.0, 10.0, nominal=6.0),  # [s]
-    ego_speed=Uniform(8.0, 14.0, nominal=11.0),  # [m/s]
+    ego_speed=Uniform(8.0, 16.0, nominal=11.0),  # [m/s]
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(),
@@ -46,5 +48,5 @@ def test_school_bus(case, world):
     else:  # backward lanes are measured from the east end
         s_bus, direction = ROAD_LENGTH - EGO_S - case.d_bus, "backward"
     school_bus_stop(world, road, direction=direction, s=s_bus, speed=case.bus_speed,
-                    stop_at=case.bus_stop_at, duration=case.arm_for)
+                    stop_at=case.bus_stop_at, duration=case.arm_for, decel=case.bus_decel)
     world.run(seconds=16)
