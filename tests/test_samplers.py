@@ -115,6 +115,17 @@ def test_mab_invalid_case_counts_a_pull_but_moves_no_mean():
     assert s.pulls[0] == pulls + 1
 
 
+def test_batch_conversion_equals_the_feature_space_mapping():
+    space = FeatureSpace(MIXED)
+    s = samplers.make("random", MIXED, seed=0)
+    U = np.random.default_rng(0).random((200, space.d))
+    U[:3] = [[0.0, 1.0, 0.5, 1.0], [1.0, 0.0, 0.0, 0.999999], [-0.1, 1.2, 0.3, 0.5]]
+    assert s._params_many(U) == [space.from_unit(u) for u in U]
+    assert [s._params(u) for u in U] == [space.from_unit(u) for u in U]
+    assert np.allclose([s._unit(space.from_unit(u)) for u in U[3:]],
+                       [space.to_unit(space.from_unit(u)) for u in U[3:]])
+
+
 def test_scalar_rho_nan_anywhere_is_invalid_whatever_the_order():
     assert scalar_rho({"a": 1.0, "b": float("nan")}) is None
     assert scalar_rho({"a": float("nan"), "b": 1.0}) is None

@@ -151,6 +151,26 @@ class Sampler:
             out[name] = a + x * w if kind == 1 else dist.from_unit(x)
         return out
 
+    def _params_many(self, U: np.ndarray) -> list[dict[str, Any]]:
+        """``_params`` of every row of ``U`` at once (same values, fewer Python steps)."""
+        U = np.clip(np.asarray(U, dtype=float).reshape(-1, self.d), 0.0, 1.0)
+        n = U.shape[0]
+        if not self._conv:
+            return [{} for _ in range(n)]
+        cols: list[list[Any]] = []
+        j = 0
+        for name, kind, a, w, dist in self._conv:
+            if kind == 0:
+                cols.append([a] * n)
+                continue
+            if kind == 1:
+                cols.append((a + U[:, j] * w).tolist())
+            else:
+                cols.append([dist.from_unit(x) for x in U[:, j].tolist()])
+            j += 1
+        names = [c[0] for c in self._conv]
+        return [dict(zip(names, row)) for row in zip(*cols)]
+
     def _unit(self, params: Mapping[str, Any]) -> list[float]:
         vals = []
         for name, kind, a, w, dist in self._conv:

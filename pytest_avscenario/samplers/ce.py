@@ -60,20 +60,28 @@ class CrossEntropySampler(ActiveSampler):
         self._U = np.zeros((16, g.d))
         self._R = np.zeros(16)
         self._queue: list[list[float]] = []  # points of the current batch, reversed
+        self._pqueue: list[dict[str, Any]] = []  # and as parameter dicts
         self._since = 0
 
     # -- proposing ----------------------------------------------------------------------
-    def _next(self) -> list[float]:
-        self.n_asked += 1
-        if not self._queue:
-            self._queue = self._draw(self.batch)[::-1].tolist()
-        return self._queue.pop()
+    def _fill(self) -> None:
+        pts = self._draw(self.batch)[::-1]
+        self._queue = pts.tolist()
+        self._pqueue = self._params_many(pts)  # the same points as parameter dicts
 
     def ask_unit(self) -> np.ndarray:
-        return np.array(self._next(), dtype=float)
+        self.n_asked += 1
+        if not self._queue:
+            self._fill()
+        self._pqueue.pop()
+        return np.array(self._queue.pop(), dtype=float)
 
     def ask(self) -> dict[str, Any]:
-        return self._params(self._next())
+        self.n_asked += 1
+        if not self._queue:
+            self._fill()
+        self._queue.pop()
+        return self._pqueue.pop()
 
     def _draw(self, m: int) -> np.ndarray:
         g = self.grid
@@ -118,7 +126,7 @@ class CrossEntropySampler(ActiveSampler):
         # mixing in `floor` of the uniform keeps every bucket at >= floor / k exactly
         p = (1.0 - self.smoothing) * self.prob + self.smoothing * freq
         self._set_prob((1.0 - self.floor) * p + self._floor_uniform)
-        self._queue = []  # the rest of the batch came from the old distribution
+        self._queue, self._pqueue = [], []  # the rest came from the old distribution
 
     # -- state --------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
@@ -141,3 +149,5 @@ class CrossEntropySampler(ActiveSampler):
             self._R[: self._n] = [float(x) for x in state["rho"]]
         self._since = int(state["since"])
         self._queue = [[float(x) for x in q] for q in state["queue"]]
+        self._pqueue = self._params_many(np.array(self._queue, dtype=float).reshape(-1, self.d)) \
+            if self._queue else []

@@ -65,6 +65,7 @@ class HaltonSampler(Sampler):
         # even when the caller passed a Generator (which has moved on since)
         self._engine_seed = int(self.rng.integers(2**63)) if self.scramble else 0
         self._buf: list[list[float]] = []  # the current block, reversed, as plain floats
+        self._pbuf: list[dict[str, Any]] = []  # and as parameter dicts
         self._engine = self._make_engine() if self.scramble else None
 
     def _make_engine(self) -> Any:
@@ -80,21 +81,29 @@ class HaltonSampler(Sampler):
             return self._engine.random(n)[:, : self.d]
         return halton_points(start, n, self.d)
 
-    def _next(self) -> list[float]:
-        if not self._buf:
-            self._buf = self._block(self.skip + self.n_asked, _BLOCK)[::-1].tolist()
-        self.n_asked += 1
-        return self._buf.pop()
+    def _fill(self) -> None:
+        blk = self._block(self.skip + self.n_asked, _BLOCK)[::-1]
+        self._buf = blk.tolist()
+        self._pbuf = self._params_many(blk)  # the same points as parameter dicts
 
     def ask_unit(self) -> np.ndarray:
-        return np.array(self._next(), dtype=float)
+        if not self._buf:
+            self._fill()
+        self.n_asked += 1
+        self._pbuf.pop()
+        return np.array(self._buf.pop(), dtype=float)
 
     def ask(self) -> dict[str, Any]:
-        return self._params(self._next())
+        if not self._buf:
+            self._fill()
+        self.n_asked += 1
+        self._buf.pop()
+        return self._pbuf.pop()
 
     def sample_unit(self, n: int) -> np.ndarray:
         take = min(n, len(self._buf))
         head = [self._buf.pop() for _ in range(take)]
+        del self._pbuf[len(self._buf):]
         self.n_asked += take
         rest = self._block(self.skip + self.n_asked, n - take)
         self.n_asked += n - take
@@ -110,7 +119,7 @@ class HaltonSampler(Sampler):
     def restore(self, state: Mapping[str, Any]) -> None:
         super().restore(state)
         self._engine_seed = int(state.get("engine_seed", self._engine_seed))
-        self._buf = []
+        self._buf, self._pbuf = [], []
         if self.scramble:
             # a scrambled engine's permutations come from the seed: rebuild, then fast-forward
             self._engine = self._make_engine()
