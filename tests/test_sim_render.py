@@ -90,5 +90,5 @@ def test_view_can_be_centred_on_an_agent_or_place(tmp_path):
     near = colours(w.render_png(tmp_path / "bus.png", step=0, centre="bus1", width=60.0))
     assert COLOURS["bus"] in near
     inter = scene("intersection")
-    zoom = colours(inter.render_png(tmp_path / "z.png", step=0, centre=inter.road.centre, width=20))
-    assert GRASS not in zoom  # 20 m around the centre is all intersection box and crosswalks
+    zoom = colours(inter.render_png(tmp_path / "z.png", step=0, centre=inter.road.centre, width=8))
+    assert GRASS not in zoom  # 8 m around the centre: all asphalt
