@@ -6,14 +6,12 @@ crosswalk, ...)``, ``parked_car_pulling_out(world, road, ...)``, ``oncoming_encr
 road, ...)``, ``school_bus_stop(world, road, ...)``. The ten scenario modules use them one at
 a time; ``test_11_composed_route.py`` composes three along one route.
 
-Opportunistic composition: ``trigger=(place, within_m)`` makes a sub-scenario wait until the
-ego comes within ``within_m`` metres of ``place`` (its agents stand still until then, and the
-clocks of their behaviours start at that moment), and :func:`only_while_relevant` masks them
-out of the recording (``present=False``) before that and once the ego has passed the place,
-so the monitors judge each sub-scenario only while it applies. The world of
-``pytest_avscenario.sim`` cannot add or remove agents during a run, so the agents are
-*placed* up front (parked, standing on the kerb, waiting up a side street) and only their
-*relevance* is opportunistic; see README.md.
+Opportunistic composition: ``trigger=(place, within_m)`` makes a sub-scenario's agents
+appear (``appear=world.ego_within(place, within_m)``) when the ego comes within ``within_m``
+metres of ``place`` and disappear once the ego is 15 m past each of them
+(:func:`ego_passed`); the clocks of their behaviours start at their appearance
+(:func:`since_appearance`). While absent they are recorded with ``present`` False, so the
+monitors judge each sub-scenario only while it applies.
 """
 
 from __future__ import annotations
@@ -30,9 +28,9 @@ from pytest_avscenario.sim import behaviors as b
 from pytest_avscenario.sim.behaviors import Behavior
 
 __all__ = [
-    "slow_down", "throttle_encroach", "when_ego_near",
+    "slow_down", "throttle_encroach", "since_appearance", "ego_passed",
     "crossing_traffic", "pedestrian_crossing", "parked_car_pulling_out",
-    "oncoming_encroacher", "school_bus_stop", "only_while_relevant",
+    "oncoming_encroacher", "school_bus_stop",
     "passes_stopped_school_bus", "parks",
 ]
 
@@ -91,7 +89,8 @@ def throttle_encroach(throttle: float, offset: float, max_speed: float = 15.0,
 
 
 class _Shifted:
-    """The world as a behaviour sees it once activated: the same world, its clock shifted."""
+    """The world as a behaviour sees it once its agent appeared: the same world, its clock
+    shifted so that t = 0 at the appearance."""
 
     def __init__(self, world: Any, t0: float) -> None:
         self._world = world
@@ -106,18 +105,12 @@ class _Shifted:
 
 
 @dataclass(frozen=True)
-class WhenEgoNear(Behavior):
-    """Stand still until the ego is within ``within`` m of ``place``, then run ``inner``.
-
-    ``inner``'s clock starts at activation (``brake_at(t=2)`` brakes 2 s after it). The
-    activation time and the time the ego has passed the agent (``passed_after`` m beyond it
-    along the ego's heading) are kept in ``state`` for :func:`only_while_relevant`.
-    """
+class SinceAppearance(Behavior):
+    """Run ``inner`` with its clock starting when the agent appears (its first step), so that
+    ``brake_at(t=2)`` or ``cross(wait=3)`` count from the moment a sub-scenario is activated
+    rather than from the start of the run."""
 
     inner: Any = None
-    place: Any = None
-    within: float = 40.0
-    passed_after: float = 10.0  # [m] the ego is past the place this far along its heading
 
     kinds = b.VEHICLES + b.PEDESTRIANS
 
@@ -129,53 +122,37 @@ class WhenEgoNear(Behavior):
         self.inner.start(agent, world)
 
     def control(self, agent, world):
-        st = self.state
-        ego = world.agents[0]
-        pos = np.asarray(getattr(self.place, "position", self.place), dtype=float)
-        if "t_on" not in st:
-            if float(np.hypot(*(ego.position - pos))) <= self.within:
-                st["t_on"] = world.t
-            elif agent.kind == "pedestrian":
-                return 0.0
-            else:
-                brake = -min(agent.speed / 0.3, 6.0) if agent.speed > 0 else 0.0
-                return brake, agent.follow()
-        if "t_off" not in st:
-            d = agent.position - ego.position
-            ahead = d[0] * math.cos(ego.heading) + d[1] * math.sin(ego.heading)
-            if ahead < -self.passed_after:
-                st["t_off"] = world.t
-        return self.inner.control(agent, _Shifted(world, st["t_on"]))
+        t0 = self.state.setdefault("t0", world.t)
+        return self.inner.control(agent, _Shifted(world, t0))
 
 
-def when_ego_near(inner: Behavior, place: Any, within: float = 40.0,
-                  passed_after: float = 10.0) -> WhenEgoNear:
-    """Activate ``inner`` when the ego comes within ``within`` [m] of ``place`` (a spot, a
-    crosswalk, a point); it stops counting once the ego is ``passed_after`` [m] beyond the
-    agent."""
-    return WhenEgoNear(inner=inner, place=place, within=within, passed_after=passed_after)
+def since_appearance(inner: Behavior) -> SinceAppearance:
+    """``inner`` with its clock starting at the agent's appearance."""
+    return SinceAppearance(inner=inner)
 
 
-def _maybe_triggered(behavior: Behavior, trigger: Any) -> Behavior:
+def ego_passed(name: str, by: float = 15.0):
+    """A ``disappear=`` condition: the ego's rear is ``by`` [m] past the agent ``name``
+    (measured along the ego's heading)."""
+
+    def cond(world: Any) -> bool:
+        # world.ego_past(agent) would read the agent's highway-env ``lane`` as a place's lane
+        ego, other = world.agent("ego"), world.agent(name)
+        d = other.position - ego.position
+        ahead = d[0] * math.cos(ego.heading) + d[1] * math.sin(ego.heading)
+        return ahead + ego.LENGTH / 2 < -by
+
+    return cond
+
+
+def _spawn(world: Any, behavior: Behavior, trigger: Any, name: str) -> dict[str, Any]:
+    """Keyword arguments that make an agent opportunistic: it appears when the ego comes
+    within ``trigger = (place, within_m)`` and disappears once the ego has passed it."""
     if trigger is None:
-        return behavior
+        return {"behavior": behavior, "name": name}
     place, within = trigger
-    return when_ego_near(behavior, place, within)
-
-
-def only_while_relevant(world: Any, agents: list[Any]) -> Any:
-    """The world's trajectory with each triggered agent present only from its activation
-    until the ego has passed it (the rest of the run it is invisible to the monitors)."""
-    tr = world.trajectory
-    present = tr.present.copy()
-    for a in agents:
-        beh = a.behavior
-        st = getattr(beh, "state", {}) if isinstance(beh, WhenEgoNear) else {}
-        i = tr.names.index(a.name)
-        t_on = st.get("t_on", math.inf)
-        t_off = st.get("t_off", math.inf)
-        present[i] = (tr.t >= t_on - 1e-9) & (tr.t <= t_off + 1e-9)
-    return dataclasses.replace(tr, present=present)
+    return {"behavior": since_appearance(behavior), "name": name,
+            "appear": world.ego_within(place, within), "disappear": ego_passed(name)}
 
 
 # -- sub-scenarios -------------------------------------------------------------------------------
@@ -184,7 +161,7 @@ def only_while_relevant(world: Any, agents: list[Any]) -> Any:
 def crossing_traffic(world: Any, inter: Any, approach: str, *, first_s: float, speed: float,
                      count: int = 1, spacing: float = 20.0, turn: str = "straight",
                      lane: int = 0, start_at: float = 0.0, stops: bool = False,
-                     trigger: Any = None) -> list[Any]:
+                     trigger: Any = None, name: str = "cross") -> list[Any]:
     """``count`` cars on ``approach`` of ``inter``, the first ``first_s`` m along the lane
     (i.e. ``approach_length - first_s`` from the box), ``spacing`` m apart, at ``speed`` [m/s].
 
@@ -204,13 +181,14 @@ def crossing_traffic(world: Any, inter: Any, approach: str, *, first_s: float, s
         else:
             beh = b.cut_across(speed, direction=turn, start_at=start_at)
         cars.append(world.car(lane_obj, s=s, speed=speed if start_at <= 0 else 0.0,
-                              behavior=_maybe_triggered(beh, trigger)))
+                              **_spawn(world, beh, trigger, f"{name}{k + 1}")))
     return cars
 
 
 def pedestrian_crossing(world: Any, crosswalk: Any, *, side: str | None = None,
                         wait: float = 0.0, wait_in_road: float = 0.0, speed: float = 1.4,
-                        approach: float = 3.0, trigger: Any = None) -> Any:
+                        approach: float = 3.0, trigger: Any = None,
+                        name: str = "pedestrian") -> Any:
     """A pedestrian using ``crosswalk`` from ``side``: waits ``wait`` [s] ``approach`` m back
     from the crosswalk's kerb end, walks at ``speed`` [m/s] to it and across, stands
     ``wait_in_road`` [s] in the first lane it enters, and walks ``approach`` m on beyond.
@@ -225,25 +203,25 @@ def pedestrian_crossing(world: Any, crosswalk: Any, *, side: str | None = None,
     u = (pts[-1] - pts[0]) / np.linalg.norm(pts[-1] - pts[0])
     path = Path.through([pts[0] - approach * u, *pts, pts[-1] + approach * u])
     beh = b.cross(wait=wait, wait_in_road=wait_in_road, speed=speed)
-    return world.pedestrian(path, speed=speed, behavior=_maybe_triggered(beh, trigger))
+    return world.pedestrian(path, speed=speed, **_spawn(world, beh, trigger, name))
 
 
 def parked_car_pulling_out(world: Any, road: Any, *, s: float, at: float, speed: float = 8.0,
-                           trigger: Any = None) -> Any:
+                           trigger: Any = None, name: str = "pulling_out") -> Any:
     """A car parked ``s`` m along the forward parking lane that pulls out at ``at`` [s]."""
     return world.parked_car(road.parking_lane, s=s,
-                            behavior=_maybe_triggered(b.pull_out(at=at, speed=speed), trigger))
+                            **_spawn(world, b.pull_out(at=at, speed=speed), trigger, name))
 
 
-def oncoming_encroacher(world: Any, road: Any, *, s: float, throttle: float, offset: float,
+def oncoming_encroacher(world: Any, lane: Any, *, s: float, throttle: float, offset: float,
                         speed: float = 0.0, max_speed: float = 15.0, at: float = 0.0,
-                        duration: float | None = None, trigger: Any = None) -> Any:
-    """An oncoming car ``s`` m along the backward lane (from the east end) that drives with
-    ``throttle`` and ``offset`` m over the centre line."""
-    return world.car(road.lane(0, "backward"), s=s, speed=speed,
-                     behavior=_maybe_triggered(
-                         throttle_encroach(throttle, offset, max_speed=max_speed, at=at,
-                                           duration=duration), trigger))
+                        duration: float | None = None, trigger: Any = None,
+                        name: str = "oncoming") -> Any:
+    """An oncoming car ``s`` m along ``lane`` (the lane against the ego's direction, e.g.
+    ``road.lane(0, "backward")``) that pulls away with ``throttle`` and, from ``at`` [s] for
+    ``duration`` [s], drives ``offset`` m left of its lane centre, toward the ego's lane."""
+    beh = throttle_encroach(throttle, offset, max_speed=max_speed, at=at, duration=duration)
+    return world.car(lane, s=s, speed=speed, **_spawn(world, beh, trigger, name))
 
 
 def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: float,
@@ -252,8 +230,7 @@ def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: f
     """A school bus ``s`` m along lane 0 of ``direction`` at ``speed`` [m/s] that brakes at
     ``decel`` [m/s^2] from ``stop_at`` [s] and shows its stop arm for ``duration`` [s]."""
     beh = b.bus_stop(t=stop_at, duration=duration, decel=decel)
-    return world.bus(road.lane(0, direction), s=s, speed=speed,
-                     behavior=_maybe_triggered(beh, trigger), name="bus")
+    return world.bus(road.lane(0, direction), s=s, speed=speed, **_spawn(world, beh, trigger, "bus"))
 
 
 # -- monitors the situation needs ---------------------------------------------------------------

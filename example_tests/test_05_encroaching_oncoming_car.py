@@ -50,7 +50,7 @@ def test_encroaching_oncoming_car(case, world):
     world.ego(road.lane(0), s=JUNCTION_X - case.d_ego, speed=case.ego_speed,
               target_speed=case.ego_speed)
     # backward lanes run from x = ROAD_LENGTH westwards: s is measured from the east end
-    oncoming_encroacher(world, road, s=ROAD_LENGTH - JUNCTION_X - case.d_adv,
+    oncoming_encroacher(world, road.lane(0, "backward"), s=ROAD_LENGTH - JUNCTION_X - case.d_adv,
                         throttle=case.throttle, offset=case.encroach, max_speed=12.0,
                         at=case.encroach_at, duration=case.encroach_for)
     world.run(seconds=12)
