@@ -6,9 +6,10 @@ base, computed here with numpy (so collecting a Halton test does not pay for imp
 scipy.stats). ``scramble=True`` gives scipy.stats.qmc's randomized (seeded) sequence. The
 unscrambled sequence starts at the origin, a degenerate corner case; like VerifAI we skip it
 (``skip``, default 1). Integer and categorical dimensions take their coordinate of the same
-Halton point, which stratifies them over their values. Points are made in blocks of
-``_BLOCK`` and handed out one by one: a numpy (or scipy) call per point cost ten times more
-than everything else in a sample.
+Halton point, which stratifies them over their values. Points are made in blocks (256
+points, doubling up to ``_BLOCK``), converted to parameter dicts together, and handed out
+one by one: a numpy (or scipy) call per point cost ten times more than everything else in
+a sample.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from .base import Sampler, SamplerError
 
-_BLOCK = 256
+_BLOCK = 4096
 
 
 def first_primes(n: int) -> list[int]:
@@ -66,6 +67,7 @@ class HaltonSampler(Sampler):
         self._engine_seed = int(self.rng.integers(2**63)) if self.scramble else 0
         self._buf: list[list[float]] = []  # the current block, reversed, as plain floats
         self._pbuf: list[dict[str, Any]] = []  # and as parameter dicts
+        self._blk = 128
         self._engine = self._make_engine() if self.scramble else None
 
     def _make_engine(self) -> Any:
@@ -82,7 +84,10 @@ class HaltonSampler(Sampler):
         return halton_points(start, n, self.d)
 
     def _fill(self) -> None:
-        blk = self._block(self.skip + self.n_asked, _BLOCK)[::-1]
+        # blocks double from 256 up to _BLOCK points: a short campaign pays for a few dozen
+        # points, a long one amortizes numpy's per-call overhead over thousands
+        self._blk = min(_BLOCK, 2 * self._blk)
+        blk = self._block(self.skip + self.n_asked, self._blk)[::-1]
         self._buf = blk.tolist()
         self._pbuf = self._params_many(blk)  # the same points as parameter dicts
 
