@@ -84,7 +84,7 @@ class HaltonSampler(Sampler):
         return halton_points(start, n, self.d)
 
     def _fill(self) -> None:
-        # blocks double from 256 up to _BLOCK points: a short campaign pays for a few dozen
+        # blocks double from 256 up to _BLOCK points: a short campaign pays for a few hundred
         # points, a long one amortizes numpy's per-call overhead over thousands
         self._blk = min(_BLOCK, 2 * self._blk)
         blk = self._block(self.skip + self.n_asked, self._blk)[::-1]
