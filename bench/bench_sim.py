@@ -98,14 +98,13 @@ class FullScan:
         self.track = roads.LaneIndex.track
 
         def track(index, agent):
-            self.track(index, agent)  # keeps route progress identical
-            if agent.kind == "pedestrian":
-                return
+            index.progress(agent)  # route progress stays identical
             net = agent.world._road.network
             li = net.get_closest_lane_index(agent.position, agent.heading)
             agent.lane_index = li
             agent.lane = net.get_lane(li)
             agent.lane_r = agent.lane.local_coordinates(agent.position)[1]
+            agent.is_on_road = agent.lane.on_lane(agent.position)
 
         roads.LaneIndex.track = track
         return self

@@ -138,18 +138,30 @@ class LaneIndex:
     # -- tracking --------------------------------------------------------------------------------
     def track(self, agent: Any) -> None:
         """Update ``agent``'s route progress and current lane after it moved."""
+        self.progress(agent)
+        self.current_lane(agent)
+
+    def progress(self, agent: Any) -> None:
+        """Advance ``route_index`` and set ``route_s``/``route_r`` [m] on the route lane."""
+        route = agent.plan
+        if not route:
+            return
+        pos = agent.position
+        ri = agent.route_index
+        g = route[ri].geometry
+        s, r = g.local_coordinates(pos)
+        while s > g.length and ri + 1 < len(route):
+            ri += 1
+            g = route[ri].geometry
+            s, r = g.local_coordinates(pos)
+        agent.route_index, agent.route_s, agent.route_r = ri, s, r
+
+    def current_lane(self, agent: Any) -> None:
+        """Set ``lane_index``, ``lane``, ``lane_r`` [m] and ``is_on_road`` (after :meth:`progress`)."""
         pos = agent.position
         x, y = float(pos[0]), float(pos[1])
         route = agent.plan
         ri = agent.route_index
-        if route:
-            g = route[ri].geometry
-            s, r = g.local_coordinates(pos)
-            while s > g.length and ri + 1 < len(route):
-                ri += 1
-                g = route[ri].geometry
-                s, r = g.local_coordinates(pos)
-            agent.route_index, agent.route_s, agent.route_r = ri, s, r
         cur = agent.lane_index
         if cur is not None:
             if route and route[ri].index == cur:
