@@ -18,6 +18,8 @@ import math
 import os
 import secrets
 import time
+import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,7 +27,7 @@ import pytest
 
 from .case import RESERVED, Case, stable_seed
 from .markers.spec import ScenarioSpec
-from .runner import CaseOutcome, run_case
+from .runner import CaseOutcome
 from .space import FeatureSpace, SpaceError
 
 DEFAULT_SAMPLES = 20
@@ -34,6 +36,9 @@ DEFAULT_SAMPLER = "halton"
 plans_key = pytest.StashKey[dict[str, "ScenarioPlan"]]()
 seed_key = pytest.StashKey[int]()
 row_key = pytest.StashKey[dict]()
+db_key = pytest.StashKey[Any]()
+shrink_rows_key = pytest.StashKey[list]()
+executor_key = pytest.StashKey[Any]()
 session_key = pytest.StashKey["RunState"]()
 
 
@@ -66,6 +71,21 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         metavar="DURATION", default=None,
         help="cap each scenario test's campaign per sampler (e.g. 30m, 90s, 1h); remaining "
              "cases are skipped")
+    add("db", "replay database directory (default .avscenario at the rootdir; 'none' disables)",
+        metavar="PATH", default=None,
+        help="replay database of found counterexamples (default .avscenario at the rootdir; "
+             "'none' disables)")
+    add("shrink-budget", "simulations allowed to minimize each failing case (0 disables)",
+        metavar="N", default=None, type=int,
+        help="simulations allowed to minimize each failing case toward the nominal scenario "
+             "(default 20; 0 disables)")
+    add("executor", "where scenario cases are simulated: inprocess (default) or dask",
+        metavar="NAME", default=None,
+        help="where scenario cases are simulated: 'inprocess' (default) or 'dask'")
+    add("dask-address", "Dask scheduler address for --avs-executor=dask (default: a LocalCluster)",
+        metavar="ADDRESS", default=None,
+        help="scheduler of an existing Dask cluster, e.g. tcp://host:8786 (default: start a "
+             "LocalCluster with one worker per core)")
     group.addoption(
         "--avs-params", dest="avs_params", metavar="JSON", default=None,
         help="run the selected scenario cases with these parameter values "
@@ -82,6 +102,7 @@ def pytest_configure(config: pytest.Config) -> None:
     )
     config.stash[plans_key] = {}
     config.stash[seed_key] = _session_seed(config)
+    config.stash[db_key] = _open_db(config)
     config.stash[session_key] = state = RunState(config)
     config.pluginmanager.register(state, "avscenario-run")
     if config.pluginmanager.hasplugin("xdist"):
@@ -118,11 +139,35 @@ def _session_seed(config: pytest.Config) -> int:
     return seed
 
 
+def _open_db(config: pytest.Config) -> Any:
+    """The replay database, or None. Workers get the controller's snapshot (same items)."""
+    raw = config.getoption("avs_db") or config.getini("avs_db")
+    if raw is not None and str(raw).lower() == "none":
+        return None
+    from .db import DatabaseError, ReplayDB
+
+    path = config.rootpath / ".avscenario" if not raw else config.invocation_params.dir / str(raw)
+    workerinput = getattr(config, "workerinput", None)
+    try:
+        if workerinput is not None and "avs_db" in workerinput:
+            return ReplayDB.from_snapshot(path, workerinput["avs_db"])
+        db = ReplayDB(path)
+        db.entries()  # read once now, so unreadable files are reported once, before collection
+    except DatabaseError as exc:
+        raise pytest.UsageError(f"avscenario replay database (--avs-db): {exc}") from None
+    for message in db.warnings:
+        config.issue_config_time_warning(pytest.PytestWarning(f"avscenario replay database: {message}"), 2)
+    return db
+
+
 class _XdistHooks:
-    """Registered only when pytest-xdist is installed: ship the seed to the workers."""
+    """Registered only when pytest-xdist is installed: ship seed and database to the workers."""
 
     def pytest_configure_node(self, node: Any) -> None:
         node.workerinput["avs_seed"] = node.config.stash[seed_key]
+        db = node.config.stash[db_key]
+        if db is not None:
+            node.workerinput["avs_db"] = db.snapshot()
 
 
 def pytest_report_header(config: pytest.Config) -> str:
@@ -158,6 +203,8 @@ class ScenarioPlan:
     monitor_set: Any
     sampler_options: dict[str, Any]
     time_budget_s: float | None = None
+    shrink_budget: int = 20
+    replays: dict[int, Any] = field(default_factory=dict)  # replay index -> db entry
     active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
@@ -232,6 +279,15 @@ def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan,
                 "(read values as case.<name>, fixtures stay available as arguments)"
             )
     space = FeatureSpace(spec.parameters)
+    if _executor_name(config) != "inprocess":
+        others = sorted(set(metafunc.fixturenames) - {"case", "world", "avs_driver", "request"}
+                        - set(_autouse_names(metafunc)))
+        if others:
+            raise DeclarationError(
+                f"under --avs-executor={_executor_name(config)} a scenario test gets only "
+                f"`case`, `world` and `avs_driver` on the remote workers; it also requests "
+                f"{', '.join(others)} — run it with the in-process executor or drop them"
+            )
 
     samples = _setting_int(config, spec, "samples", DEFAULT_SAMPLES, minimum=1)
     sampler_names = _samplers(config, spec)
@@ -259,10 +315,32 @@ def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan,
         raise DeclarationError(f"sampler_options must be a dict, got {opts!r}")
     plan = ScenarioPlan(test=test, space=space, samplers=sampler_names, samples=samples,
                         seed=seed, monitor_set=monitor_set, sampler_options=dict(opts),
-                        time_budget_s=_time_budget(config, spec))
+                        time_budget_s=_time_budget(config, spec),
+                        shrink_budget=_shrink_budget(config, spec))
 
     pinned = _pinned_params(config, space)
     slots: list[CaseSlot] = []
+    for k, pin in enumerate(getattr(metafunc.function, "_avs_examples", ())):
+        params = space.complete(pin)
+        try:
+            space.validate(params)
+        except SpaceError as exc:
+            raise DeclarationError(f"@example #{k} ({_call_text('example', pin)}): {exc}") from None
+        slots.append(CaseSlot("example", k, stable_seed(seed, "example", k), "example", params))
+    db = config.stash[db_key]
+    if db is not None and pinned is None:
+        from .db import space_changes
+
+        for entry in db.entries(test):
+            if entry.fingerprint != space.fingerprint():
+                changed = ", ".join(repr(n) for n in space_changes(entry.space, space)) or "its space"
+                warnings.warn(pytest.PytestWarning(
+                    f"{test}: stored counterexample {entry.path.name} skipped: parameter "
+                    f"{changed} changed since it was found"))
+                continue
+            k = len(plan.replays)
+            plan.replays[k] = entry
+            slots.append(CaseSlot("replay", k, entry.seed, "replay", space.complete(entry.params)))
     from .samplers import SamplerError
 
     for name in sampler_names:
@@ -281,6 +359,35 @@ def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan,
             slots.append(CaseSlot(name, k, stable_seed(seed, name, k),
                                   origin="sampled", params=params))
     return plan, slots
+
+
+def _shrink_budget(config: pytest.Config, spec: ScenarioSpec) -> int:
+    if "shrink_budget" in spec.given and spec.shrink_budget is not None:
+        value, source = spec.shrink_budget, "@scenario(shrink_budget=...)"
+    elif config.getoption("avs_shrink_budget") is not None:
+        value, source = config.getoption("avs_shrink_budget"), "--avs-shrink-budget"
+    elif config.getini("avs_shrink_budget") not in (None, ""):
+        value, source = config.getini("avs_shrink_budget"), "ini avs_shrink_budget"
+    else:
+        return 20
+    try:
+        if isinstance(value, bool):
+            raise ValueError
+        value = int(value)
+    except (TypeError, ValueError):
+        raise DeclarationError(f"shrink_budget must be an integer, got {value!r} (from {source})") from None
+    if value < 0:
+        raise DeclarationError(f"shrink_budget must be >= 0, got {value} (from {source})")
+    return value
+
+
+def _call_text(name: str, params: Mapping[str, Any]) -> str:
+    return f"@{name}(" + ", ".join(f"{k}={v!r}" for k, v in params.items()) + ")"
+
+
+def _autouse_names(metafunc: pytest.Metafunc) -> list[str]:
+    fm = metafunc.definition.session._fixturemanager
+    return list(fm._getautousenames(metafunc.definition))
 
 
 def _setting_int(config: pytest.Config, spec: ScenarioSpec, key: str, default: int,
@@ -413,8 +520,7 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
     ``act(observation)`` or ``predict(observation)``, or a built-in name (``"autopilot"``,
     ``"idm"``). The default is ``--avs-driver`` / ini ``avs_driver`` or ``"autopilot"``.
     """
-    name = request.config.getoption("avs_driver") or request.config.getini("avs_driver")
-    return name or "autopilot"
+    return _default_driver(request.config)
 
 
 @pytest.fixture
@@ -445,31 +551,191 @@ def _active_sampler(plan: ScenarioPlan, name: str) -> Any:
 
 
 # --------------------------------------------------------------------------- running
+@dataclass
+class ShrinkReport:
+    """What minimizing one failing case gave (for the message, the rows and the database)."""
+
+    flaky: bool
+    sims: int
+    budget: int
+    minimized: dict[str, Any] | None = None
+    outcome: CaseOutcome | None = None  # the minimized case's outcome
+    exhausted: bool = False
+    rows: list[dict[str, Any]] = field(default_factory=list)
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     if pyfuncitem.get_closest_marker("scenario") is None or "case" not in pyfuncitem.funcargs:
         return None
-    plan = _plan_of(pyfuncitem)
-    case_obj: Case = pyfuncitem.funcargs["case"]
-    argnames = tuple(pyfuncitem._fixtureinfo.argnames)
-    outcome = run_case(pyfuncitem.obj, argnames, pyfuncitem.funcargs, case_obj,
-                       plan.monitor_set, make_world=None)
-    slot: CaseSlot = pyfuncitem.callspec.params["case"]
+    item = pyfuncitem
+    plan = _plan_of(item)
+    case_obj: Case = item.funcargs["case"]
+    slot: CaseSlot = item.callspec.params["case"]
+    outcome = _executor(item.config).run(_job(item, plan, case_obj, fresh_world=False))
     if slot.params is None and case_obj.origin == "sampled":
         _active_sampler(plan, slot.sampler).tell(
-            outcome.params, None if outcome.verdict == "error" else dict(outcome.rho) or _body_rho(outcome)
+            outcome.params,
+            None if outcome.verdict == "error" else (dict(outcome.rho) or _body_rho(outcome)),
         )
     plan.ran[slot.sampler] = plan.ran.get(slot.sampler, 0) + 1
-    row = _row(pyfuncitem, case_obj, outcome)
-    pyfuncitem.stash[row_key] = row
-    _record_properties(pyfuncitem, row)
+
+    shrink = None
+    if outcome.failed and case_obj.origin == "sampled" and plan.shrink_budget > 0:
+        shrink = _shrink(item, plan, case_obj, outcome)
+    row = _row(item, case_obj, outcome)
+    if shrink is not None and shrink.minimized is not None:
+        row["minimized"] = shrink.minimized
+        row["shrink_sims"] = shrink.sims
+    item.stash[row_key] = row
+    item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
+    _record_properties(item, row, shrink)
+    note = _update_db(item, plan, slot, case_obj, outcome, shrink)
+
     if outcome.verdict == "pass":
         return True
-    if outcome.exc is not None and not (outcome.verdict == "error" and outcome.error and outcome.error.startswith("MonitorError")):
+    message = failure_message(item, case_obj, outcome, shrink, note)
+    if outcome.exc is not None and not isinstance(outcome.exc, _monitor_error()):
         # let pytest show the body's own traceback, with our summary as a report section
-        pyfuncitem.add_report_section("call", "avscenario", failure_message(pyfuncitem, case_obj, outcome))
+        item.add_report_section("call", "avscenario", message)
         raise outcome.exc
-    pytest.fail(failure_message(pyfuncitem, case_obj, outcome), pytrace=False)
+    pytest.fail(message, pytrace=False)
+
+
+def _monitor_error() -> type:
+    from .monitors import MonitorError
+
+    return MonitorError
+
+
+def _shrink(item: pytest.Function, plan: ScenarioPlan, case: Case, outcome: CaseOutcome) -> ShrinkReport:
+    """Replay the failure once (flakiness), then minimize it toward the nominal scenario."""
+    from .shrink import minimize
+
+    report = ShrinkReport(flaky=False, sims=0, budget=plan.shrink_budget)
+    outcomes: dict[str, CaseOutcome] = {}
+    executor = _executor(item.config)
+
+    def simulate(params: dict[str, Any]) -> CaseOutcome:
+        candidate = Case(params, index=case.index, seed=case.seed, sampler=case.sampler,
+                         origin="shrink", test=item.nodeid)
+        result = executor.run(_job(item, plan, candidate, fresh_world=True))
+        report.rows.append(_row(item, candidate, result))
+        return result
+
+    signature = outcome.signature
+    again = simulate(dict(case.params))
+    if not (again.failed and again.signature == signature):
+        report.flaky = True
+        return report
+
+    def still_fails(params: dict[str, Any]) -> bool:
+        result = simulate(dict(params))
+        outcomes[json.dumps(params, sort_keys=True, default=repr)] = result
+        return result.failed and result.signature == signature
+
+    result = minimize(plan.space, dict(case.params), still_fails, budget=plan.shrink_budget,
+                      seed=case.seed % (2**32))
+    report.sims = result.sims
+    report.exhausted = result.exhausted
+    report.minimized = dict(result.minimized)
+    report.outcome = outcomes.get(json.dumps(result.minimized, sort_keys=True, default=repr), outcome)
+    return report
+
+
+def _executor_name(config: pytest.Config) -> str:
+    return config.getoption("avs_executor") or config.getini("avs_executor") or "inprocess"
+
+
+def _default_driver(config: pytest.Config) -> str:
+    return config.getoption("avs_driver") or config.getini("avs_driver") or "autopilot"
+
+
+def _executor(config: pytest.Config) -> Any:
+    """The session's executor, made on first use (a Dask cluster only when a case runs)."""
+    executor = config.stash.get(executor_key, None)
+    if executor is None:
+        from .executors import make_executor
+
+        name = _executor_name(config)
+        options = {}
+        if name == "dask":
+            options["address"] = config.getoption("avs_dask_address") or config.getini("avs_dask_address") or None
+        try:
+            executor = make_executor(name, **options)
+        except ValueError as exc:
+            raise pytest.UsageError(str(exc)) from None
+        config.stash[executor_key] = executor
+    return executor
+
+
+def _job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: bool,
+         prefetch: bool = False) -> Any:
+    """The executor's description of one case of ``item``'s test.
+
+    With ``prefetch`` (before the item's fixtures exist) there are no fixture values, and the
+    driver is known only when ``avs_driver`` is the plugin's own (then it is the built-in
+    name); otherwise ``driver`` is None and the job cannot be started ahead.
+    """
+    from .executors import CaseJob
+
+    argnames = tuple(item._fixtureinfo.argnames)
+    if prefetch:
+        fixtures: Mapping[str, Any] = {}
+        defs = item._fixtureinfo.name2fixturedefs.get("avs_driver", ())
+        overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != __name__
+        driver = None if overridden else _default_driver(item.config)
+    else:
+        fixtures = item.funcargs
+        driver = item.funcargs.get("avs_driver")
+        if driver is None and "world" in argnames:
+            driver = item._request.getfixturevalue("avs_driver")
+    return CaseJob(
+        nodeid=item.nodeid, module_path=str(item.path), rootdir=str(item.config.rootpath),
+        function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
+        case=case, monitor_set=plan.monitor_set, driver=driver, fresh_world=fresh_world,
+        make_world=lambda c: _make_world(c, driver, item.nodeid),
+    )
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Hand a remote executor the passive cases ahead, so its workers stay busy."""
+    config = session.config
+    if _executor_name(config) == "inprocess" or hasattr(config, "workerinput"):
+        return
+    jobs = []
+    for item in session.items:
+        if not isinstance(item, pytest.Function) or item.get_closest_marker("scenario") is None:
+            continue
+        slot = item.callspec.params.get("case") if hasattr(item, "callspec") else None
+        if not isinstance(slot, CaseSlot) or slot.params is None:
+            continue
+        case_obj = Case(slot.params, index=slot.index, seed=slot.seed, sampler=slot.sampler,
+                        origin=slot.origin, test=item.nodeid)
+        jobs.append(_job(item, _plan_of(item), case_obj, fresh_world=True, prefetch=True))
+    if jobs:
+        _executor(config).prefetch(jobs)
+
+
+def _update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
+               outcome: CaseOutcome, shrink: ShrinkReport | None) -> str | None:
+    """Keep failures for the next run; forget replayed ones that pass now (fix confirmed)."""
+    db = item.config.stash[db_key]
+    if db is None:
+        return None
+    if case.origin == "replay":
+        if outcome.verdict == "pass":
+            db.delete(plan.replays[slot.index])
+            return "fixed: this stored counterexample passes now and was removed from the database"
+        return None
+    if case.origin != "sampled" or not outcome.failed or (shrink is not None and shrink.flaky):
+        return None
+    minimized = shrink is not None and shrink.minimized is not None and shrink.minimized != case.params
+    params = shrink.minimized if minimized else case.params
+    rho = shrink.outcome.rho if minimized and shrink.outcome is not None else outcome.rho
+    entry = db.save(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
+                    versions=_versions())
+    return f"stored for replay in {entry.path}"
 
 
 def _body_rho(outcome: CaseOutcome) -> float:
@@ -477,7 +743,9 @@ def _body_rho(outcome: CaseOutcome) -> float:
     return -1.0 if outcome.verdict == "fail" else 0.0
 
 
-def _fmt_rho(v: float) -> str:
+def _fmt_rho(v: float | None) -> str:
+    if v is None:
+        return "—"
     if math.isinf(v):
         return "+inf" if v > 0 else "-inf"
     return f"{v:+.3f}"
@@ -489,8 +757,9 @@ def _fmt_value(v: Any) -> str:
     return repr(v)
 
 
-def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome) -> str:
-    """The text a failing case shows: metrics, parameters, and how to re-run just it."""
+def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
+                    shrink: ShrinkReport | None = None, note: str | None = None) -> str:
+    """The text a failing case shows: metrics, parameters (found and minimized), what to do."""
     lines = []
     if outcome.verdict == "fail" and outcome.violated:
         lines.append(f"scenario violated: {', '.join(outcome.violated)}")
@@ -498,21 +767,40 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome) -> str:
         lines.append(f"scenario failed: {outcome.error}")
     else:
         lines.append(f"scenario case could not be judged: {outcome.error}")
+    shrunk = shrink is not None and shrink.minimized is not None and shrink.outcome is not None
     if outcome.results:
-        lines.append("  metric            rho    threshold  verdict   worst")
+        head = "  metric            rho" + ("   minimized" if shrunk else "") + "  threshold  verdict   worst (as found)"
+        lines.append(head)
         for name, res in outcome.results.items():
             thr = "" if res.threshold is None else f"{res.threshold:g}"
+            mid = f"  {_fmt_rho(shrink.outcome.rho.get(name)):>10}" if shrunk else ""
             verdict = "VIOLATED" if res.rho < 0 else "ok"
-            lines.append(f"  {name:<12} {_fmt_rho(res.rho):>9}  {thr:>9}  {verdict:<8}  {res.detail}")
-    params = ", ".join(f"{k}={_fmt_value(v)}" for k, v in case.params.items())
-    lines.append(f"  parameters: {params}")
+            lines.append(f"  {name:<12} {_fmt_rho(res.rho):>9}{mid}  {thr:>9}  {verdict:<8}  {res.detail}")
+    if shrunk:
+        nominal = _plan_of(item).space.nominal()
+        lines.append("  parameter          found      minimized        nominal")
+        for k, v in case.params.items():
+            lines.append(f"  {k:<12} {_fmt_value(v):>11}  {_fmt_value(shrink.minimized[k]):>13}  "
+                         f"{_fmt_value(nominal.get(k)):>13}")
+        how = "budget spent" if shrink.exhausted else "done"
+        lines.append(f"  shrinking: {shrink.sims} of {shrink.budget} simulations ({how})")
+        lines.append(f"  pin it as a regression above the test: {_call_text('example', shrink.minimized)}")
+    else:
+        params = ", ".join(f"{k}={_fmt_value(v)}" for k, v in case.params.items())
+        lines.append(f"  parameters: {params}")
+        if shrink is not None and shrink.flaky:
+            lines.append("  FLAKY: a replay of this case with the same seed did not fail the same way; "
+                         "it was not shrunk (is the scene or the driver nondeterministic?)")
     lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
                  f"simulated in {outcome.sim_time_s:.3f} s")
+    if note:
+        lines.append(f"  {note}")
     lines.append(f"  re-run only this case: {rerun_command(item, case)}")
     return "\n".join(lines)
 
 
 def rerun_command(item: pytest.Item, case: Case) -> str:
+    """A command that re-runs just this case, with the same values."""
     seed = item.config.stash[seed_key]
     cmd = f"pytest '{item.nodeid}' --avs-seed={seed}"
     plan = _plan_of(item)
@@ -540,12 +828,16 @@ def _row(item: pytest.Item, case: Case, outcome: CaseOutcome) -> dict[str, Any]:
     })
 
 
-def _record_properties(item: pytest.Item, row: dict[str, Any]) -> None:
+def _record_properties(item: pytest.Item, row: dict[str, Any], shrink: ShrinkReport | None) -> None:
     from .report.junit import case_properties
     from .report.table import row_from_json
 
+    minimized = shrink.minimized if shrink is not None else None
+    sims = shrink.sims if shrink is not None and shrink.minimized is not None else None
     # user_properties (not record_property) gives the same XML without xunit2's warning
-    item.user_properties.extend(case_properties(row_from_json(row)))
+    item.user_properties.extend(case_properties(row_from_json(row), minimized=minimized, shrink_sims=sims))
+    if shrink is not None and shrink.flaky:
+        item.user_properties.append(("avs.flaky", "true"))
 
 
 # --------------------------------------------------------------------------- reporting
@@ -567,6 +859,8 @@ class RunState:
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         row = getattr(report, "avs_row", None)
         if row is not None and not self.is_worker:
+            for shrink_row in getattr(report, "avs_shrink_rows", ()):
+                self.add(shrink_row, report.avs_test)
             self.add(row, report.avs_test)
 
     @pytest.hookimpl(tryfirst=True)
@@ -579,7 +873,14 @@ class RunState:
         from .report.junit import add_suite_properties_to_logxml
         from .report.summary import suite_properties
 
-        self.summary_rows = self.summary()
+        if self.directory is not None and self.table is not None:
+            from .report.build import finish_report
+
+            self.table.close()  # every row is on disk; the report is built from the files
+            self.summary_rows = finish_report(self.directory, self.test_infos(),
+                                              seed=self.config.stash[seed_key], versions=_versions())
+        else:
+            self.summary_rows = self.summary()
         props = suite_properties(self.summary_rows, seed=self.config.stash[seed_key],
                                  versions=_versions())
         add_suite_properties_to_logxml(self.config.stash.get(xml_key, None), props)
@@ -613,15 +914,19 @@ class RunState:
         if self.table is not None:
             self.table.close()
 
-    def summary(self) -> list[Any]:
-        from .report.summary import TestInfo, summarize
+    def test_infos(self) -> dict[str, Any]:
+        from .report.summary import TestInfo
 
-        infos = {
+        return {
             test: TestInfo(metrics=tuple(info["metrics"]),
                            space=FeatureSpace.from_description(info["space"]))
             for test, info in self.tests.items()
         }
-        return summarize(self.rows, infos)
+
+    def summary(self) -> list[Any]:
+        from .report.summary import summarize
+
+        return summarize(self.rows, self.test_infos())
 
 
 @pytest.hookimpl(wrapper=True)
@@ -630,6 +935,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if call.when == "call" and row_key in item.stash:
         # extra report attributes travel to the xdist controller with the report
         report.avs_row = item.stash[row_key]
+        report.avs_shrink_rows = item.stash.get(shrink_rows_key, [])
         report.avs_test = _plan_of(item).info()
     return report
 
@@ -647,6 +953,9 @@ def _versions() -> dict[str, str]:
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
+    executor = config.stash.get(executor_key, None)
+    if executor is not None:
+        executor.close()
     state = config.stash.get(session_key, None)
     if state is not None:
         state.close()

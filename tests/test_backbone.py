@@ -182,7 +182,7 @@ def test_failure_message_lists_parameters_and_rerun_command(pytester):
             assert case.gap < 30, "lead too far"
         """
     )
-    result = pytester.runpytest("--avs-seed=5")
+    result = pytester.runpytest("--avs-seed=5", "--avs-shrink-budget=0")
     result.assert_outcomes(passed=3, failed=1)
     result.stdout.fnmatch_lines([
         "*parameters: gap=32.5*",
@@ -199,11 +199,11 @@ def test_the_printed_rerun_command_reruns_that_case(pytester):
             assert case.gap < 20
         """
     )
-    result = pytester.runpytest("--avs-seed=11")
+    result = pytester.runpytest("--avs-seed=11", "--avs-shrink-budget=0", "--avs-db=none")
     line = [l for l in result.outlines if "re-run only this case:" in l][0]
     cmd = line.split("re-run only this case: pytest ", 1)[1]
     import shlex
-    again = pytester.runpytest(*shlex.split(cmd))
+    again = pytester.runpytest(*shlex.split(cmd), "--avs-shrink-budget=0", "--avs-db=none")
     again.assert_outcomes(failed=1)
     gap = [l for l in result.outlines if "parameters: gap=" in l][0]
     again.stdout.fnmatch_lines([f"*{gap.strip()}*"])

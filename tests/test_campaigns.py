@@ -44,7 +44,8 @@ def test_active_sampler_draws_at_run_time_reproducibly(pytester, monkeypatch):
 
 def test_active_failure_prints_a_rerun_command_that_pins_values(pytester, monkeypatch):
     src = ACTIVE.format(sampler="mab").replace("> 0.01", "> 10")  # every case fails
-    result, rows = _run(pytester, monkeypatch, src, "--avs-seed=3", "--avs-samples=3")
+    result, rows = _run(pytester, monkeypatch, src, "--avs-seed=3", "--avs-samples=3",
+                        "--avs-shrink-budget=0")
     result.assert_outcomes(failed=3)
     line = [l for l in result.outlines if "re-run only this case:" in l][-1]
     assert "--avs-params '" in line
@@ -93,7 +94,8 @@ def test_margin(case):
 
 
 def test_error_table_summary_and_junit(pytester, monkeypatch):
-    result, _ = _run(pytester, monkeypatch, REPORTED, "--avs-seed=1", "--junitxml=out.xml")
+    result, _ = _run(pytester, monkeypatch, REPORTED, "--avs-seed=1", "--junitxml=out.xml",
+                     "--avs-shrink-budget=0")
     # the margin is gap - 30: exactly the cases with gap < 30 violate it
     outcomes = result.parseoutcomes()
     rows = [json.loads(l) for l in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
@@ -128,9 +130,10 @@ def test_plain_runs_write_no_report(pytester):
 
 def test_xdist_collects_identically_and_merges_one_table(pytester, monkeypatch):
     pytest.importorskip("xdist")
-    serial, _ = _run(pytester, monkeypatch, REPORTED, "--avs-seed=9", "-v", "--avs-report=serial")
+    serial, _ = _run(pytester, monkeypatch, REPORTED, "--avs-seed=9", "-v", "--avs-report=serial",
+                     "--avs-db=none")
     parallel, _ = _run(pytester, monkeypatch, REPORTED, "--avs-seed=9", "-n", "2", "-v",
-                       "--avs-report=parallel", subprocess=True)
+                       "--avs-report=parallel", "--avs-db=none", subprocess=True)
     assert parallel.parseoutcomes() == serial.parseoutcomes()
 
     def table(name):

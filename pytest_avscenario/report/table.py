@@ -23,7 +23,7 @@ parameters and metrics).
 A row is a plain dict::
 
     {"test": nodeid of the function, "item": full item id, "sampler": str, "index": int,
-     "seed": int | None, "origin": "sampled" | "replay" | "example" | "shrink",
+     "seed": int | None, "origin": "sampled" | "replay" | "example" | "pinned" | "shrink",
      "params": {name: value}, "rho": {metric: float}, "verdict": "pass" | "fail" | "error",
      "sim_time_s": float, "error": str | None}
 
@@ -72,7 +72,7 @@ __all__ = [
 MAIN_JSONL = "errors.jsonl"
 SHRINK_JSONL = "shrink.jsonl"
 TABLES_DIR = "tables"
-ORIGINS = ("sampled", "replay", "example", "shrink")
+ORIGINS = ("sampled", "replay", "example", "pinned", "shrink")
 VERDICTS = ("pass", "fail", "error")
 
 # Fixed leading CSV columns, in the order an engineer scans them.

@@ -1,0 +1,74 @@
+"""The executor interface and the in-process executor.
+
+A :class:`CaseJob` is everything needed to simulate one case of one scenario test away from
+pytest: the test function (and where it lives, so a remote worker can import it), the values
+of its other fixtures, the case, the monitors and the ego's driver. ``run`` returns the
+:class:`~pytest_avscenario.runner.CaseOutcome`. ``prefetch`` lets an executor start cases
+before pytest reaches their items (a cluster stays busy); the in-process one ignores it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+from ..case import Case
+from ..runner import CaseOutcome, run_case
+
+
+@dataclass
+class CaseJob:
+    """One case of one scenario test, ready to run anywhere the test module imports."""
+
+    nodeid: str  # the pytest item id (the function's id for shrink candidates)
+    module_path: str  # absolute path of the test module
+    rootdir: str  # pytest's rootdir (import base for remote workers)
+    function: str  # the test function's name in its module (``Class.method`` not supported)
+    func: Callable[..., Any]  # the function object itself (used in-process)
+    argnames: tuple[str, ...]
+    fixtures: Mapping[str, Any]  # values of the test's other fixtures (in-process only)
+    case: Case
+    monitor_set: Any
+    driver: Any  # the ego's driver (avs_driver's value)
+    fresh_world: bool = True  # build a new world for the case (False: use fixtures["world"])
+    make_world: Callable[[Case], Any] | None = field(default=None, repr=False)
+
+
+class Executor:
+    """Runs case jobs. Subclasses override :meth:`run`; the others are optional."""
+
+    name = "?"
+
+    def prefetch(self, jobs: Sequence[CaseJob]) -> None:
+        """Cases pytest will ask for later, in order (passive samplers' cases)."""
+
+    def run(self, job: CaseJob) -> CaseOutcome:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release workers and connections (called once at the end of the session)."""
+
+
+class InProcessExecutor(Executor):
+    """The default: simulate in the pytest process, when pytest reaches the item."""
+
+    name = "inprocess"
+
+    def run(self, job: CaseJob) -> CaseOutcome:
+        return run_case(job.func, job.argnames, job.fixtures, job.case, job.monitor_set,
+                        make_world=job.make_world if job.fresh_world else None)
+
+
+def make_executor(name: str, **options: Any) -> Executor:
+    """The executor called ``name`` (``inprocess``, ``dask``); ValueError names the options."""
+    if name in (None, "", "inprocess"):
+        return InProcessExecutor()
+    if name == "dask":
+        try:
+            from .dask import DaskExecutor
+        except ImportError as exc:
+            raise ValueError(
+                f"--avs-executor=dask needs Dask: pip install 'pytest-avscenario[dask]' ({exc})"
+            ) from None
+        return DaskExecutor(**options)
+    raise ValueError(f"unknown executor {name!r}; available: inprocess, dask")
