@@ -10,7 +10,6 @@ broken driver would fail (offset, speed, gap, stopping point, collision, final p
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -106,7 +105,8 @@ def simulate(route, ego_s=0.0, ego_r=0.0, speed=10.0, actors=(), seconds=10.0,
     for k in range(int(round(seconds / DT))):
         t = k * DT
         # Route progress: the first lane from the current one on whose span the ego lies.
-        while idx + 1 < len(route) and route[idx].local_coordinates(ego.position)[0] > route[idx].length:
+        while (idx + 1 < len(route)
+               and route[idx].local_coordinates(ego.position)[0] > route[idx].length):
             idx += 1
         s, r = route[idx].local_coordinates(ego.position)
         me = AgentState("ego", "ego", float(ego.position[0]), float(ego.position[1]),
@@ -116,8 +116,13 @@ def simulate(route, ego_s=0.0, ego_r=0.0, speed=10.0, actors=(), seconds=10.0,
                           r=float(r), agents=tuple(a.state(t) for a in actors),
                           stop_lines=tuple(stop_lines), target_speed=target_speed, goal=goal)
         acc, steer = driver.act(obs)
-        run.t.append(t); run.x.append(me.x); run.y.append(me.y); run.heading.append(me.heading)
-        run.speed.append(me.speed); run.offset.append(abs(r)); run.reasons.append(driver.last_reason)
+        run.t.append(t)
+        run.x.append(me.x)
+        run.y.append(me.y)
+        run.heading.append(me.heading)
+        run.speed.append(me.speed)
+        run.offset.append(abs(r))
+        run.reasons.append(driver.last_reason)
         box = _corners(me.x, me.y, me.heading, ego.LENGTH, ego.WIDTH)
         for a in actors:
             run.min_dist = min(run.min_dist, math.hypot(a.x - me.x, a.y - me.y))

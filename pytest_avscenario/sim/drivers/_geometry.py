@@ -35,9 +35,8 @@ def bicycle_steering(curvature: float, length: float, max_steering: float) -> fl
     return max(-max_steering, min(max_steering, delta))
 
 
-def pursuit_steering(
-    dx: float, dy: float, heading: float, length: float, max_steering: float, forward: bool = True
-) -> float:
+def pursuit_steering(dx: float, dy: float, heading: float, length: float,
+                     max_steering: float) -> float:
     """Pure-pursuit front-wheel angle [rad] toward a target (dx, dy) [m] from the centre.
 
     highway-env's centre moves along heading + beta, and beta is set by *this* command, so

@@ -26,6 +26,7 @@ import numpy as np
 
 from pytest_avscenario.sim.drivers._geometry import (
     RoutePath,
+    bicycle_steering,
     parking_path,
     pursuit_steering,
 )
@@ -255,7 +256,7 @@ class Autopilot:
             tx, ty = path.tangent(s_ego + look)
             px, py = px - self._offset * ty, py + self._offset * tx
         dx, dy = px - ego.x, py - ego.y
-        steer = pursuit_steering(dx, dy, ego.heading, L, o.max_steering, forward=True)
+        steer = pursuit_steering(dx, dy, ego.heading, L, o.max_steering)
         self.last_reason = reason
         return self._finish(accel, steer, v, dt)
 
@@ -277,9 +278,8 @@ class Autopilot:
     def _idm_interaction(self, v: float, v_lead: float, gap: float) -> float:
         """IDM's braking term [m/s^2] behind a lead at bumper gap ``gap`` [m]."""
         o = self.options
-        s_star = o.min_gap + max(
-            0.0, v * o.time_headway + v * (v - v_lead) / (2.0 * math.sqrt(o.max_accel * o.comfort_decel))
-        )
+        brake_scale = 2.0 * math.sqrt(o.max_accel * o.comfort_decel)
+        s_star = o.min_gap + max(0.0, v * o.time_headway + v * (v - v_lead) / brake_scale)
         return -o.max_accel * (s_star / max(gap, 0.1)) ** 2
 
     def _stop_accel(self, d: float, v: float, dt: float) -> float:
@@ -632,7 +632,5 @@ class _Parker:
         e_y = -(x - pts[kk, 0]) * math.sin(th) + (y - pts[kk, 1]) * math.cos(th)
         e_h = _wrap(h - ph)
         kappa = kappa_ref - 0.3 * e_y - 1.5 * e_h
-        sin_beta = max(-0.99, min(0.99, self._dir * 0.5 * ego.length * kappa))
-        steer = math.atan(2.0 * math.tan(math.asin(sin_beta)))
-        steer = max(-o.max_steering, min(o.max_steering, steer))
+        steer = bicycle_steering(self._dir * kappa, ego.length, o.max_steering)
         return accel, self.side * steer
