@@ -402,3 +402,25 @@ def test_bad_appear_values():
 def test_bad_seeds(seed):
     with pytest.raises(SimError, match=r"World\(seed="):
         World(seed=seed, name="t_seed")
+
+
+def test_custom_behaviour_drawing_during_the_run_replays_exactly():
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class Jittery(b.Behavior):
+        sigma: float = 1.0
+
+        def control(self, agent, world):
+            return float(world.rng.normal(0.0, self.sigma)), agent.follow()
+
+    def run(rng):
+        w = World(seed=3, rng=rng, driver="idm")
+        road = w.straight_road()
+        w.ego(road.lane(0), s=0.0, speed=5.0)
+        w.car(road.lane(0), s=40.0, speed=8.0, behavior=Jittery(2.0))
+        return w.run(5.0).agent("car1").speed
+
+    a, again = run(np.random.default_rng(5)), run(np.random.default_rng(5))
+    assert np.array_equal(a, again) and np.std(np.diff(a)) > 0.05
+    assert not np.array_equal(a, run(np.random.default_rng(6)))

@@ -7,6 +7,10 @@ is *bound*: any parameter given as a callable ``f(rng)`` is drawn from the world
 ``b.brake_at(b.uniform(1, 5))`` draws the braking time per case. Binding happens in the
 order agents are added, which is part of the scenario, so draws never depend on test order.
 
+A behaviour of your own subclasses :class:`Behavior` the same way; it may also draw from
+``world.rng`` inside ``control`` (agents act in a fixed order each step, so such draws replay
+exactly too).
+
 Every step the engine calls ``control(agent, world)``; vehicle behaviours return
 ``(acceleration [m/s^2], steering [rad])``, pedestrian behaviours a walking speed [m/s]. They
 drive with the laws in :mod:`.control` through a few agent helpers (``agent.follow()``,

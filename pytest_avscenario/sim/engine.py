@@ -334,7 +334,7 @@ class Actor(_Agent, Vehicle):
                            test=self.world.name, agent=self.name) from exc
         a = min(max(float(a), -control.MAX_DECELERATION), control.MAX_ACCELERATION)
         d = min(max(float(d), -control.MAX_STEERING), control.MAX_STEERING)
-        self.action = {"acceleration": a, "steering": d}
+        Vehicle.act(self, {"acceleration": a, "steering": d})
 
 
 class Bus(Actor):
@@ -365,7 +365,7 @@ class DriverEgo(Actor):
                            test=w.name, agent=self.name) from None
         a = min(max(a, -control.MAX_DECELERATION), control.MAX_ACCELERATION)
         d = min(max(d, -control.MAX_STEERING), control.MAX_STEERING)
-        self.action = {"acceleration": a, "steering": d}
+        Vehicle.act(self, {"acceleration": a, "steering": d})
 
 
 class IDMEgo(_Agent, IDMVehicle):
