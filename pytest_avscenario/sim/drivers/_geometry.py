@@ -16,7 +16,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["RoutePath", "bicycle_steering", "parking_path", "pursuit_steering"]
+__all__ = ["RoutePath", "bicycle_steering", "box_corners", "boxes_overlap", "parking_path",
+           "pursuit_steering"]
 
 _ARC_SAMPLE_M = 1.0  # [m] sampling step for curved lanes before resampling (chord error ds²/8R)
 
@@ -293,3 +294,25 @@ def parking_path(
                 next_mark += step
     pts.append((x, y, 0.0))
     return np.array(pts)
+
+
+def box_corners(x: float, y: float, heading: float, half_length: float,
+                half_width: float) -> list[tuple[float, float]]:
+    """Corners [m] of a rectangle centred at (x, y) with the given heading [rad]."""
+    c, s = math.cos(heading), math.sin(heading)
+    return [(x + c * dl - s * dw, y + s * dl + c * dw)
+            for dl, dw in ((half_length, half_width), (half_length, -half_width),
+                           (-half_length, -half_width), (-half_length, half_width))]
+
+
+def boxes_overlap(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> bool:
+    """Whether two rectangles (corner lists) overlap: separating-axis test on their edges."""
+    for poly in (a, b):
+        for k in range(2):  # a rectangle has two edge directions
+            ex = poly[k + 1][0] - poly[k][0]
+            ey = poly[k + 1][1] - poly[k][1]
+            pa = [ey * p[0] - ex * p[1] for p in a]
+            pb = [ey * p[0] - ex * p[1] for p in b]
+            if max(pa) < min(pb) or max(pb) < min(pa):
+                return False
+    return True

@@ -27,6 +27,8 @@ import numpy as np
 from pytest_avscenario.sim.drivers._geometry import (
     RoutePath,
     bicycle_steering,
+    box_corners,
+    boxes_overlap,
     parking_path,
     pursuit_steering,
 )
@@ -69,7 +71,7 @@ class AutopilotOptions:
     bus_caution_speed: float = 4.0  # [m/s] speed to be down to when reaching a slow school bus
     evasive_offset: float = 1.0  # [m] how far it shifts right in its lane for an oncoming car
     parking_speed: float = 1.0  # [m/s] speed of the parking manoeuvre
-    parking_clearance: float = 0.6  # [m] kept to the car behind the slot when reversing in
+    parking_clearance: float = 0.4  # [m] kept to the car behind the slot when reversing in
     parking_side_clearance: float = 0.4  # [m] kept to the parked cars when driving past them
 
     def __post_init__(self) -> None:
@@ -185,7 +187,7 @@ class Autopilot:
                 self._goal_key = key
             if self._parker.phase == "approach":
                 self._parker.plan(ego, seen)
-            else:
+            elif self._parker.phase != "abandoned":
                 accel, steer = self._parker.act(ego, dt)
                 self._accel = accel
                 self.last_reason = "park:" + self._parker.phase
@@ -503,9 +505,10 @@ class _Parker:
         self.slot_length = goal.get("length")
         self.length = L = ego.length
         kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
-        # Keep 10% of the steering range for feedback.
-        self.radius = 1.0 / (0.9 * kappa_max)
+        # Keep 5% of the steering range for feedback (the reference is exact for this model).
+        self.radius = 1.0 / (0.95 * kappa_max)
         self.end_x = 0.0
+        self._parked: list = []
         self.phase = "approach"
         self._track: np.ndarray | None = None
         self._arc: np.ndarray | None = None
@@ -521,16 +524,21 @@ class _Parker:
         self.lateral = max(abs(ye), 0.5)
         if self.slot_length is not None:
             self.end_x = min(0.0, -0.5 * float(self.slot_length) + o.parking_clearance + 0.5 * L)
-        elif seen.n:
-            # Reverse in as far as the car behind the slot allows (more room for the nose to
-            # swing in past the car in front), then pull forward to the goal.
+        if seen.n:
+            # The cars parked around the slot, in the slot frame, inflated by 0.2 m: what the
+            # manoeuvre must not touch.
+            self._parked = []
             best = None
             for a in seen.agents:
                 x, y, h = self._frame(a.x, a.y, math.atan2(a.s, a.c), self.side)
-                if abs(y) < 1.5 and -15.0 < x < 0.0:
-                    front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
-                    best = front if best is None else max(best, front)
-            if best is not None:
+                if abs(y) < 1.5 and -15.0 < x < 15.0:
+                    self._parked.append(box_corners(x, y, h, a.hl + 0.2, a.hw + 0.2))
+                    if x < 0.0:
+                        front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
+                        best = front if best is None else max(best, front)
+            if best is not None and self.slot_length is None:
+                # Reverse in as far as the car behind the slot allows (more room for the
+                # nose to swing in past the car in front), then pull forward to the goal.
                 self.end_x = min(0.0, max(-3.0, best + o.parking_clearance + 0.5 * L))
         # Length the two reverse arcs need (see parking_path): 2 R cos(b) sin(phi).
         reff = self.radius * math.cos(math.asin(min(0.99, 0.5 * L / self.radius)))
@@ -571,11 +579,23 @@ class _Parker:
         return d if d < 40.0 else None
 
     def maybe_start(self, ego: Any) -> None:
+        """Begin reversing once stopped at the start point, if the manoeuvre fits.
+
+        The planned footprints are checked against the parked cars it has seen (inflated
+        by 0.2 m); a slot too short for its one-manoeuvre technique is given up, and it drives
+        on (phase "abandoned") rather than touch a car.
+        """
         x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
         if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.7 \
                 and x < self.start_x + 30.0:
-            self._begin(parking_path(max(x, self.start_x), y, self.end_x, self.radius,
-                                     self.length), -1.0)
+            pts = parking_path(max(x, self.start_x), y, self.end_x, self.radius, self.length)
+            hl, hw = 0.5 * self.length, 0.5 * ego.width
+            for px, py, ph in pts[::2]:
+                me = box_corners(px, py, ph, hl, hw)
+                if any(boxes_overlap(me, car) for car in self._parked):
+                    self.phase = "abandoned"
+                    return
+            self._begin(pts, -1.0)
             self.phase = "reverse"
 
     def _begin(self, pts: np.ndarray, direction: float) -> None:
