@@ -364,6 +364,27 @@ def test_ce_learns_from_the_first_batch_without_any_counterexample():
     assert not np.allclose(s.prob, 0.2)
 
 
+def test_ce_distributions_stay_normalized_with_a_zero_weight_choice():
+    sp = {"w": Choice(["never", "a", "b"], weights=[0, 1, 1]), "x": Uniform(0, 1)}
+    s = samplers.make("ce", sp, seed=0, batch=5)
+    for p in drive(s, 200, rho=lambda p: p["x"] + (p["w"] == "a")):
+        assert p["w"] != "never"
+    assert s.prob.sum(1) == pytest.approx([1.0, 1.0])
+    assert s.prob[0, 0] == 0.0 and s.prob[0, 2] > 0.8
+
+
+def test_degenerate_spaces_work_for_every_sampler():
+    for sp in ({"road": "x"}, {}, {"w": Choice(["a"])}, {"n": IntRange(0, 500)}):
+        for name in ALL:
+            s = samplers.make(name, sp, seed=0)
+            for i in range(12):
+                p = s.ask()
+                s.tell(p, 1.0 if i % 3 else None)
+            t = samplers.make(name, sp, seed=1)
+            t.restore(json.loads(json.dumps(s.state(), allow_nan=False)))
+            assert [s.ask() for _ in range(3)] == [t.ask() for _ in range(3)], (name, sp)
+
+
 def test_ce_floor_keeps_every_bucket_alive():
     s = samplers.make("ce", {"x": Uniform(0, 1)}, seed=0, buckets=5, floor=0.1, smoothing=1.0)
     for _ in range(200):

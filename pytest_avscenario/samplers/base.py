@@ -154,7 +154,8 @@ class Sampler:
 
     def _params_many(self, U: np.ndarray) -> list[dict[str, Any]]:
         """``_params`` of every row of ``U`` at once (same values, fewer Python steps)."""
-        U = np.clip(np.asarray(U, dtype=float).reshape(-1, self.d), 0.0, 1.0)
+        U = np.asarray(U, dtype=float)
+        U = np.clip(U.reshape(1, self.d) if U.ndim == 1 else U, 0.0, 1.0)
         n = U.shape[0]
         if not self._conv:
             return [{} for _ in range(n)]

@@ -260,11 +260,15 @@ class BayesianOptimizationSampler(ActiveSampler):
     # -- learning -----------------------------------------------------------------------
     def _learn(self, u: Any, r: float | None, rho: Rho) -> None:
         u = np.asarray(u, dtype=float)
-        if self.pending:
-            P = np.asarray(self.pending, dtype=float).reshape(-1, self.d)
-            j = int(np.argmin(np.abs(P - u).sum(1))) if self.d else 0
-            if self.d == 0 or np.abs(P[j] - u).max() < 1e-6:
+        if self.pending and self.d == 0:
+            self.pending.pop()
+        elif self.pending:
+            P = np.asarray(self.pending, dtype=float)
+            j = int(np.argmin(np.abs(P - u).sum(1)))
+            if np.abs(P[j] - u).max() < 1e-6:
                 del self.pending[j]
+            elif len(self.pending) > 4 * self.max_points:
+                del self.pending[0]  # asks never told (skipped cases) must not pile up
         self.X.append(u.tolist())
         self.y.append(r)
 

@@ -48,11 +48,12 @@ class CrossEntropySampler(ActiveSampler):
         self.floor = check_float(floor, "ce floor", 0.0, 1.0)
         self.grid = Buckets(self.space, self.n_buckets)
         g = self.grid
-        self._k = np.maximum(g.k, 1)[:, None].astype(float)
         self._interior = np.arange(g.B)[None, :] < (g.k - 1)[:, None]
         self._cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
             if g.d else np.zeros(0, dtype=int)
-        self._floor_uniform = self.floor * np.where(g.valid, 1.0 / self._k, 0.0)
+        # uniform over the buckets that can hold a case (a zero-weight choice cannot)
+        n_valid = np.maximum(g.valid.sum(1, keepdims=True), 1)
+        self._floor_uniform = self.floor * g.valid / n_valid
         prob = np.where(g.valid, g.width, 0.0)  # uniform on the unit cube
         self._set_prob(prob / np.maximum(prob.sum(1, keepdims=True), 1e-300))
         # valid cases told: unit points and rho, in arrays grown by doubling
@@ -149,5 +150,5 @@ class CrossEntropySampler(ActiveSampler):
             self._R[: self._n] = [float(x) for x in state["rho"]]
         self._since = int(state["since"])
         self._queue = [[float(x) for x in q] for q in state["queue"]]
-        self._pqueue = self._params_many(np.array(self._queue, dtype=float).reshape(-1, self.d)) \
-            if self._queue else []
+        self._pqueue = self._params_many(
+            np.array(self._queue, dtype=float).reshape(len(self._queue), self.d))

@@ -66,7 +66,7 @@ class SimulatedAnnealingSampler(ActiveSampler):
     # -- proposing ----------------------------------------------------------------------
     def ask_unit(self) -> np.ndarray:
         self.n_asked += 1
-        if self.x is None:
+        if self.x is None or self.d == 0:
             return self.rng.random(self.d)
         y = self.x + self.step * self.rng.standard_normal(self.d)
         if y.min() < 0.0 or y.max() > 1.0:
