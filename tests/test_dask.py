@@ -48,7 +48,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance, ttc
 
 def far_enough(gap):
-    assert gap < 30, "lead too far for this test"
+    assert gap < 30
 
 @scenario(gap=Uniform(8.0, 40.0), lead_speed=Uniform(2.0, 8.0), samples=6, sampler=["halton", "mab"],
           monitors=[distance(5.0), ttc(2.0)])
@@ -89,8 +89,7 @@ def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, c
     assert _junit_props(pytester.path / "dask.xml") == local_props
     assert any(("avs.minimized" in dict(props)) for _, props in local_props)
     # the body's own traceback still points at the failing line of the test module
-    remote_run.stdout.fnmatch_lines(["*AssertionError: lead too far for this test*",
-                                     "test_follow.py:*: AssertionError"])
+    remote_run.stdout.fnmatch_lines(["E * assert 3*.* < 30", "test_follow.py:5: AssertionError"])
 
 
 KILLED = """
@@ -131,6 +130,39 @@ def test_a_worker_killed_mid_case_is_resubmitted_and_every_case_reports(pytester
     killed_pid = int(marker.read_text())
     second = [pid for index, pid in runs if index == 2 and pid != killed_pid]
     assert len(second) == 1, runs  # case 2 ran again, in another process, exactly once more
+
+
+def test_prefetched_cases_are_matched_and_a_replay_runs_again(tmp_path, cluster_address):
+    from pytest_avscenario.case import Case
+    from pytest_avscenario.executors import CaseJob
+    from pytest_avscenario.executors.dask import DaskExecutor
+    from pytest_avscenario.monitors import MonitorSet, distance
+
+    path = tmp_path / "test_prefetch_avs.py"
+    path.write_text(COMPARED.replace("far_enough(case.gap)", "pass"))
+    func = remote.import_test_module(str(path), str(tmp_path)).test_follow
+    monitors = MonitorSet([distance(5.0)])
+
+    def job(k: int, gap: float) -> CaseJob:
+        case = Case({"gap": gap, "lead_speed": 4.0}, k, 100 + k, "halton", test="t")
+        return CaseJob(nodeid=f"test_prefetch_avs.py::test_follow[halton-{k:03d}]",
+                       module_path=str(path), rootdir=str(tmp_path), function="test_follow",
+                       func=func, argnames=("case", "world"), fixtures={}, case=case,
+                       monitor_set=monitors, driver="autopilot")
+
+    jobs = [job(k, 10.0 + 5 * k) for k in range(4)]
+    executor = DaskExecutor(cluster_address)
+    try:
+        executor.prefetch(jobs)
+        outcomes = [executor.run(j) for j in jobs]
+        assert executor.stats["matched"] == 4 and executor.stats["on_demand"] == 0
+        # a shrink replay of a consumed case is simulated anew, with the same result
+        again = [executor.run(j) for j in jobs]
+        assert executor.stats["on_demand"] == 4
+    finally:
+        executor.close()
+    assert [o.rho for o in outcomes] == [o.rho for o in again]
+    assert [o.verdict for o in outcomes] == ["fail", "pass", "pass", "pass"]
 
 
 def test_exhausted_retries_make_an_error_never_a_pass(tmp_path, cluster_address):
