@@ -39,6 +39,7 @@ row_key = pytest.StashKey[dict]()
 db_key = pytest.StashKey[Any]()
 shrink_rows_key = pytest.StashKey[list]()
 executor_key = pytest.StashKey[Any]()
+pictures_key = pytest.StashKey[dict]()
 session_key = pytest.StashKey["RunState"]()
 
 
@@ -86,6 +87,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         metavar="ADDRESS", default=None,
         help="scheduler of an existing Dask cluster, e.g. tcp://host:8786 (default: start a "
              "LocalCluster with one worker per core)")
+    add("gifs", "GIFs rendered per scenario test for minimized counterexamples (0: none)",
+        metavar="N", default=None, type=int,
+        help="render a GIF of at most N minimized counterexamples per test (default 3; every "
+             "one gets a PNG of its worst moment)")
     group.addoption(
         "--avs-params", dest="avs_params", metavar="JSON", default=None,
         help="run the selected scenario cases with these parameter values "
@@ -205,6 +210,7 @@ class ScenarioPlan:
     time_budget_s: float | None = None
     shrink_budget: int = 20
     replays: dict[int, Any] = field(default_factory=dict)  # replay index -> db entry
+    gifs: int = 0  # GIFs rendered so far for this test
     active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
@@ -591,6 +597,8 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
     _record_properties(item, row, shrink)
     note = _update_db(item, plan, slot, case_obj, outcome, shrink)
+    if outcome.failed:
+        item.stash[pictures_key] = _render_case(item, plan, outcome, shrink)
 
     if outcome.verdict == "pass":
         return True
@@ -616,11 +624,16 @@ def _shrink(item: pytest.Function, plan: ScenarioPlan, case: Case, outcome: Case
     outcomes: dict[str, CaseOutcome] = {}
     executor = _executor(item.config)
 
+    progress = _progress_writer(item.config)
+
     def simulate(params: dict[str, Any]) -> CaseOutcome:
         candidate = Case(params, index=case.index, seed=case.seed, sampler=case.sampler,
                          origin="shrink", test=item.nodeid)
         result = executor.run(_job(item, plan, candidate, fresh_world=True))
         report.rows.append(_row(item, candidate, result))
+        done = len(report.rows) - 1  # the first row is the flakiness replay
+        if progress is not None and done > 0 and (done % progress.every == 0 or done == plan.shrink_budget):
+            progress(f"shrinking {item.nodeid}: {done}/{plan.shrink_budget} simulations")
         return result
 
     signature = outcome.signature
@@ -641,6 +654,63 @@ def _shrink(item: pytest.Function, plan: ScenarioPlan, case: Case, outcome: Case
     report.minimized = dict(result.minimized)
     report.outcome = outcomes.get(json.dumps(result.minimized, sort_keys=True, default=repr), outcome)
     return report
+
+
+def _progress_writer(config: pytest.Config) -> Any:
+    """A function printing a live line in verbose runs (None when quiet or on an xdist worker)."""
+    if config.get_verbosity() < 1 or hasattr(config, "workerinput"):
+        return None
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    capman = config.pluginmanager.get_plugin("capturemanager")
+    if reporter is None or capman is None:
+        return None
+
+    def write(text: str) -> None:
+        with capman.global_and_fixture_disabled():
+            reporter.write_line(f"  avscenario: {text}")
+
+    write.every = 1 if config.get_verbosity() >= 2 else 5  # type: ignore[attr-defined]
+    return write
+
+
+def _render_case(item: pytest.Function, plan: ScenarioPlan, outcome: CaseOutcome,
+                 shrink: ShrinkReport | None) -> dict[str, str]:
+    """PNG of the worst moment (and, within the per-test cap, a GIF) of a failing case.
+
+    Drawn from the minimized case when there is one (that is the one an engineer studies),
+    else from the case as found. Only in-process outcomes keep their world; nothing to draw
+    for tests that return a Trajectory of their own.
+    """
+    state = item.config.stash[session_key]
+    shown = shrink.outcome if shrink is not None and shrink.outcome is not None else outcome
+    world = shown.world
+    if state.directory is None or world is None or getattr(world, "trajectory", None) is None:
+        return {}
+    from .report.table import file_slug
+
+    folder = state.directory / "cases"
+    folder.mkdir(parents=True, exist_ok=True)
+    base = folder / f"{file_slug(item.nodeid)}"
+    pictures: dict[str, str] = {}
+    traj = world.trajectory
+    step = traj.n_steps - 1
+    worst = min(shown.results.values(), key=lambda r: r.rho, default=None)
+    if worst is not None and worst.t is not None:
+        import numpy as np
+
+        step = int(np.argmin(np.abs(traj.t - worst.t)))
+    what = "minimized" if shown is not outcome else "as found"
+    try:
+        pictures[f"{item.name}: worst moment ({what})"] = world.render_png(f"{base}.png", step=step)
+        cap = item.config.getoption("avs_gifs")
+        cap = 3 if cap is None else cap
+        done = plan.gifs
+        if done < cap:
+            pictures[f"{item.name}: the run ({what})"] = world.render_gif(f"{base}.gif", every=2)
+            plan.gifs = done + 1
+    except Exception as exc:  # a picture is a convenience: never fail the case over it
+        warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not render the case: {exc}"))
+    return pictures
 
 
 def _executor_name(config: pytest.Config) -> str:
@@ -854,6 +924,8 @@ class RunState:
         self.rows: list[dict[str, Any]] = []
         self.tests: dict[str, dict[str, Any]] = {}
         self.summary_rows: list[Any] | None = None
+        self.pictures: dict[str, dict[str, str]] = {}
+        self.started = time.time()
 
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
@@ -862,6 +934,9 @@ class RunState:
             for shrink_row in getattr(report, "avs_shrink_rows", ()):
                 self.add(shrink_row, report.avs_test)
             self.add(row, report.avs_test)
+            pictures = getattr(report, "avs_pictures", None)
+            if pictures:
+                self.pictures.setdefault(row["test"], {}).update(pictures)
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
@@ -878,7 +953,8 @@ class RunState:
 
             self.table.close()  # every row is on disk; the report is built from the files
             self.summary_rows = finish_report(self.directory, self.test_infos(),
-                                              seed=self.config.stash[seed_key], versions=_versions())
+                                              seed=self.config.stash[seed_key], versions=_versions(),
+                                              case_images=self.pictures)
         else:
             self.summary_rows = self.summary()
         props = suite_properties(self.summary_rows, seed=self.config.stash[seed_key],
@@ -907,6 +983,7 @@ class RunState:
             from .report.table import ErrorTable, prepare_report_dir
 
             prepare_report_dir(self.directory)
+            _remove_stale_pictures(self.directory / "cases", self.started)
             self.table = ErrorTable(self.directory)
         self.table.append(row)
 
@@ -936,8 +1013,18 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         # extra report attributes travel to the xdist controller with the report
         report.avs_row = item.stash[row_key]
         report.avs_shrink_rows = item.stash.get(shrink_rows_key, [])
+        report.avs_pictures = item.stash.get(pictures_key, {})
         report.avs_test = _plan_of(item).info()
     return report
+
+
+def _remove_stale_pictures(folder: Any, since: float) -> None:
+    """Delete our case pictures left by earlier runs (workers may have drawn this run's already)."""
+    if not folder.is_dir():
+        return
+    for f in folder.iterdir():
+        if f.suffix in (".png", ".gif") and f.is_file() and f.stat().st_mtime < since - 1.0:
+            f.unlink()
 
 
 def _versions() -> dict[str, str]:

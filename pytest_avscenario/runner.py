@@ -38,6 +38,7 @@ class CaseOutcome:
     error: str | None = None
     sim_time_s: float = 0.0
     trajectory: Any = None
+    world: Any = None  # the World that ran (in-process only), for rendering pictures
 
     @property
     def signature(self) -> tuple[Any, ...]:
@@ -95,6 +96,7 @@ def run_case(
 
     traj = ret if isinstance(ret, Trajectory) else getattr(world, "trajectory", None)
     outcome.trajectory = traj
+    outcome.world = world
     if monitor_set is None or not monitor_set.names:
         return outcome
     if traj is None:

@@ -1,8 +1,9 @@
 """Shared test setup.
 
 ``pytester`` runs pytest in this process and afterwards forgets every module the run
-imported; numpy/scipy C extensions cannot be loaded twice in one process, so the heavy
-dependencies a scenario run imports are imported here, once, before any pytester run.
+imported. numpy/scipy C extensions cannot be loaded twice in one process, and a re-imported
+module brings new classes that objects from the old import are not instances of; so the
+modules a scenario run imports lazily are imported here, once, before any pytester run.
 """
 
 import importlib
@@ -10,7 +11,15 @@ import importlib
 pytest_plugins = ["pytester"]
 
 for _mod in ("numpy.fft", "scipy.stats", "scipy.spatial", "scipy.optimize", "shapely.geometry",
-             "highway_env", "matplotlib"):
+             "highway_env", "matplotlib", "PIL.Image", "hypothesis",
+             # the plugin's own lazily imported modules: a run must not re-import them while
+             # classes from an earlier run's import are still referenced
+             "pytest_avscenario.sim.world", "pytest_avscenario.sim.roads",
+             "pytest_avscenario.sim.places", "pytest_avscenario.sim.behaviors",
+             "pytest_avscenario.sim.engine", "pytest_avscenario.sim.render",
+             "pytest_avscenario.sim.drivers.autopilot", "pytest_avscenario.monitors",
+             "pytest_avscenario.report.build", "pytest_avscenario.report.plots",
+             "pytest_avscenario.shrink", "pytest_avscenario.db"):
     try:
         importlib.import_module(_mod)
     except ImportError:  # pragma: no cover - a missing optional part shows in its own tests

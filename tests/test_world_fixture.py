@@ -84,3 +84,31 @@ def test_twice(case, world):
 """)
     result = pytester.runpytest()
     result.stdout.fnmatch_lines(["*::test_twice: monitors: two monitors are named 'distance'*"])
+
+
+def test_minimized_counterexample_gets_a_worst_moment_png_and_a_gif(pytester):
+    pytester.makepyfile(test_close="""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+from pytest_avscenario.sim import behaviors as b
+
+@scenario(gap=Uniform(6, 40, nominal=35), samples=3, monitors=[distance(25.0)], shrink_budget=4)
+def test_close(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=10.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0)
+    world.run(seconds=2)
+""")
+    result = pytester.runpytest("--avs-seed=1", "--avs-db=none", "--avs-driver=idm", "--avs-gifs=1")
+    failed = result.parseoutcomes()["failed"]
+    assert failed >= 2
+    cases = pytester.path / "avs-report" / "cases"
+    assert len(list(cases.glob("*.png"))) == failed
+    assert len(list(cases.glob("*.gif"))) == 1  # the cap
+    index = (pytester.path / "avs-report" / "index.html").read_text()
+    assert "cases/" in index and ".gif" in index
+    from PIL import Image
+
+    png = Image.open(next(cases.glob("*.png")))
+    colours = png.convert("RGB").getcolors(maxcolors=1 << 16) or []
+    assert png.size[0] > 100 and len(colours) > 3  # not a blank frame

@@ -31,6 +31,7 @@ def finish_report(
     seed: Any = None,
     versions: Mapping[str, Any] | None = None,
     pictures: bool = True,
+    case_images: Mapping[str, Mapping[str, Any]] | None = None,
     tol: float = DEFAULT_TOL,
     within_radius: float | None = 0.1,
 ) -> list[SummaryRow]:
@@ -38,6 +39,8 @@ def finish_report(
 
     ``tests``: ``{test nodeid: TestInfo(metrics, space)}`` in collection order. ``pictures``
     False skips the PNGs (and matplotlib's import) but still writes ``index.html``.
+    ``case_images``: ``{test: {caption: path}}`` pictures of single cases (e.g. the GIF and
+    worst-moment PNG of each minimized counterexample), listed after the test's plots.
     Returns the summary rows (possibly empty).
     """
     root = Path(directory)
@@ -62,6 +65,10 @@ def finish_report(
 
             info = (tests or {}).get(test)
             images[test] = plot_test(root, test, by_test[test], metrics=(info.metrics or None) if info else None)
+    for test, extra in (case_images or {}).items():
+        merged = dict(images.get(test) or {})
+        merged.update({caption: path for caption, path in extra.items() if Path(path).exists()})
+        images[test] = merged
     from .html import write_index
 
     meta = {}
