@@ -158,8 +158,8 @@ class BayesianOptimizationSampler(ActiveSampler):
             raise SamplerError(f"bo kernel must be 'matern' or 'rbf', got {kernel!r}")
         if acquisition not in ("ei", "lcb"):
             raise SamplerError(f"bo acquisition must be 'ei' or 'lcb', got {acquisition!r}")
-        import scipy.linalg  # noqa: F401  (fail at make time, not at the first ask)
-        import scipy.optimize  # noqa: F401
+        import scipy.optimize  # noqa: F401  (fail at make time, not at the first ask)
+        import scipy.special  # noqa: F401
 
         self.kernel, self.acquisition = kernel, acquisition
         self.kappa = check_float(kappa, "bo kappa")
