@@ -57,14 +57,16 @@ class Buckets:
             [e[1:-1] + 4.0 * i for i, e in enumerate(edges)] or [np.zeros(0)])
         self._starts = np.concatenate([[0], np.cumsum(self.k - 1)[:-1]]).astype(int) \
             if self.d else np.zeros(0, dtype=int)
+        self._arm_offset = self.row_offset - self._starts
 
     def index(self, u: np.ndarray) -> np.ndarray:
         """Bucket of each coordinate of one point ``u`` (shape ``(d,)``)."""
         return np.searchsorted(self._flat_edges, u + self._shift, "right") - self._starts
 
     def flat_index(self, u: np.ndarray) -> np.ndarray:
-        """Flat arm index ``i * B + bucket`` of each coordinate of ``u``."""
-        return self.index(u) + self.row_offset
+        """Flat arm index ``i * B + bucket`` of each coordinate of ``u`` (``(d,)`` or
+        ``(n, d)``)."""
+        return np.searchsorted(self._flat_edges, u + self._shift, "right") + self._arm_offset
 
     def index_many(self, U: np.ndarray) -> np.ndarray:
         """Buckets of many points ``U`` (shape ``(n, d)``) -> ``(n, d)`` ints."""

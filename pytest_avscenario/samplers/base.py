@@ -113,6 +113,10 @@ class Sampler:
         self.n_told = 0
         self._conv = _compile(self.space)
         self._rows_to_dicts = _dict_builder([c[0] for c in self._conv])
+        dims = [c for c in self._conv if c[1] != 0]
+        self._uni_idx = np.array([i for i, c in enumerate(dims) if c[1] == 1], dtype=int)
+        self._uni_lo = np.array([c[2] for c in dims if c[1] == 1], dtype=float)
+        self._uni_w = np.array([c[3] for c in dims if c[1] == 1], dtype=float)
 
     @property
     def d(self) -> int:
@@ -155,10 +159,12 @@ class Sampler:
     def _params_many(self, U: np.ndarray) -> list[dict[str, Any]]:
         """``_params`` of every row of ``U`` at once (same values, fewer Python steps)."""
         U = np.asarray(U, dtype=float)
-        U = np.clip(U.reshape(1, self.d) if U.ndim == 1 else U, 0.0, 1.0)
+        U = (U.reshape(1, self.d) if U.ndim == 1 else U).clip(0.0, 1.0)
         n = U.shape[0]
         if not self._conv:
             return [{} for _ in range(n)]
+        # every Uniform column in one affine step (the same float operations as _params)
+        uni = iter((self._uni_lo + U[:, self._uni_idx] * self._uni_w).T.tolist())
         cols: list[list[Any]] = []
         j = 0
         for name, kind, a, w, dist in self._conv:
@@ -166,7 +172,7 @@ class Sampler:
                 cols.append([a] * n)
                 continue
             if kind == 1:
-                cols.append((a + U[:, j] * w).tolist())
+                cols.append(next(uni))
             else:
                 cols.append([dist.from_unit(x) for x in U[:, j].tolist()])
             j += 1

@@ -49,8 +49,9 @@ class CrossEntropySampler(ActiveSampler):
         self.grid = Buckets(self.space, self.n_buckets)
         g = self.grid
         self._interior = np.arange(g.B)[None, :] < (g.k - 1)[:, None]
-        self._cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
+        cdf_start = np.concatenate([[0], np.cumsum(g.k - 1)[:-1]]).astype(int) \
             if g.d else np.zeros(0, dtype=int)
+        self._arm_offset = g.row_offset - cdf_start
         # uniform over the buckets that can hold a case (a zero-weight choice cannot)
         n_valid = np.maximum(g.valid.sum(1, keepdims=True), 1)
         self._floor_uniform = self.floor * g.valid / n_valid
@@ -88,9 +89,8 @@ class CrossEntropySampler(ActiveSampler):
         g = self.grid
         r = self.rng.random((2, m, g.d))
         # inverse CDF per dimension in one searchsorted: dimension i's CDF is shifted by 4i
-        b = np.searchsorted(self._cdf, r[0] + g._shift, "right") - self._cdf_start
-        b = np.minimum(b, g.k - 1)
-        fi = b + g.row_offset
+        # and has only its k-1 interior edges, so the count is start_i + bucket, bucket < k
+        fi = np.searchsorted(self._cdf, r[0] + g._shift, "right") + self._arm_offset
         return g.flat_lo[fi] + r[1] * g.flat_width[fi]
 
     def _set_prob(self, p: np.ndarray) -> None:
@@ -120,13 +120,14 @@ class CrossEntropySampler(ActiveSampler):
         rho = self._R[:n]
         m = max(1, int(math.ceil(self.elite * n)))
         elite = np.argpartition(rho, m - 1)[:m] if m < n else np.arange(n)
-        b = g.index_many(self._U[elite])  # (m, d)
-        freq = np.bincount((b + g.row_offset).ravel(), minlength=g.d * g.B)
-        freq = freq.reshape(g.d, g.B) / m
-        # each row of prob, freq and the uniform sums to 1, so the mixtures stay normalized;
-        # mixing in `floor` of the uniform keeps every bucket at >= floor / k exactly
-        p = (1.0 - self.smoothing) * self.prob + self.smoothing * freq
-        self._set_prob((1.0 - self.floor) * p + self._floor_uniform)
+        counts = np.bincount(g.flat_index(self._U[elite]).ravel(), minlength=g.d * g.B)
+        # p <- (1 - floor) * ((1 - smoothing) * p + smoothing * elite frequencies)
+        #      + floor * uniform, folded into one affine step. Each row of p, of the elite
+        # frequencies and of the uniform sums to 1, so p stays normalized, and every
+        # selectable bucket keeps at least floor / (its dimension's selectable buckets).
+        keep = (1.0 - self.floor) * (1.0 - self.smoothing)
+        gain = (1.0 - self.floor) * self.smoothing / m
+        self._set_prob(keep * self.prob + gain * counts.reshape(g.d, g.B) + self._floor_uniform)
         self._queue, self._pqueue = [], []  # the rest came from the old distribution
 
     # -- state --------------------------------------------------------------------------
