@@ -68,8 +68,8 @@ class MultiArmedBanditSampler(ActiveSampler):
         # arrays over flat arms i * B + j; pulls start at 1: one pseudo-pull with reward 0
         # per arm (as VerifAI) keeps the UCB term finite. Padding arms are never chosen.
         self.pulls = np.where(self._valid, 1.0, np.inf)
-        self.nm_sum = np.zeros(n)  # near-miss (and invalid-case) rewards
-        self.ce_sum = np.zeros(n)  # pulls whose violation pattern is currently maximal
+        self.total = np.zeros(n)  # reward per arm: near misses + counterexample credit
+        self.ce_sum = np.zeros(n)  # the credit part: pulls whose pattern is now maximal
         self.patterns: dict[Pattern, np.ndarray] = {}
         self.maximal: set[Pattern] = set()
         self.scale: dict[str, list[float]] = {}  # metric -> [sum |rho|, count] (finite rho)
@@ -82,7 +82,7 @@ class MultiArmedBanditSampler(ActiveSampler):
     # -- proposing ----------------------------------------------------------------------
     def _refresh(self) -> None:
         # cached per arm so that ask is a few array operations
-        self._mean = np.where(self._valid, (self.ce_sum + self.nm_sum) / self.pulls, -np.inf)
+        self._mean = np.where(self._valid, self.total / self.pulls, -np.inf)
         self._rsqrt = np.sqrt(2.0 / self.pulls)
 
     def ask_unit(self) -> np.ndarray:
@@ -122,30 +122,36 @@ class MultiArmedBanditSampler(ActiveSampler):
         if r is None:
             # an invalid case: visited (so the arm is not replayed forever) but no evidence
             # either way; adding the arm's current mean leaves the mean unchanged
-            self.nm_sum[fi] += self._mean[fi]
+            add = self._mean[fi]
         else:
             pattern, closeness = self._judge(r, rho)
+            add = self.near_miss * closeness
             if pattern:
                 counts = self.patterns.get(pattern)
-                if counts is None:
-                    counts = self.patterns[pattern] = np.zeros_like(self.nm_sum)
+                if counts is None:  # a new pattern may change the maximal set
+                    self.total[fi] += add
+                    counts = self.patterns[pattern] = np.zeros_like(self.total)
                     counts[fi] += 1.0
-                    self._update_maximal()
-                else:
-                    counts[fi] += 1.0
-                    if pattern in self.maximal:
-                        self.ce_sum[fi] += self._credit(pattern)
-            if closeness > 0.0:
-                self.nm_sum[fi] += self.near_miss * closeness
-        self._mean[fi] = (self.ce_sum[fi] + self.nm_sum[fi]) / pulls
+                    self._update_maximal()  # recomputes every arm's mean
+                    return
+                counts[fi] += 1.0
+                if pattern in self.maximal:
+                    credit = self._credit(pattern)
+                    self.ce_sum[fi] += credit
+                    add += credit
+        total = self.total[fi] + add
+        self.total[fi] = total
+        self._mean[fi] = total / pulls
         self._rsqrt[fi] = np.sqrt(2.0 / pulls)
 
     def _update_maximal(self) -> None:
         new = set(self.order.maximal(self.patterns)) if self.multi else set(self.patterns)
         self.maximal = new
-        self.ce_sum = np.zeros_like(self.nm_sum)
+        near = self.total - self.ce_sum
+        self.ce_sum = np.zeros_like(self.total)
         for p in new:
             self.ce_sum += self._credit(p) * self.patterns[p]
+        self.total = near + self.ce_sum
         self._refresh()
 
     def _weight(self, metric: str) -> float:
@@ -207,7 +213,8 @@ class MultiArmedBanditSampler(ActiveSampler):
         st.update(
             pulls=np.where(self._valid, self.pulls, -1.0).tolist(),
             block_pos=self._rpos if self._rpos < len(self._rblock) else 0,
-            nm_sum=self.nm_sum.tolist(),
+            total=self.total.tolist(),
+            ce_sum=self.ce_sum.tolist(),
             patterns=[[sorted(p), c.tolist()] for p, c in self.patterns.items()],
             scale=self.scale,
             metrics=list(self.order.metrics),
@@ -224,10 +231,13 @@ class MultiArmedBanditSampler(ActiveSampler):
             self._block_rng = state["rng"]
             self._draw_block()
             self._rpos = int(state["block_pos"])
-        self.nm_sum = np.array(state["nm_sum"], dtype=float)
+        self.total = np.array(state["total"], dtype=float)
+        self.ce_sum = np.array(state["ce_sum"], dtype=float)
         for m in state.get("metrics", ()):
             if m not in self.order.level:
                 self.order = self.order.with_metric(m)
         self.patterns = {frozenset(p): np.array(c, dtype=float) for p, c in state["patterns"]}
         self.scale = {k: [float(v[0]), int(v[1])] for k, v in state["scale"].items()}
-        self._update_maximal()
+        # the sums come back exactly as saved; only the maximal set and caches are derived
+        self.maximal = set(self.order.maximal(self.patterns)) if self.multi else set(self.patterns)
+        self._refresh()
