@@ -126,6 +126,15 @@ def test_batch_conversion_equals_the_feature_space_mapping():
                        [space.to_unit(space.from_unit(u)) for u in U[3:]])
 
 
+@pytest.mark.parametrize("name", ACTIVE)
+def test_a_case_told_from_outside_the_space_counts_at_its_face(name):
+    s = samplers.make(name, {"x": Uniform(0, 1), "y": Uniform(0, 1)}, seed=0)
+    for x in (-5.0, 7.0, 1e9):
+        s.tell({"x": x, "y": 0.5}, 0.3)
+    assert s._unit({"x": -5.0, "y": 2.0}) == [0.0, 1.0]
+    drive(s, 5, rho=lambda p: p["x"])
+
+
 def test_scalar_rho_nan_anywhere_is_invalid_whatever_the_order():
     assert scalar_rho({"a": 1.0, "b": float("nan")}) is None
     assert scalar_rho({"a": float("nan"), "b": 1.0}) is None

@@ -181,10 +181,12 @@ class Sampler:
     def _unit(self, params: Mapping[str, Any]) -> list[float]:
         vals = []
         for name, kind, a, w, dist in self._conv:
-            if kind == 1:
-                vals.append((float(params[name]) - a) / w)
-            elif kind == 2:
-                vals.append(dist.to_unit(params[name]))
+            if kind == 0:
+                continue
+            x = (float(params[name]) - a) / w if kind == 1 else dist.to_unit(params[name])
+            # a value told from outside the space counts at the nearest face, as from_unit
+            # would have produced it (and bucket lookups rely on [0, 1])
+            vals.append(0.0 if x < 0.0 else (1.0 if x > 1.0 else x))
         return vals
 
     def sample_unit(self, n: int) -> np.ndarray:
