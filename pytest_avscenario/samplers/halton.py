@@ -34,13 +34,24 @@ def first_primes(n: int) -> list[int]:
 
 
 def radical_inverse(indices: np.ndarray, base: int) -> np.ndarray:
-    """Van der Corput radical inverse of non-negative integer ``indices`` in ``base``."""
-    i = np.asarray(indices, dtype=np.int64).copy()
+    """Van der Corput radical inverse of non-negative integer ``indices`` in ``base``.
+
+    All digits are taken at once (a digit loop with a numpy call per step cost ~1 µs per
+    point); the sum runs digit by digit with scales 1/base, 1/base², … obtained by repeated
+    division, so the values are the same floats the digit loop gave."""
+    i = np.asarray(indices, dtype=np.int64)
     out = np.zeros(i.shape, dtype=float)
+    top = int(i.max()) if i.size else 0
+    if top <= 0:
+        return out
+    n_digits = 1
+    while base**n_digits <= top:
+        n_digits += 1
+    powers = base ** np.arange(n_digits, dtype=np.int64)
+    digits = (i[..., None] // powers) % base
     scale = 1.0 / base
-    while np.any(i > 0):
-        i, digit = np.divmod(i, base)
-        out += digit * scale
+    for k in range(n_digits):
+        out += digits[..., k] * scale
         scale /= base
     return out
 
