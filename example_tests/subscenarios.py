@@ -28,7 +28,7 @@ from pytest_avscenario.sim import behaviors as b
 from pytest_avscenario.sim.behaviors import Behavior
 
 __all__ = [
-    "slow_down", "throttle_encroach", "since_appearance", "ego_passed",
+    "slow_down", "throttle_encroach", "wobble", "since_appearance", "ego_passed",
     "crossing_traffic", "pedestrian_crossing", "parked_car_pulling_out",
     "oncoming_encroacher", "school_bus_stop",
     "passes_stopped_school_bus", "parks",
@@ -86,6 +86,45 @@ def throttle_encroach(throttle: float, offset: float, max_speed: float = 15.0,
     ``duration`` [s] (None: to the end)."""
     return ThrottleEncroach(throttle=throttle, offset=offset, max_speed=max_speed, at=at,
                             duration=duration)
+
+
+@dataclass(frozen=True)
+class Wobble(Behavior):
+    """``inner`` with human imprecision drawn *during the run* from the world's rng (the case's
+    ``case.rng``): every ``every`` seconds a new offset ~ N(0, ``sd``) is drawn and added to the
+    commanded acceleration [m/s^2] of a vehicle, or to a pedestrian's walking speed as a
+    fraction (0.1: +-10 %). Same case, same draws, in any process."""
+
+    inner: Any = None
+    sd: float = 0.3
+    every: float = 1.0
+
+    kinds = b.VEHICLES + b.PEDESTRIANS
+
+    def bind(self, rng):
+        out = super().bind(rng)
+        return dataclasses.replace(out, inner=self.inner.bind(rng), state={})
+
+    def start(self, agent, world):
+        self.inner.start(agent, world)
+
+    def control(self, agent, world):
+        st = self.state
+        if world.t >= st.get("next", 0.0) - 1e-9:
+            st["offset"] = float(world.rng.normal(0.0, self.sd))
+            st["next"] = world.t + self.every
+        out = self.inner.control(agent, world)
+        if agent.kind == "pedestrian":
+            return max(0.0, float(out) * (1.0 + st["offset"]))
+        accel, steer = out
+        if agent.speed <= 0.05 and accel <= 0.0:
+            return accel, steer  # standing still stays standing
+        return accel + st["offset"], steer
+
+
+def wobble(inner: Behavior, sd: float = 0.3, every: float = 1.0) -> Wobble:
+    """``inner`` with noise N(0, ``sd``) redrawn every ``every`` [s] from ``case.rng``."""
+    return Wobble(inner=inner, sd=sd, every=every)
 
 
 class _Shifted:
@@ -161,12 +200,13 @@ def _spawn(world: Any, behavior: Behavior, trigger: Any, name: str) -> dict[str,
 def crossing_traffic(world: Any, inter: Any, approach: str, *, first_s: float, speed: float,
                      count: int = 1, spacing: float = 20.0, turn: str = "straight",
                      lane: int = 0, start_at: float = 0.0, stops: bool = False,
-                     trigger: Any = None, name: str = "cross") -> list[Any]:
+                     jitter: float = 0.0, trigger: Any = None, name: str = "cross") -> list[Any]:
     """``count`` cars on ``approach`` of ``inter``, the first ``first_s`` m along the lane
     (i.e. ``approach_length - first_s`` from the box), ``spacing`` m apart, at ``speed`` [m/s].
 
     They drive ``turn`` through the box without stopping (``stops=False``: the ego's road has
-    the stop sign) and react only to what is ahead of them in their own path.
+    the stop sign) and react only to what is ahead of them in their own path; ``jitter``
+    [m/s^2] adds acceleration noise drawn during the run from ``case.rng``.
     """
     lane_obj = inter.approach(approach, lane)
     cars = []
@@ -180,6 +220,8 @@ def crossing_traffic(world: Any, inter: Any, approach: str, *, first_s: float, s
             beh = b.keep_lane(speed)
         else:
             beh = b.cut_across(speed, direction=turn, start_at=start_at)
+        if jitter:
+            beh = wobble(beh, sd=jitter, every=1.0)
         cars.append(world.car(lane_obj, s=s, speed=speed if start_at <= 0 else 0.0,
                               **_spawn(world, beh, trigger, f"{name}{k + 1}")))
     return cars
@@ -187,11 +229,12 @@ def crossing_traffic(world: Any, inter: Any, approach: str, *, first_s: float, s
 
 def pedestrian_crossing(world: Any, crosswalk: Any, *, side: str | None = None,
                         wait: float = 0.0, wait_in_road: float = 0.0, speed: float = 1.4,
-                        approach: float = 3.0, trigger: Any = None,
+                        approach: float = 3.0, jitter: float = 0.0, trigger: Any = None,
                         name: str = "pedestrian") -> Any:
     """A pedestrian using ``crosswalk`` from ``side``: waits ``wait`` [s] ``approach`` m back
     from the crosswalk's kerb end, walks at ``speed`` [m/s] to it and across, stands
-    ``wait_in_road`` [s] in the first lane it enters, and walks ``approach`` m on beyond.
+    ``wait_in_road`` [s] in the first lane it enters, and walks ``approach`` m on beyond;
+    ``jitter`` (a fraction) varies its pace during the run, drawn from ``case.rng``.
 
     The ``approach`` keeps a waiting pedestrian out of the 5-m circle of the paper's distance
     metric for a car merely driving by in the kerb lane (the crosswalk path itself starts 2 m
@@ -202,7 +245,9 @@ def pedestrian_crossing(world: Any, crosswalk: Any, *, side: str | None = None,
     pts = crosswalk.walk(side).array
     u = (pts[-1] - pts[0]) / np.linalg.norm(pts[-1] - pts[0])
     path = Path.through([pts[0] - approach * u, *pts, pts[-1] + approach * u])
-    beh = b.cross(wait=wait, wait_in_road=wait_in_road, speed=speed)
+    beh: Behavior = b.cross(wait=wait, wait_in_road=wait_in_road, speed=speed)
+    if jitter:
+        beh = wobble(beh, sd=jitter, every=1.0)
     return world.pedestrian(path, speed=speed, **_spawn(world, beh, trigger, name))
 
 

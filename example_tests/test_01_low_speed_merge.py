@@ -6,7 +6,8 @@ the cross street does not stop. The ego starts almost stopped (``ego_speed``) ``
 before its stop line on the south approach and turns right (east), merging into a platoon of
 two cars coming from the west at ``platoon_speed``: the first ``d_first`` m before the west
 stop line, the second ``platoon_gap`` m behind it. The ego must pick a gap: before the
-platoon, between the two cars, or after it.
+platoon, between the two cars, or after it. The platoon drivers' accelerations wobble by
+N(0, 0.3) m/s^2, redrawn every second from ``case.rng`` during the run.
 
 Parameters: ``d_ego`` [m] U(1, 15); ``ego_speed`` [m/s] U(0, 4); ``d_first`` [m] U(5, 80);
 ``platoon_gap`` [m] U(10, 45) (centre to centre); ``platoon_speed`` [m/s] U(5, 12).
@@ -39,5 +40,5 @@ def test_low_speed_merge(case, world):
               target_speed=8.0, route=inter.route("south", "right"))
     stop_s = inter.stop_line("west").s
     crossing_traffic(world, inter, "west", first_s=stop_s - case.d_first, count=2,
-                     spacing=case.platoon_gap, speed=case.platoon_speed)
+                     spacing=case.platoon_gap, speed=case.platoon_speed, jitter=0.3)
     world.run(seconds=15)

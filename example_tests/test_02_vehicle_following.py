@@ -3,7 +3,8 @@
 Situation: a one-lane road; the ego starts at 12 m/s, driven by the AV under test; a lead
 car starts ``gap`` m ahead (centre to centre) at ``lead_speed`` and, ``brake_at`` s into the
 run, brakes at ``lead_decel`` down to ``lead_final_speed`` (0: a full stop), then holds that
-speed. Units: m, m/s, s, m/s^2.
+speed. The lead driver is imprecise: every second its acceleration is perturbed by
+N(0, 0.3) m/s^2 drawn during the run from ``case.rng``. Units: m, m/s, s, m/s^2.
 
 Parameters: ``gap`` [m] U(8, 40), ``lead_speed`` [m/s] U(5, 15), ``brake_at`` [s] U(1, 5),
 ``lead_decel`` [m/s^2] U(1, 8), ``lead_final_speed`` [m/s] U(0, 8). Nominal: a lead 30 m
@@ -19,7 +20,7 @@ on a car that stands), and the perception latency plus brake jerk of the autopil
 from pytest_avscenario import Uniform, scenario
 from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ttc
 
-from subscenarios import slow_down
+from subscenarios import slow_down, wobble
 
 
 @scenario(
@@ -37,5 +38,6 @@ def test_vehicle_following(case, world):
     road = world.straight_road(lanes=1, length=400)
     world.ego(road.lane(0), s=20.0, speed=12.0)
     world.car(road.lane(0), s=20.0 + case.gap, speed=case.lead_speed,
-              behavior=slow_down(case.brake_at, case.lead_decel, case.lead_final_speed))
+              behavior=wobble(slow_down(case.brake_at, case.lead_decel, case.lead_final_speed),
+                              sd=0.3))
     world.run(seconds=12)

@@ -3,7 +3,8 @@
 Situation: a one-lane one-way road with a marked crosswalk 120 m from its start. The ego
 (the one car) drives at ``ego_speed``, starting ``d_ego`` m before the crosswalk. A pedestrian
 stands on the south kerb, waits ``ped_wait`` s, walks north at ``ped_speed``, and once in
-the lane stands still for ``ped_wait_in_road`` s (hesitating), then walks on.
+the lane stands still for ``ped_wait_in_road`` s (hesitating), then walks on; its pace
+varies by +-10 % (1 sd), redrawn every second from ``case.rng`` during the run.
 
 Parameters (the paper's three first): ``d_ego`` [m] U(25, 70) — the AV's distance from the
 crosswalk; ``ped_wait`` [s] U(0, 8) — how long the pedestrian waits before crossing;
@@ -41,5 +42,5 @@ def test_pedestrian_crossing(case, world):
     s_ego = CROSSWALK_S - case.d_ego
     world.ego(road.lane(0), s=s_ego, speed=case.ego_speed, target_speed=case.ego_speed)
     pedestrian_crossing(world, crosswalk, side="south", wait=case.ped_wait,
-                        wait_in_road=case.ped_wait_in_road, speed=case.ped_speed)
+                        wait_in_road=case.ped_wait_in_road, speed=case.ped_speed, jitter=0.1)
     world.run(seconds=15)

@@ -6,7 +6,8 @@ Situation: a four-way, one-lane-per-approach intersection. The ego comes from th
 goes straight through after its stop (ordinary traffic the ego must let pass), and a lateral
 car on the ``lateral_from`` approach, ``d_lateral`` m before its line, starts ``lateral_delay``
 s into the run and crosses straight at ``lateral_speed`` without stopping (a red-light /
-stop-sign runner) — across the ego's turn.
+stop-sign runner; its acceleration wobbles by N(0, 0.3) m/s^2 drawn every second from
+``case.rng``) — across the ego's turn.
 
 Parameters: ``d_ego`` [m] U(5, 40); ``lateral_from`` in {"west", "east"}; ``d_lateral`` [m]
 U(10, 80); ``lateral_speed`` [m/s] U(6, 14); ``lateral_delay`` [s] U(0, 4); ``d_oncoming`` [m]
@@ -43,5 +44,5 @@ def test_unprotected_left_lateral_car(case, world):
               behavior=b.turn("straight", speed=8.0, yield_to_ego=True))
     stop_s = inter.stop_line(case.lateral_from).s
     crossing_traffic(world, inter, case.lateral_from, first_s=stop_s - case.d_lateral,
-                     speed=case.lateral_speed, start_at=case.lateral_delay)
+                     speed=case.lateral_speed, start_at=case.lateral_delay, jitter=0.3)
     world.run(seconds=15)

@@ -3,7 +3,8 @@
 Situation: a four-way, one-lane-per-approach intersection. The ego comes from the south
 ``d_ego`` m before its stop line at ``ego_speed`` and turns right (to the east), into the
 lane that a lateral car coming from the west, ``d_lateral`` m before its stop line, is about
-to drive through straight at ``lateral_speed`` without stopping (it has the right of way).
+to drive through straight at ``lateral_speed`` without stopping (it has the right of way;
+its acceleration wobbles by N(0, 0.3) m/s^2 drawn every second from ``case.rng``).
 The ego must stop and merge behind it, or turn in well ahead of it.
 
 Parameters: ``d_ego`` [m] U(5, 40); ``ego_speed`` [m/s] U(4, 10); ``d_lateral`` [m] U(10, 90);
@@ -36,5 +37,5 @@ def test_right_turn_lateral_car(case, world):
               target_speed=case.ego_speed, route=inter.route("south", "right"))
     stop_s = inter.stop_line("west").s
     crossing_traffic(world, inter, "west", first_s=stop_s - case.d_lateral,
-                     speed=case.lateral_speed)
+                     speed=case.lateral_speed, jitter=0.3)
     world.run(seconds=15)

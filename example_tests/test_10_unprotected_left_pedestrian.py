@@ -4,7 +4,8 @@ crosses the road it turns into.
 Situation: a four-way, one-lane-per-approach intersection. The ego comes from the south
 ``d_ego`` m before its stop line and turns left into the west arm. A pedestrian on the
 crosswalk across the west arm, starting from the ``ped_from`` kerb, waits ``ped_wait`` s,
-walks at ``ped_speed``, stands ``ped_wait_in_road`` s in the first lane it enters and walks on.
+walks at ``ped_speed`` (+-10 % drawn every second from ``case.rng``), stands
+``ped_wait_in_road`` s in the first lane it enters and walks on.
 An oncoming car from the north goes straight after its stop.
 
 Parameters: ``d_ego`` [m] U(5, 40); ``ped_from`` in {"south", "north"}; ``ped_wait`` [s]
@@ -42,5 +43,5 @@ def test_unprotected_left_pedestrian(case, world):
     world.car(inter.stop_line("north").before(case.d_oncoming), speed=8.0,
               behavior=b.turn("straight", speed=8.0, yield_to_ego=True))
     pedestrian_crossing(world, inter.crosswalk("west"), side=case.ped_from, wait=case.ped_wait,
-                        wait_in_road=case.ped_wait_in_road, speed=case.ped_speed)
+                        wait_in_road=case.ped_wait_in_road, speed=case.ped_speed, jitter=0.1)
     world.run(seconds=18)

@@ -9,15 +9,16 @@ start then, and they *disappear* once the ego is 15 m past them (recorded as abs
 monitors judge each sub-scenario only while it applies):
 
 1. ``pedestrian_crossing`` on the crosswalk across the south arm, triggered 45 m before it:
-   the pedestrian waits ``ped_wait`` s, then crosses, standing ``ped_wait_in_road`` s in the
-   road.
+   the pedestrian waits ``ped_wait`` s, then crosses (pace +-10 % drawn every second from
+   ``case.rng``), standing ``ped_wait_in_road`` s in the road.
 2. ``crossing_traffic`` from the west, triggered when the ego is 35 m from the centre: a car
-   ``cross_d`` m before the west stop line crosses at ``cross_speed`` without stopping.
+   ``cross_d`` m before the west stop line crosses at ``cross_speed`` without stopping
+   (acceleration noise N(0, 0.3) m/s^2 drawn every second from ``case.rng``).
 3. ``oncoming_encroacher`` on the north arm, triggered when the ego is 20 m from the centre:
    a car 110 m up the north approach pulls away with ``throttle`` and drifts ``encroach`` m
    toward the ego's lane for 3 s from ``encroach_after`` s after it appeared.
 
-Parameters: ``ego_speed`` [m/s] U(8, 13); ``ped_wait`` [s] U(0, 8); ``ped_wait_in_road`` [s]
+Parameters: ``ego_speed`` [m/s] U(8, 13); ``ped_wait`` [s] U(0, 12); ``ped_wait_in_road`` [s]
 U(0, 3); ``cross_d`` [m] U(10, 60); ``cross_speed`` [m/s] U(6, 13); ``throttle`` [-] U(0.2, 1);
 ``encroach`` [m] U(0, 4); ``encroach_after`` [s] U(0, 6).
 
@@ -35,9 +36,9 @@ ARM = 150.0  # [m] approach length of every arm
 
 @scenario(
     ego_speed=Uniform(8.0, 13.0, nominal=11.0),  # [m/s]
-    ped_wait=Uniform(0.0, 8.0, nominal=6.0),  # [s] after it appeared
+    ped_wait=Uniform(0.0, 12.0, nominal=10.0),  # [s] after it appeared
     ped_wait_in_road=Uniform(0.0, 3.0, nominal=1.0),  # [s]
-    cross_d=Uniform(10.0, 60.0, nominal=50.0),  # [m] before the west stop line
+    cross_d=Uniform(10.0, 60.0, nominal=25.0),  # [m] before the west stop line
     cross_speed=Uniform(6.0, 13.0, nominal=9.0),  # [m/s]
     throttle=Uniform(0.2, 1.0, nominal=0.5),  # [-] of 3 m/s^2
     encroach=Uniform(0.0, 4.0, nominal=1.5),  # [m]
@@ -53,9 +54,9 @@ def test_composed_route(case, world):
               route=inter.route("south", "straight"))
     crosswalk = inter.crosswalk("south")
     pedestrian_crossing(world, crosswalk, side="west", wait=case.ped_wait,
-                        wait_in_road=case.ped_wait_in_road, trigger=(crosswalk, 45.0))
+                        wait_in_road=case.ped_wait_in_road, jitter=0.1, trigger=(crosswalk, 45.0))
     crossing_traffic(world, inter, "west", first_s=inter.stop_line("west").s - case.cross_d,
-                     speed=case.cross_speed, trigger=(inter.centre, 35.0))
+                     speed=case.cross_speed, jitter=0.3, trigger=(inter.centre, 35.0))
     oncoming_encroacher(world, inter.approach("north"), s=ARM - 110.0, throttle=case.throttle,
                         offset=case.encroach, max_speed=12.0, at=case.encroach_after,
                         duration=3.0, trigger=(inter.centre, 20.0))
