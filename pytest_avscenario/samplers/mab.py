@@ -32,8 +32,8 @@ from ._buckets import Buckets
 from .base import ActiveSampler, Rho, _rng_state, check_float, check_int
 from .priority import Pattern
 
-_SINGLE = "rho"
-_RBLOCK = 64  # asks per generator call  # the pattern name of a counterexample in single-objective mode
+_SINGLE = "rho"  # the pattern name of a counterexample in single-objective mode
+_RBLOCK = 64  # asks served by one generator call
 
 
 class MultiArmedBanditSampler(ActiveSampler):
@@ -97,8 +97,9 @@ class MultiArmedBanditSampler(ActiveSampler):
         return g.flat_lo[fi] + r[n:] * g.flat_width[fi]
 
     def _random_row(self) -> np.ndarray:
-        # uniforms are drawn 64 asks at a time (one generator call per ask cost as much as
-        # the rest of ask); the unused rest of a block is part of the state
+        # uniforms are drawn _RBLOCK asks at a time (one generator call per ask cost as much
+        # as the rest of ask); the state keeps the generator as it was before the block and
+        # the position in it, and restore draws the block again
         if self._rpos >= len(self._rblock):
             self._block_rng = _rng_state(self.rng)
             self._draw_block()
