@@ -232,6 +232,7 @@ def parking_path(
     radius: float,
     length: float,
     step: float = 0.2,
+    min_radius: float | None = None,
 ) -> np.ndarray:
     """Reverse parking reference in the slot frame, as rows (x, y, body heading) [m, m, rad].
 
@@ -247,7 +248,8 @@ def parking_path(
     angle -b the centre's path is an arc of radius R cos(b) whose tangent is offset from the
     body by b, and each steering change kinks it. Two such arcs turning the body by phi shift
     the car 2 R cos(b) (1 - cos phi) sideways over 2 R cos(b) sin phi lengthwise. When the
-    start is too close for ``radius`` the turn is tightened to fit.
+    start is too close for ``radius`` the turn is tightened to fit, down to ``min_radius``
+    [m] (the steering limit; default just above the car's half length).
     """
     if lateral <= 0.0:
         raise ValueError("parking_path expects the car on the +y side of the slot")
@@ -263,7 +265,8 @@ def parking_path(
     span = start_x - end_x
     if span < need:
         # Tighten: bisect the radius whose manoeuvre fits in the available length.
-        lo, hi = half * 1.01, radius
+        lo = half * 1.01 if min_radius is None else min(min_radius, radius)
+        hi = radius
         for _ in range(40):
             mid = 0.5 * (lo + hi)
             if solve(mid)[2] > span:

@@ -507,8 +507,10 @@ class _Parker:
         kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
         # Keep 5% of the steering range for feedback (the reference is exact for this model).
         self.radius = 1.0 / (0.95 * kappa_max)
+        self.min_radius = 1.0 / kappa_max
         self.end_x = 0.0
         self._parked: list = []
+        self._traffic = False
         self.phase = "approach"
         self._track: np.ndarray | None = None
         self._arc: np.ndarray | None = None
@@ -524,6 +526,11 @@ class _Parker:
         self.lateral = max(abs(ye), 0.5)
         if self.slot_length is not None:
             self.end_x = min(0.0, -0.5 * float(self.slot_length) + o.parking_clearance + 0.5 * L)
+        # Moving agents near the ego (passing traffic) delay the start of the manoeuvre.
+        self._traffic = any(
+            math.hypot(a.vx, a.vy) > 0.5 and math.hypot(a.x - ego.x, a.y - ego.y) < 30.0
+            and (a.x - ego.x) * a.vx + (a.y - ego.y) * a.vy < 0.0  # coming closer
+            for a in seen.agents)
         if seen.n:
             # The cars parked around the slot, in the slot frame, inflated by 0.2 m: what the
             # manoeuvre must not touch.
@@ -586,9 +593,12 @@ class _Parker:
         on (phase "abandoned") rather than touch a car.
         """
         x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
-        if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.7 \
+        if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.1 \
                 and x < self.start_x + 30.0:
-            pts = parking_path(max(x, self.start_x), y, self.end_x, self.radius, self.length)
+            if self._traffic:
+                return  # the nose swings toward the next lane: let passing traffic go first
+            pts = parking_path(max(x, self.start_x), y, self.end_x, self.radius, self.length,
+                               min_radius=self.min_radius)
             hl, hw = 0.5 * self.length, 0.5 * ego.width
             for px, py, ph in pts[::2]:
                 me = box_corners(px, py, ph, hl, hw)
