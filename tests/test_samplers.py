@@ -133,6 +133,8 @@ def test_a_case_told_from_outside_the_space_counts_at_its_face(name):
         s.tell({"x": x, "y": 0.5}, 0.3)
     assert s._unit({"x": -5.0, "y": 2.0}) == [0.0, 1.0]
     drive(s, 5, rho=lambda p: p["x"])
+    with pytest.raises(SamplerError, match="'x' is NaN"):
+        s.tell({"x": float("nan"), "y": 0.5}, 1.0)
 
 
 def test_scalar_rho_nan_anywhere_is_invalid_whatever_the_order():

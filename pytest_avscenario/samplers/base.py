@@ -184,9 +184,13 @@ class Sampler:
             if kind == 0:
                 continue
             x = (float(params[name]) - a) / w if kind == 1 else dist.to_unit(params[name])
-            # a value told from outside the space counts at the nearest face, as from_unit
-            # would have produced it (and bucket lookups rely on [0, 1])
-            vals.append(0.0 if x < 0.0 else (1.0 if x > 1.0 else x))
+            if not 0.0 <= x <= 1.0:
+                if x != x:
+                    raise SamplerError(f"told a case whose parameter {name!r} is NaN")
+                # a value from outside the space counts at the nearest face, as from_unit
+                # would have produced it (and bucket lookups rely on [0, 1])
+                x = 0.0 if x < 0.0 else 1.0
+            vals.append(x)
         return vals
 
     def sample_unit(self, n: int) -> np.ndarray:
