@@ -33,11 +33,14 @@ def ball_rho(p, seed):
     return math.dist((p["x0"], p["x1"], p["x2"]), c) - BALL_R
 
 
-@pytest.mark.parametrize("name,budget", [("mab", 400), ("ce", 400), ("sa", 400), ("bo", 60)])
-def test_active_sampler_finds_the_ball_faster_than_random(name, budget):
+# bo gets a small budget (it is cubic in the samples) and so a stricter bar: a random
+# search cut off at 60 samples averages ~50, which must not pass
+@pytest.mark.parametrize("name,budget,margin",
+                         [("mab", 400, 0.5), ("ce", 400, 0.5), ("sa", 400, 0.5), ("bo", 60, 0.2)])
+def test_active_sampler_finds_the_ball_faster_than_random(name, budget, margin):
     firsts = [first_counterexample(name, BALL, ball_rho, seed, budget) for seed in range(10)]
-    # random: ~138 on average; each learner must need less than half of that
-    assert statistics.mean(firsts) < 0.5 * RANDOM_MEAN_BALL, firsts
+    # random needs ~138 on average
+    assert statistics.mean(firsts) < margin * RANDOM_MEAN_BALL, firsts
 
 
 def test_random_is_not_beaten_by_the_margin_itself():
