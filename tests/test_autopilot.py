@@ -230,7 +230,7 @@ def test_yields_to_a_crossing_pedestrian_predicted_to_enter_its_path():
     assert run.x[-1] > 60.0  # and then it drove on
 
 
-def test_without_prediction_the_same_pedestrian_is_hit():
+def test_without_prediction_the_same_pedestrian_is_approached_closer():
     # Sanity check that the previous test means something: with a 0-s horizon the
     # autopilot sees the pedestrian only as an obstacle once it stands in the lane.
     ped = Actor("ped", 30.0, -4.0, math.pi / 2, 1.4, kind="pedestrian", length=0.6, width=0.6)
@@ -239,6 +239,22 @@ def test_without_prediction_the_same_pedestrian_is_hit():
     ped2 = Actor("ped", 30.0, -4.0, math.pi / 2, 1.4, kind="pedestrian", length=0.6, width=0.6)
     run2 = simulate([straight()], speed=12.0, target_speed=12.0, actors=[ped2], seconds=6.0)
     assert run.min_dist < run2.min_dist
+
+
+def test_yields_to_a_pedestrian_at_the_crosswalk_line_not_at_the_pedestrian():
+    # Crosswalk 3 m wide centred at x = 60 (its near edge, the stop mark, at 58.5); the
+    # pedestrian steps off the kerb as the ego approaches.
+    ped = Actor("ped", 60.0, -3.0, math.pi / 2, 0.6, kind="pedestrian", length=0.6, width=0.6)
+    line = StopLine(route_index=0, s=58.5, kind="crosswalk")
+    run = simulate([straight()], speed=10.0, target_speed=10.0, actors=[ped],
+                   stop_lines=[line], seconds=18.0)
+    front = np.array(run.x) + 2.5
+    ped_y = -3.0 + 0.6 * np.array(run.t)  # where the (slow) pedestrian was at each sample
+    in_lane = ped_y < 2.0
+    assert min(run.speed) < 0.1  # a full stop
+    assert front[in_lane].max() <= 58.5 - 0.5  # held before the crosswalk's near edge
+    assert front[in_lane].max() > 58.5 - 3.0  # ... at the line, not far back from the walker
+    assert not run.collided and run.x[-1] > 70.0
 
 
 def test_stops_for_a_school_bus_with_its_stop_arm_out_and_goes_after():
