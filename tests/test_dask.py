@@ -35,7 +35,8 @@ def cluster_address():
 
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
         cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=40)
+                                           dashboard_address=None, silence_logs=40,
+                                           scheduler_kwargs={"dashboard_address": ":0"})
     try:
         yield cluster.scheduler_address
     finally:
@@ -163,6 +164,34 @@ def test_prefetched_cases_are_matched_and_a_replay_runs_again(tmp_path, cluster_
         executor.close()
     assert [o.rho for o in outcomes] == [o.rho for o in again]
     assert [o.verdict for o in outcomes] == ["fail", "pass", "pass", "pass"]
+
+
+def test_a_case_past_its_time_limit_is_ended_on_the_worker(tmp_path, cluster_address):
+    runner = pytest.importorskip("pytest_avscenario.runner")
+    if not hasattr(runner, "CaseTimeout"):
+        pytest.skip("this runner has no case time limits")
+    from pytest_avscenario.case import Case
+    from pytest_avscenario.executors import CaseJob
+    from pytest_avscenario.executors.dask import DaskExecutor
+
+    path = tmp_path / "test_spins_avs.py"
+    path.write_text("def test_spins(case):\n    while True:\n        pass\n")
+    func = remote.import_test_module(str(path), str(tmp_path)).test_spins
+    job = CaseJob(nodeid="test_spins_avs.py::test_spins[x]", module_path=str(path),
+                  rootdir=str(tmp_path), function="test_spins", func=func, argnames=("case",),
+                  fixtures={}, case=Case({"x": 1.0}, 0, 7, "halton"), monitor_set=None, driver=None)
+    job.timeout_s = 0.5  # set after construction: works whether CaseJob declares it or not
+    executor = DaskExecutor(cluster_address)
+    try:
+        t0 = time.monotonic()
+        # three in a row on two workers: the third runs only if a stopped case freed its thread
+        outcomes = [executor.run(job) for _ in range(3)]
+        assert time.monotonic() - t0 < 20
+    finally:
+        executor.close()
+    for outcome in outcomes:
+        assert outcome.verdict == "error" and outcome.error.startswith("CaseTimeout: the case ran longer")
+        assert outcome.signature[:3] == ("exception", "CaseTimeout", str(path))  # stopped in the body
 
 
 def test_exhausted_retries_make_an_error_never_a_pass(tmp_path, cluster_address):

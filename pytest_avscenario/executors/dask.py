@@ -109,7 +109,10 @@ class DaskExecutor(Executor):
                 with dask.config.set({"distributed.scheduler.allowed-failures": self.max_retries}):
                     self._cluster = distributed.LocalCluster(
                         n_workers=workers, threads_per_worker=1, processes=True,
-                        dashboard_address=None, silence_logs=logging.ERROR,
+                        silence_logs=logging.ERROR, dashboard_address=None,
+                        # the scheduler's HTTP endpoint on a free port: 8787 may be taken
+                        # by another user's cluster on a shared machine
+                        scheduler_kwargs={"dashboard_address": ":0"},
                     )
             except Exception as exc:
                 raise ValueError(
@@ -267,7 +270,7 @@ class DaskExecutor(Executor):
         case = job.case
         fields = CaseFields(nodeid=job.nodeid, params=dict(case.params), index=case.index,
                             seed=case.seed, sampler=case.sampler, origin=case.origin,
-                            test=case.test)
+                            test=case.test, timeout_s=getattr(job, "timeout_s", None))
         name = f"avs-{job.function}-{case.sampler}-{case.index}-{next(self._counter)}"
         self.stats["submitted"] += 1
         # fifo_timeout=0: every submission is its own generation, so equal priorities keep
@@ -305,10 +308,21 @@ class DaskExecutor(Executor):
         """The future's outcome; worker deaths and task errors become error outcomes."""
         lost_since: float | None = None
         attempts = 0
+        limit = getattr(job, "timeout_s", None)
+        # The worker ends a body that overruns its limit itself; this deadline is for a case
+        # stuck where that cannot reach (inside one C call). Counted from when pytest waits
+        # for the case, with a grace for queueing behind cases that started just before.
+        deadline = None if limit is None else time.monotonic() + limit + max(10.0, limit)
         while True:
             try:
                 return future.result(timeout=1.0)
             except TimeoutError:
+                if deadline is not None and time.monotonic() > deadline:
+                    future.cancel()
+                    return self._error(job, (
+                        f"CaseTimeout: the case did not come back from its Dask worker within "
+                        f"its time limit of {limit:g} s plus {max(10.0, limit):g} s grace (stuck "
+                        "in native code?); the worker may stay busy until the call returns"))
                 lost_since = self._check_cluster(lost_since)
             except distributed.KilledWorker as exc:
                 retries = f"{self.max_retries} time(s)" if self._cluster is not None else \

@@ -63,6 +63,7 @@ class CaseFields:
     sampler: str
     origin: str
     test: str
+    timeout_s: float | None = None  # wall-time limit of the body (the job's timeout_s)
 
 
 @dataclass
@@ -189,8 +190,51 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
         return World(seed=c.seed, rng=c.rng, driver=driver, name=nodeid)
 
     fixtures = {"avs_driver": driver} if "avs_driver" in spec.argnames else {}
-    outcome = run_case(func, spec.argnames, fixtures, case, spec.monitor_set, make_world)
+    body = func if fields.timeout_s is None else _bounded(func, float(fields.timeout_s))
+    outcome = run_case(body, spec.argnames, fixtures, case, spec.monitor_set, make_world)
     return to_wire(outcome)
+
+
+def _bounded(func: Any, seconds: float) -> Any:
+    """``func`` ended by the runner's ``CaseTimeout`` after ``seconds``, in any thread.
+
+    Dask runs tasks in worker threads, where the runner's SIGALRM limit cannot work; a timer
+    thread raises the exception asynchronously in the case's thread instead (it lands at the
+    next Python bytecode: code stuck inside one C call is bounded only by the client's
+    deadline, see ``DaskExecutor``). The exception then reads as a local timeout does.
+    """
+    import ctypes
+    import threading
+
+    try:
+        from ..runner import CaseTimeout
+    except ImportError:  # a runner without time limits: nothing to match
+        return func
+    message = f"the case ran longer than its time limit of {seconds:g} s"
+
+    class Expired(CaseTimeout):
+        # the C API raises a class without arguments: carry the message as the default
+        def __init__(self, *args: Any) -> None:
+            super().__init__(*(args or (message,)))
+
+    def call(**kwargs: Any) -> Any:
+        target = ctypes.c_ulong(threading.get_ident())
+        timer = threading.Timer(seconds, ctypes.pythonapi.PyThreadState_SetAsyncExc,
+                                (target, ctypes.py_object(Expired)))
+        timer.daemon = True
+        timer.start()
+        try:
+            return func(**kwargs)
+        except Expired as exc:
+            # a plain CaseTimeout with the same traceback: it pickles, and its type name
+            # (CaseOutcome.signature) is the one a local run gives
+            raise CaseTimeout(message).with_traceback(exc.__traceback__) from None
+        finally:
+            timer.cancel()
+            # the timer may have fired after func returned but before cancel: clear it
+            ctypes.pythonapi.PyThreadState_SetAsyncExc(target, None)
+
+    return call
 
 
 def to_wire(outcome: CaseOutcome) -> WireOutcome:

@@ -1,0 +1,314 @@
+"""Scale-out: 40 vehicle-following cases serial, under pytest-xdist ``-n 2`` and on Dask.
+
+Run ``python bench/bench_scale.py`` (``--repeats N``, default 3; ``--cases N``, default 40;
+``--modes`` instead checks what each ``--dist`` mode of pytest-xdist does with passive and
+active samplers). The script writes a scenario file like
+``example_tests/test_02_vehicle_following.py`` (40 Halton cases, five monitors) into a temp
+dir and runs it with ``--avs-db=none --avs-shrink-budget=0 --avs-report=none`` so only the
+simulations and their judging are measured:
+
+1. ``pytest`` (serial), ``pytest -n 2`` and ``pytest --avs-executor=dask`` (the plugin's own
+   LocalCluster: one worker per core, 2 on this machine), interleaved, ``--repeats`` times:
+   * *wall*: the whole command, as a user waits for it (interpreter, plugin, collection,
+     workers or cluster start, the first case's highway-env import, 40 cases);
+   * *cases*: first item's call start to last item's call end, from the reports' own
+     timestamps (also under xdist, where the controller receives the workers' reports);
+     it includes each process's first highway-env import, as a user's run does;
+   * *cpu*: user+system CPU of the whole process tree (pytest, its xdist workers or Dask
+     worker processes), from ``getrusage(RUSAGE_CHILDREN)``: what the parallelism costs.
+2. Per-case overhead of the Dask path against the in-process path, through the executor API
+   (no pytest): the same 40 jobs run by ``InProcessExecutor``; by ``DaskExecutor`` with one
+   worker one at a time (round-trip latency: submit, simulate there, return); and prefetched
+   (pipelined, as the plugin runs passive cases), with one and with two workers. Wall time
+   per case, and CPU per case summed over the client (which hosts the local scheduler) and
+   the workers, so the overhead is visible even when other jobs load the machine.
+
+Medians over repeats. The machine is shared: the load average is printed with the numbers;
+compare ratios from one run, not absolute times across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+SCENARIO = '''
+from pytest_avscenario import Uniform, scenario
+from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ttc
+
+from subscenarios import slow_down
+
+
+@scenario(
+    gap=Uniform(8.0, 40.0, nominal=30.0),
+    lead_speed=Uniform(5.0, 15.0, nominal=10.0),
+    brake_at=Uniform(1.0, 5.0, nominal=3.0),
+    lead_decel=Uniform(1.0, 8.0, nominal=2.5),
+    lead_final_speed=Uniform(0.0, 8.0, nominal=5.0),
+    samples={cases},
+    sampler="halton",
+    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],
+    priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
+)
+def test_vehicle_following(case, world):
+    road = world.straight_road(lanes=1, length=400)
+    world.ego(road.lane(0), s=20.0, speed=12.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=case.lead_speed,
+              behavior=slow_down(case.brake_at, case.lead_decel, case.lead_final_speed))
+    world.run(seconds=12)
+'''
+
+# A plugin module loaded with -p: records each call phase's start and stop (the controller
+# sees the workers' reports under xdist, with the times they were taken).
+TIMING_PLUGIN = '''
+import json, os
+
+_spans = []
+
+def pytest_runtest_logreport(report):
+    if report.when == "call":
+        _spans.append((report.start, report.stop))
+
+def pytest_sessionfinish(session):
+    if hasattr(session.config, "workerinput") or not _spans:
+        return
+    with open(os.environ["AVS_BENCH_TIMING"], "w") as f:
+        json.dump({"first_start": min(s for s, _ in _spans), "last_stop": max(e for _, e in _spans),
+                   "n": len(_spans)}, f)
+'''
+
+COMMON = ["-p", "no:cacheprovider", "-p", "avs_bench_timing", "-q", "--avs-seed=1",
+          "--avs-db=none", "--avs-shrink-budget=0", "--avs-report=none"]
+MODES = {"serial": [], "xdist -n 2": ["-n", "2"], "dask 2 workers": ["--avs-executor=dask"]}
+
+
+def load() -> str:
+    return " ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def write_suite(where: Path, cases: int, name: str = "") -> Path:
+    d = where / (name or f"suite{cases}")
+    d.mkdir()
+    (d / "test_vehicle_following.py").write_text(SCENARIO.format(cases=cases))
+    shutil.copy(ROOT / "example_tests" / "subscenarios.py", d / "subscenarios.py")
+    (d / "avs_bench_timing.py").write_text(TIMING_PLUGIN)
+    return d
+
+
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def run_pytest(suite: Path, extra: list[str], timing: Path) -> dict:
+    env = dict(os.environ, AVS_BENCH_TIMING=str(timing), PYTHONPATH=str(suite))
+    if timing.exists():
+        timing.unlink()
+    cpu0, t0 = _children_cpu(), time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "pytest", *COMMON, *extra], cwd=suite, env=env,
+                          capture_output=True, text=True)
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+    last = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else proc.stderr[-300:]
+    if proc.returncode not in (0, 1):
+        raise SystemExit(f"pytest {' '.join(extra)} failed ({proc.returncode}):\n"
+                         f"{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    span = json.loads(timing.read_text())
+    return {"wall": wall, "cases": span["last_stop"] - span["first_start"], "cpu": cpu,
+            "n": span["n"], "summary": last}
+
+
+def bench_pytest(tmp: Path, cases: int, repeats: int) -> None:
+    suite = write_suite(tmp, cases)
+    timing = tmp / "timing.json"
+    runs: dict[str, dict[str, list[float]]] = {m: collections.defaultdict(list) for m in MODES}
+    loads = []
+    for r in range(repeats):
+        for mode, extra in MODES.items():
+            loads.append(os.getloadavg()[0])
+            res = run_pytest(suite, extra, timing)
+            assert res["n"] == cases, res
+            for k in ("wall", "cases", "cpu"):
+                runs[mode][k].append(res[k])
+            print(f"  repeat {r + 1} {mode:<15} wall {res['wall']:6.2f} s  cases {res['cases']:6.2f} s"
+                  f"  cpu {res['cpu']:6.2f} s  ({res['summary']})  load {load()}", flush=True)
+    print(f"\n{cases} cases, medians of {repeats}; load average (1 min) before the runs "
+          f"{min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} cores")
+    base = {k: statistics.median(v) for k, v in runs["serial"].items()}
+    print(f"{'':<16}{'wall s':>8}{'speed-up':>10}{'cases s':>9}{'speed-up':>10}{'cpu s':>8}")
+    for mode in MODES:
+        med = {k: statistics.median(v) for k, v in runs[mode].items()}
+        best = min(runs[mode]["cases"])
+        print(f"{mode:<16}{med['wall']:8.2f}{base['wall'] / med['wall']:10.2f}"
+              f"{med['cases']:9.2f}{base['cases'] / med['cases']:10.2f}{med['cpu']:8.2f}"
+              f"   (cases: best {best:.2f} s, all {' '.join(f'{v:.2f}' for v in runs[mode]['cases'])})")
+
+
+def bench_overhead(tmp: Path, cases: int, repeats: int) -> None:
+    """Per case: in-process vs Dask round trip (1 worker) vs Dask prefetched (1 and 2 workers)."""
+    from pytest_avscenario import samplers
+    from pytest_avscenario.case import Case, stable_seed
+    from pytest_avscenario.executors import CaseJob, InProcessExecutor
+    from pytest_avscenario.executors.dask import DaskExecutor
+    from pytest_avscenario.executors.remote import import_test_module
+    from pytest_avscenario.monitors import MonitorSet
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.space import FeatureSpace
+
+    suite = write_suite(tmp, cases, name="api")
+    path = suite / "test_vehicle_following.py"
+    func = import_test_module(str(path), str(suite)).test_vehicle_following
+    spec = func.pytestmark[0].args[0]
+    space = FeatureSpace(spec.parameters)
+    monitors = MonitorSet(list(spec.monitors), priority=spec.priority)
+    points = samplers.make("halton", space, seed=1).sample_unit(cases)
+
+    def jobs(tag: str) -> list[CaseJob]:
+        out = []
+        for k, u in enumerate(points):
+            case = Case(space.from_unit(u), k, stable_seed(1, k), "halton", test=tag)
+            out.append(CaseJob(
+                nodeid=f"{path.name}::test_vehicle_following[{tag}-{k:03d}]", module_path=str(path),
+                rootdir=str(suite), function="test_vehicle_following", func=func,
+                argnames=("case", "world"), fixtures={}, case=case, monitor_set=monitors,
+                driver="autopilot",
+                make_world=lambda c: World(seed=c.seed, rng=c.rng, driver="autopilot")))
+        return out
+
+    def timed(fn, ex=None) -> tuple[float, float]:
+        """Wall and CPU seconds per case: this process, plus the workers' when on Dask."""
+        workers_cpu = (lambda: sum(ex._client.run(time.process_time).values())) if ex else (lambda: 0.0)
+        c0, w0, t0 = time.process_time(), workers_cpu(), time.perf_counter()
+        fn()
+        wall = time.perf_counter() - t0
+        return wall / cases, (time.process_time() - c0 + workers_cpu() - w0) / cases
+
+    inproc = InProcessExecutor()
+    InProcessExecutor().run(jobs("warm")[0])  # imports
+    results: dict[str, list[tuple[float, float]]] = collections.defaultdict(list)
+    sim_remote: list[float] = []
+    for workers in (1, 2):
+        ex = DaskExecutor(n_workers=workers)
+        try:
+            for w in ex._warm:  # the warm-up scenes: imports done before timing
+                w.result()
+            ex.run(jobs("warm-dask")[0])
+            for r in range(repeats):
+                local_jobs = jobs(f"local{workers}{r}")
+                results["in-process"].append(timed(lambda: [inproc.run(j) for j in local_jobs]))
+                if workers == 1:
+                    one = jobs(f"rt{r}")
+                    outs: list = []
+                    results["dask round trip, 1 worker"].append(
+                        timed(lambda: outs.extend(ex.run(j) for j in one), ex))
+                    sim_remote.extend(o.sim_time_s for o in outs)
+                ahead = jobs(f"pf{workers}{r}")
+
+                def prefetched() -> None:
+                    ex.prefetch(ahead)
+                    for j in ahead:
+                        ex.run(j)
+
+                results[f"dask prefetched, {workers} worker{'s' if workers > 1 else ''}"].append(
+                    timed(prefetched, ex))
+                print(f"  overhead repeat {r + 1}, {workers} worker(s), load {load()}", flush=True)
+        finally:
+            ex.close()
+    base_wall = statistics.median(w for w, _ in results["in-process"])
+    base_cpu = statistics.median(c for _, c in results["in-process"])
+    print(f"\nper case, medians of {repeats} x {cases} cases (load {load()}); the case's own time "
+          f"(sim_time_s) on the worker: median {1e3 * statistics.median(sim_remote):.1f} ms")
+    print(f"  {'':<28} {'wall ms':>8} {'vs in-process':>14} {'cpu ms':>8} {'vs in-process':>14}")
+    for name, values in results.items():
+        wall = statistics.median(w for w, _ in values)
+        cpu = statistics.median(c for _, c in values)
+        print(f"  {name:<28} {1e3 * wall:8.1f} {1e3 * (wall - base_wall):+14.1f} "
+              f"{1e3 * cpu:8.1f} {1e3 * (cpu - base_cpu):+14.1f}")
+
+
+MODES_FILE = '''
+import json, os
+from pytest_avscenario import scenario, Uniform
+
+def _log(case):
+    with open(os.environ["AVS_RECORD"], "a") as f:
+        f.write(json.dumps({{"item": case.test, "params": case.params,
+                            "worker": os.environ.get("PYTEST_XDIST_WORKER", "-")}}) + "\\n")
+
+@scenario(x=Uniform(0, 1), y=Uniform(0, 1), samples=30, sampler="halton")
+def test_passive(case):
+    _log(case)
+
+@scenario(x=Uniform(0, 1), y=Uniform(0, 1), samples=8, sampler="mab")
+def test_active(case):
+    import time; time.sleep({sleep})  # slower than the passive cases: work gets stolen
+    _log(case)
+'''
+
+
+def check_modes(tmp: Path) -> None:
+    """Which worker ran which case under each --dist mode; same parameters as serial?"""
+    suite = tmp / "modes"
+    suite.mkdir()
+    (suite / "test_modes.py").write_text(MODES_FILE.format(sleep=0.3))
+
+    def run(extra: list[str], tag: str) -> tuple[list[dict], str]:
+        rec = suite / f"rec-{tag}.jsonl"
+        env = dict(os.environ, AVS_RECORD=str(rec))
+        proc = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q",
+                               "--avs-seed=4", "--avs-db=none", "--avs-report=none", *extra],
+                              cwd=suite, env=env, capture_output=True, text=True)
+        return [json.loads(x) for x in rec.read_text().splitlines()], proc.stdout.strip().splitlines()[-1]
+
+    serial, _ = run([], "serial")
+    ref = {r["item"]: r["params"] for r in serial}
+    print(f"{'--dist':<11}{'passive on':<14}{'active on':<16}{'active = serial':<17}{'dup. active':<12}")
+    for mode in ("load", "loadscope", "loadfile", "worksteal"):
+        rows, summary = run(["-n", "2", f"--dist={mode}"], mode)
+        on = collections.defaultdict(collections.Counter)
+        same = 0
+        for r in rows:
+            fn = r["item"].split("::")[1].split("[")[0]
+            on[fn][r["worker"]] += 1
+            same += fn == "test_active" and r["params"] == ref[r["item"]]
+        active = [json.dumps(r["params"], sort_keys=True) for r in rows if "test_active" in r["item"]]
+        fmt = lambda c: " ".join(f"{w}:{n}" for w, n in sorted(c.items()))  # noqa: E731
+        print(f"{mode:<11}{fmt(on['test_passive']):<14}{fmt(on['test_active']):<16}"
+              f"{same}/8{'':<13}{len(active) - len(set(active)):<12}{summary}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--cases", type=int, default=40)
+    ap.add_argument("--modes", action="store_true", help="check the --dist modes instead")
+    ap.add_argument("--skip-overhead", action="store_true")
+    ap.add_argument("--skip-pytest", action="store_true")
+    args = ap.parse_args()
+    print(f"load average {load()} on {os.cpu_count()} cores; python {sys.version.split()[0]}")
+    if len(os.sched_getaffinity(0)) != 2:
+        print("note: the Dask LocalCluster starts one worker per core, not 2, on this machine")
+    with tempfile.TemporaryDirectory(prefix="avs-bench-scale-") as tmp:
+        if args.modes:
+            check_modes(Path(tmp))
+            return
+        if not args.skip_pytest:
+            bench_pytest(Path(tmp), args.cases, args.repeats)
+        if not args.skip_overhead:
+            bench_overhead(Path(tmp), args.cases, args.repeats)
+
+
+if __name__ == "__main__":
+    main()
