@@ -333,10 +333,23 @@ def test_parallel_parks_between_two_cars():
     assert min(run.speed) < -0.5  # it did reverse in
 
 
-def test_parking_gives_up_a_slot_too_short_and_drives_on():
-    # Known limit: its one reverse manoeuvre needs about L + 3.3 m of free kerb; it checks
-    # that before reversing rather than touching a car.
+def test_parks_in_a_tight_slot_with_several_moves():
+    # L + 2 m of kerb: too short for the two-arc manoeuvre, so it shuffles back and forth.
     lane, parked, goal = parking_scene(gap=7.0)
+    run = simulate([lane], ego_s=20.0, speed=8.0, target_speed=8.0, actors=parked, goal=goal,
+                   seconds=40.0)
+    dpos, dheading = pose_error(run, goal)
+    assert not run.collided
+    assert dpos < 0.5 and dheading < 10.0
+    v = np.array(run.speed)
+    direction_changes = np.count_nonzero(np.diff(np.sign(v[np.abs(v) > 0.05])))
+    assert direction_changes >= 2  # forward -> reverse -> forward at least
+
+
+def test_parking_gives_up_a_slot_too_short_and_drives_on():
+    # 6 m of kerb for a 5-m car: no plan keeps 0.2 m from both cars; it checks that before
+    # reversing rather than touching a car.
+    lane, parked, goal = parking_scene(gap=6.0)
     run = simulate([lane], ego_s=20.0, speed=8.0, target_speed=8.0, actors=parked, goal=goal,
                    seconds=25.0)
     assert not run.collided

@@ -319,3 +319,132 @@ def boxes_overlap(a: list[tuple[float, float]], b: list[tuple[float, float]]) ->
             if max(pa) < min(pb) or max(pb) < min(pa):
                 return False
     return True
+
+
+def _arc_poses(x0: float, y0: float, h0: float, direction: float, beta: float, half: float,
+               s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses after travelling arc lengths ``s`` [m] at a constant slip angle ``beta`` [rad].
+
+    Closed form of highway-env's kinematics: the heading turns at direction sin(beta)/half
+    per metre and the centre moves along heading + beta (backward when direction < 0).
+    """
+    if abs(beta) < 1e-9:
+        c, sn = math.cos(h0), math.sin(h0)
+        return x0 + direction * s * c, y0 + direction * s * sn, np.full_like(s, h0)
+    k = math.sin(beta) / half
+    h = h0 + direction * k * s
+    x = x0 + (np.sin(h + beta) - math.sin(h0 + beta)) / k
+    y = y0 - (np.cos(h + beta) - math.cos(h0 + beta)) / k
+    return x, y, h
+
+
+def _overlaps(x: np.ndarray, y: np.ndarray, h: np.ndarray, half: float, half_w: float,
+              boxes: Sequence[tuple[float, float, float, float]]) -> np.ndarray:
+    """Per pose, whether the car overlaps any axis-aligned box (cx, cy, half_x, half_y) [m]."""
+    c, s = np.abs(np.cos(h)), np.abs(np.sin(h))
+    cs, sn = np.cos(h), np.sin(h)
+    ex = half * c + half_w * s
+    ey = half * s + half_w * c
+    hit = np.zeros(x.shape, dtype=bool)
+    for bx, by, bhx, bhy in boxes:
+        dx, dy = bx - x, by - y
+        sep = (np.abs(dx) > ex + bhx) | (np.abs(dy) > ey + bhy)
+        sep |= np.abs(dx * cs + dy * sn) > half + bhx * c + bhy * s
+        sep |= np.abs(dy * cs - dx * sn) > half_w + bhx * s + bhy * c
+        hit |= ~sep
+    return hit
+
+
+def parking_moves(
+    x: float, y: float, length: float, width: float, max_beta: float,
+    boxes: Sequence[tuple[float, float, float, float]], step: float = 0.2,
+) -> list[tuple[np.ndarray, float]] | None:
+    """A multi-move parallel-parking plan in the slot frame, or None if none is found.
+
+    Frame as for :func:`parking_path` (goal at the origin heading 0, the car at (``x``,
+    ``y``) heading 0 with y > 0); ``boxes`` are the obstacles, already inflated by the
+    wanted clearance. The plan: reverse (straight to x1, then full lock swinging the tail in
+    until the body is at phi), then counter-lock; while the body is not yet straight,
+    alternately pull forward on the kerb-side lock and reverse on the counter-lock, each
+    move running until the body is straight or the next step would touch an obstacle; then
+    a straight move to x = 0. x1 and phi are searched on a grid, preferring a final lateral
+    error under 0.15 m and few moves. Returns [(points (x, y, body heading), direction)],
+    points every ``step`` metres, direction -1 reversing, +1 forward.
+    """
+    half, half_w = 0.5 * length, 0.5 * width
+    ds = 0.05
+    s_grid = np.arange(ds, 15.0, ds)
+
+    def run(x0, y0, h0, direction, beta, stop_h):
+        X, Y, H = _arc_poses(x0, y0, h0, direction, beta, half, s_grid)
+        bad = _overlaps(X, Y, H, half, half_w, boxes)
+        n = len(s_grid)
+        i = int(np.argmax(bad)) if bad.any() else n
+        if stop_h is not None and beta:
+            turn = direction * math.sin(beta)
+            done = (H - stop_h) * (1.0 if turn > 0 else -1.0) >= 0.0
+            if done.any():
+                i = min(i, int(np.argmax(done)) + 1)
+        if i == 0:
+            return x0, y0, h0, 0.0
+        return float(X[i - 1]), float(Y[i - 1]), float(H[i - 1]), float(s_grid[i - 1])
+
+    best = None
+    for x1 in np.arange(x, -2.0, -0.5):
+        # The straight reverse to x1 must itself be clear.
+        if _overlaps(np.array([x1]), np.array([y]), np.array([0.0]), half, half_w, boxes)[0]:
+            break
+        for phi in np.arange(0.3, 1.0, 0.05):
+            moves = [(x, y, 0.0, -1.0, 0.0, x - x1)]
+            cx, cy, ch, s = run(x1, y, 0.0, -1.0, -max_beta, phi)
+            if ch < phi - 0.01:
+                continue
+            moves.append((x1, y, 0.0, -1.0, -max_beta, s))
+            ok = False
+            for _ in range(8):
+                for direction, beta in ((-1.0, max_beta), (1.0, -max_beta)):
+                    nx, ny, nh, s = run(cx, cy, ch, direction, beta, 0.0)
+                    if s < 0.05:
+                        break
+                    moves.append((cx, cy, ch, direction, beta, s))
+                    cx, cy, ch = nx, ny, nh
+                    if abs(ch) < 0.02:
+                        ok = True
+                        break
+                else:
+                    continue
+                break
+            if not ok:
+                continue
+            # Final straight move to x = 0 must be clear too.
+            xs = np.linspace(cx, 0.0, 20)
+            if _overlaps(xs, np.full_like(xs, cy), np.full_like(xs, ch), half, half_w, boxes).any():
+                continue
+            cost = 10.0 * abs(cy) + len(moves)
+            if best is None or cost < best[0]:
+                best = (cost, moves, (cx, cy, ch))
+        if best is not None and best[0] < 10.0 * 0.15 + 4:
+            break  # good enough: stop searching further back
+    if best is None or abs(best[2][1]) > 0.3:
+        return None
+    # Sample the moves into tracks; consecutive moves in the same direction merge.
+    tracks: list[tuple[list, float]] = []
+    for x0, y0, h0, direction, beta, s in best[1]:
+        n = max(1, int(math.ceil(s / step)))
+        ss = np.linspace(0.0, s, n + 1)
+        X, Y, H = _arc_poses(x0, y0, h0, direction, beta, half, ss)
+        pts = list(zip(X.tolist(), Y.tolist(), H.tolist()))
+        if tracks and tracks[-1][1] == direction:
+            tracks[-1][0].extend(pts[1:])
+        else:
+            tracks.append((pts, direction))
+    cx, cy, ch = best[2]
+    if abs(cx) > 0.1:
+        direction = 1.0 if cx < 0.0 else -1.0
+        n = max(2, int(math.ceil(abs(cx) / step)))
+        pts = [(cx + (0.0 - cx) * i / n, cy, ch) for i in range(n + 1)]
+        if tracks and tracks[-1][1] == direction:
+            tracks[-1][0].extend(pts[1:])
+        else:
+            tracks.append((pts, direction))
+    return [(np.array(p), d) for p, d in tracks if len(p) >= 2]

@@ -29,6 +29,7 @@ from pytest_avscenario.sim.drivers._geometry import (
     bicycle_steering,
     box_corners,
     boxes_overlap,
+    parking_moves,
     parking_path,
     pursuit_steering,
 )
@@ -510,6 +511,8 @@ class _Parker:
         self.min_radius = 1.0 / kappa_max
         self.end_x = 0.0
         self._parked: list = []
+        self._boxes: list = []
+        self._queue: list = []
         self._traffic = False
         self.phase = "approach"
         self._track: np.ndarray | None = None
@@ -535,11 +538,17 @@ class _Parker:
             # The cars parked around the slot, in the slot frame, inflated by 0.2 m: what the
             # manoeuvre must not touch.
             self._parked = []
+            self._boxes = []
             best = None
             for a in seen.agents:
                 x, y, h = self._frame(a.x, a.y, math.atan2(a.s, a.c), self.side)
                 if abs(y) < 1.5 and -15.0 < x < 15.0:
                     self._parked.append(box_corners(x, y, h, a.hl + 0.2, a.hw + 0.2))
+                    ch, sh = abs(math.cos(h)), abs(math.sin(h))
+                    # 0.3 m for the multi-move plan: its moves end right at the margin,
+                    # and stopping overshoots by a few centimetres.
+                    self._boxes.append((x, y, a.hl * ch + a.hw * sh + 0.3,
+                                        a.hl * sh + a.hw * ch + 0.3))
                     if x < 0.0:
                         front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
                         best = front if best is None else max(best, front)
@@ -600,15 +609,27 @@ class _Parker:
             pts = parking_path(max(x, self.start_x), y, self.end_x, self.radius, self.length,
                                min_radius=self.min_radius)
             hl, hw = 0.5 * self.length, 0.5 * ego.width
-            for px, py, ph in pts[::2]:
-                me = box_corners(px, py, ph, hl, hw)
-                if any(boxes_overlap(me, car) for car in self._parked):
+            fits = not any(boxes_overlap(box_corners(px, py, ph, hl, hw), car)
+                           for px, py, ph in pts[::2] for car in self._parked)
+            if fits:
+                queue = [(pts, -1.0)]
+                if self.end_x < -0.3:  # reversed in short of the goal: pull forward to it
+                    n = max(2, int(math.ceil(-self.end_x / 0.2)))
+                    queue.append((np.array([(self.end_x * (1 - i / n), 0.0, 0.0)
+                                            for i in range(n + 1)]), 1.0))
+            else:
+                # Too tight for one manoeuvre: search a multi-move plan (see parking_moves).
+                max_beta = math.asin(min(0.99, 0.5 * self.length / self.radius))
+                queue = parking_moves(max(x, self.start_x), y, self.length, ego.width, max_beta,
+                                      self._boxes)
+                if not queue:
                     self.phase = "abandoned"
                     return
-            self._begin(pts, -1.0)
-            self.phase = "reverse"
+            self._queue = queue[1:]
+            self._begin(*queue[0])
 
     def _begin(self, pts: np.ndarray, direction: float) -> None:
+        self.phase = "reverse" if direction < 0 else "forward"
         self._track = pts
         seg = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
         self._arc = np.concatenate([[0.0], np.cumsum(seg)])
@@ -634,12 +655,8 @@ class _Parker:
         if k >= len(pts) - 3:
             rem = max(0.0, self._dir * along_end)
         if rem < 0.05 and abs(v) < 0.05:
-            if self.phase == "reverse" and self.end_x < -0.3:
-                fwd = np.array([[self.end_x + (-self.end_x) * i / 10.0, 0.0, 0.0]
-                                for i in range(11)])
-                fwd[0, 0], fwd[0, 1] = x, y
-                self._begin(fwd, 1.0)
-                self.phase = "forward"
+            if self._queue:
+                self._begin(*self._queue.pop(0))
             else:
                 self.phase = "done"
             return -v / dt, 0.0
