@@ -8,11 +8,12 @@ curves by a lateral-acceleration limit, behind the nearest agent found on its pa
 at stop lines (full stop, then goes once no conflict is predicted) and for a school bus with
 its stop arm out, (4) predicts every other agent at constant velocity over a finite horizon
 against its own path and yields when it could not clear a predicted conflict zone with a time
-margin, and (5) parallel parks with two reverse arcs when its observation carries a parking
-goal. Its weaknesses are deliberate and realistic: perception reports agents with a latency
-(and a new agent only once that latency has passed), braking builds up at a finite jerk,
-prediction is constant-velocity and blind beyond its horizon and sensor range, a conflict it
-can no longer stop for is driven through, and there is no right-of-way negotiation.
+margin, and (5) parallel parks (two reverse arcs, or several moves in a tight slot) when its
+observation carries a parking goal. Its weaknesses are deliberate and realistic: perception
+reports agents with a latency (and a new agent only once that latency has passed), braking
+builds up at a finite jerk, prediction is constant-velocity and blind beyond its horizon and
+sensor range, a conflict it can no longer stop for is driven through, and there is no
+right-of-way negotiation.
 """
 
 from __future__ import annotations
@@ -128,6 +129,20 @@ class Autopilot:
     ``act(observation) -> (acceleration [m/s^2], steering [rad])``. One instance drives one
     case: it keeps internal state between steps (perception buffer, stop-line progress,
     parking phase) and is deterministic (no randomness, no clock).
+
+    What it reads from the observation: ``route``/``route_index``/``s`` (where it is on its
+    path; a route that steps to a parallel lane is driven as a lane change), ``agents``
+    (``kind`` "pedestrian" gets a wider margin, "bus" with ``flags["stop_arm"]`` is stopped
+    for, in either direction), ``stop_lines`` (kind "stop": full stop for ``stop_dwell``, then
+    go when no conflict is predicted; kind "crosswalk": where it waits for pedestrians),
+    ``target_speed`` (else ``speed_limit``), ``dt``, and ``goal``. A parking goal is
+    ``{"kind": "park", "x": [m], "y": [m], "heading": [rad], "length": [m] (optional)}``:
+    the pose of the car's centre once parked and, optionally, the free kerb length of the
+    slot centred there (otherwise it measures the slot from the parked cars it sees). It
+    drives its route until near the slot, reverses in (the world must let it reverse), and
+    gives the slot up and drives on if no plan keeps 0.2 m from the parked cars (about
+    L + 1.3 m of kerb is the least it manages). ``last_reason`` names what decided the last
+    command ("cruise", "follow", "stop line", "yield", "school bus", "park:reverse", ...).
     """
 
     def __init__(self, **options: Any) -> None:
@@ -189,6 +204,16 @@ class Autopilot:
             if self._parker.phase == "approach":
                 self._parker.plan(ego, seen)
             elif self._parker.phase != "abandoned":
+                if self._parker.phase != "done" and any(
+                        math.hypot(a.vx, a.vy) > 0.3
+                        and math.hypot(a.x - ego.x, a.y - ego.y) < 0.5 * ego.length + 4.0
+                        for a in seen.agents):
+                    # Someone moving close by (a pedestrian behind, a car squeezing past):
+                    # pause the manoeuvre where it is.
+                    self.last_reason = "park:pause"
+                    accel = max(-3.0, min(3.0, -ego.speed / dt))
+                    self._accel = accel
+                    return accel, 0.0
                 accel, steer = self._parker.act(ego, dt)
                 self._accel = accel
                 self.last_reason = "park:" + self._parker.phase
