@@ -33,7 +33,9 @@ def cluster_address():
     import dask
     import distributed
 
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+    # the executor's own LocalCluster settings, but one resubmission instead of two
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1,
+                          "distributed.scheduler.worker-saturation": 1.0}):
         cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                            dashboard_address=None, silence_logs=40,
                                            scheduler_kwargs={"dashboard_address": ":0"})
@@ -102,7 +104,7 @@ from pytest_avscenario.monitors import distance
 LOG = Path({log!r})
 MARKER = Path({marker!r})
 
-@scenario(gap=Uniform(20.0, 40.0), samples=6, monitors=[distance(5.0)])
+@scenario(gap=Uniform(20.0, 40.0), samples=16, monitors=[distance(5.0)])
 def test_follow(case, world):
     with LOG.open("a") as f:
         f.write(f"{{case.index}} {{os.getpid()}}\\n")
@@ -123,17 +125,19 @@ def test_a_worker_killed_mid_case_is_resubmitted_and_every_case_reports(pytester
                                            "--avs-executor=dask", "-v",
                                            f"--avs-dask-address={cluster_address}")
     assert marker.exists(), "the scenario never killed its worker"
-    result.assert_outcomes(passed=6)
+    result.assert_outcomes(passed=16)
     rows = [json.loads(line) for line in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
-    assert sorted(r["index"] for r in rows) == list(range(6))
+    assert sorted(r["index"] for r in rows) == list(range(16))
     assert all(r["verdict"] == "pass" and r["rho"]["distance"] > 0 for r in rows)
     runs = [tuple(map(int, line.split())) for line in log.read_text().splitlines()]
     killed_pid = int(marker.read_text())
     second = [pid for index, pid in runs if index == 2 and pid != killed_pid]
-    assert len(second) == 1, runs  # case 2 ran again, in another process, exactly once more
+    # case 2 ran again (its whole chunk of 16 // (4 x 2 workers) = 2 cases did), in another
+    # process, exactly once more
+    assert len(second) == 1, runs
 
 
-def test_prefetched_cases_are_matched_and_a_replay_runs_again(tmp_path, cluster_address):
+def test_prefetched_cases_are_chunked_matched_and_a_replay_runs_again(tmp_path, cluster_address):
     from pytest_avscenario.case import Case
     from pytest_avscenario.executors import CaseJob
     from pytest_avscenario.executors.dask import DaskExecutor
@@ -152,14 +156,15 @@ def test_prefetched_cases_are_matched_and_a_replay_runs_again(tmp_path, cluster_
                        monitor_set=monitors, driver="autopilot")
 
     jobs = [job(k, 10.0 + 5 * k) for k in range(4)]
-    executor = DaskExecutor(cluster_address)
+    executor = DaskExecutor(cluster_address, chunk_size=3)
     try:
         executor.prefetch(jobs)
         outcomes = [executor.run(j) for j in jobs]
         assert executor.stats["matched"] == 4 and executor.stats["on_demand"] == 0
+        assert executor.stats["tasks"] == 2  # a chunk of three and one of one
         # a shrink replay of a consumed case is simulated anew, with the same result
         again = [executor.run(j) for j in jobs]
-        assert executor.stats["on_demand"] == 4
+        assert executor.stats["on_demand"] == 4 and executor.stats["tasks"] == 6
     finally:
         executor.close()
     assert [o.rho for o in outcomes] == [o.rho for o in again]
@@ -199,20 +204,30 @@ def test_exhausted_retries_make_an_error_never_a_pass(tmp_path, cluster_address)
     from pytest_avscenario.executors import CaseJob
     from pytest_avscenario.executors.dask import DaskExecutor
 
-    path = tmp_path / "test_always_dies.py"
-    path.write_text("import os\ndef test_dies(case):\n    os._exit(3)\n")
+    path = tmp_path / "test_sometimes_dies.py"
+    path.write_text("import os\ndef test_dies(case):\n    if case.x > 1:\n        os._exit(3)\n")
     func = remote.import_test_module(str(path), str(tmp_path)).test_dies
-    job = CaseJob(nodeid="test_always_dies.py::test_dies[x]", module_path=str(path),
-                  rootdir=str(tmp_path), function="test_dies", func=func, argnames=("case",),
-                  fixtures={}, case=Case({"x": 1.0}, 0, 7, "halton"), monitor_set=None, driver=None)
-    executor = DaskExecutor(cluster_address)
+
+    def job(k: int, x: float) -> CaseJob:
+        return CaseJob(nodeid=f"test_sometimes_dies.py::test_dies[halton-{k:03d}]",
+                       module_path=str(path), rootdir=str(tmp_path), function="test_dies",
+                       func=func, argnames=("case",), fixtures={},
+                       case=Case({"x": x}, k, 7 + k, "halton"), monitor_set=None, driver=None)
+
+    # one chunk of three: the middle case kills every worker it runs on
+    jobs = [job(0, 0.5), job(1, 2.0), job(2, 0.7)]
+    executor = DaskExecutor(cluster_address, chunk_size=3)
     try:
-        outcome = executor.run(job)
+        executor.prefetch(jobs)
+        outcomes = [executor.run(j) for j in jobs]
+        stats = dict(executor.stats)
     finally:
         executor.close()
-    assert outcome.verdict == "error" and not outcome.failed
-    assert "died" in outcome.error and "resubmitted" in outcome.error
-    assert executor.stats["on_demand"] == 1
+    assert [o.verdict for o in outcomes] == ["pass", "error", "pass"], [o.error for o in outcomes]
+    assert "died" in outcomes[1].error and "resubmitted" in outcomes[1].error
+    assert not outcomes[1].failed
+    # the chunk was split after its retries: its other cases were not blamed for the crash
+    assert stats["chunks_split"] == 1 and stats["matched"] == 3, stats
 
 
 def test_an_unreachable_scheduler_is_a_clear_error_within_the_timeout():

@@ -6,17 +6,20 @@ builds the case and a fresh world and runs :func:`~pytest_avscenario.runner.run_
 own order; the executor makes that cheap by starting cases *ahead*:
 
 * ``prefetch`` submits every passive case at collection, in pytest's order (earlier items get
-  a higher Dask priority), so all workers stay busy while pytest walks the items. ``run``
-  matches a job to its prefetched future by ``(node id, parameters, seed)``; a job that was
-  not prefetched (an active sampler's case, a shrink candidate) is submitted at once with a
-  priority above every prefetched case, so the item pytest is waiting for never queues
-  behind hundreds of later ones.
+  a higher Dask priority), so all workers stay busy while pytest walks the items; consecutive
+  cases of one test travel in chunks (one task, one round trip), since a case can cost
+  little more than Dask's own per-task overhead. ``run`` matches a job to its prefetched
+  task by ``(node id, parameters, seed)``; a job that was not prefetched (an active
+  sampler's case, a shrink candidate) is submitted at once, alone, with a priority above
+  every prefetched case, so the item pytest is waiting for never queues behind hundreds of
+  later ones.
 * Finished results are pulled to the client as they complete (one ``gather`` for all that
   are ready), so a worker that dies afterwards loses nothing already computed.
-* A worker that dies mid-case: the scheduler resubmits the case to another worker, at most
+* A worker that dies mid-case: the scheduler resubmits the task to another worker, at most
   ``max_retries`` times on a cluster this executor starts (``distributed.scheduler.allowed-
-  failures``; an existing cluster uses its own setting, Dask's default is 3). When that is
-  exhausted the case comes back as an *error* naming the cause — never as a pass.
+  failures``; an existing cluster uses its own setting, Dask's default is 3). A chunk that
+  exhausts that is split, each case resubmitted alone, so only the case that kills its
+  worker ends as an *error* naming the cause — never as a pass, never lost.
 * A scheduler that cannot be reached fails within ``connect_timeout_s`` with a message that
   says what to check; a scheduler lost during the run (or one left without workers) fails
   the waiting item, and every later one at once, after the same timeout.
@@ -35,6 +38,7 @@ import logging
 import os
 import time
 from concurrent.futures import CancelledError
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import dask
@@ -42,8 +46,8 @@ import distributed
 
 from ..runner import CaseOutcome
 from .base import CaseJob, Executor
-from .remote import (CaseFields, TestSpec, WireOutcome, pack_spec, run_remote, spec_digest,
-                     to_outcome, warm_up)
+from .remote import (CaseFields, TestSpec, WireOutcome, pack_spec, run_remote_many,
+                     spec_digest, to_outcome, warm_up)
 
 #: seconds to reach a scheduler (and to find a worker on it) before giving up
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
@@ -75,7 +79,8 @@ class DaskExecutor(Executor):
     name = "dask"
 
     def __init__(self, address: str | None = None, *, n_workers: int | None = None,
-                 max_retries: int = 2, connect_timeout_s: float | None = None) -> None:
+                 max_retries: int = 2, connect_timeout_s: float | None = None,
+                 chunk_size: int | None = None) -> None:
         if connect_timeout_s is None:
             raw = os.environ.get(TIMEOUT_ENV, "")
             try:
@@ -84,19 +89,22 @@ class DaskExecutor(Executor):
                 raise ValueError(f"${TIMEOUT_ENV} must be a number of seconds, got {raw!r}") from None
         if max_retries < 0:
             raise ValueError(f"max_retries must be >= 0, got {max_retries}")
+        if chunk_size is not None and chunk_size < 1:
+            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
         self.address = address
+        self.chunk_size = chunk_size
         self.max_retries = int(max_retries)
         self.connect_timeout_s = float(connect_timeout_s)
         self._cluster: Any = None
         self._client: Any = None
-        self._ahead: dict[tuple, Any] = {}  # match key -> future (submitted, not yet collected)
+        self._ahead: dict[tuple, _Task] = {}  # match key -> its task (submitted, not collected)
         self._results: dict[tuple, WireOutcome] = {}  # match key -> outcome already pulled here
-        self._ready: collections.deque = collections.deque()  # keys whose future finished
+        self._ready: collections.deque = collections.deque()  # tasks whose future finished
         self._specs: dict[tuple, tuple[bytes, str]] = {}
         self._counter = itertools.count()
         self._broken: str | None = None
         self._warm: list[Any] = []
-        self.stats = collections.Counter()  # submitted, prefetched, matched, on_demand, ...
+        self.stats = collections.Counter()  # prefetched, matched, on_demand, tasks, ...
         self._start()
 
     # -- connecting ---------------------------------------------------------------------
@@ -104,9 +112,13 @@ class DaskExecutor(Executor):
         timeout = self.connect_timeout_s
         if self.address is None:
             workers = self._cores()
-            # the local scheduler reads allowed-failures when it starts: bound the retries
+            # (read by the local scheduler when it starts) allowed-failures bounds the resubmissions of a case whose worker died. With a
+            # worker-saturation of 1.0 a worker holds only the task it runs, so a worker
+            # killed by one case does not count as a failure of others queued behind it.
+            settings = {"distributed.scheduler.allowed-failures": self.max_retries,
+                        "distributed.scheduler.worker-saturation": 1.0}
             try:
-                with dask.config.set({"distributed.scheduler.allowed-failures": self.max_retries}):
+                with dask.config.set(settings):
                     self._cluster = distributed.LocalCluster(
                         n_workers=workers, threads_per_worker=1, processes=True,
                         silence_logs=logging.ERROR, dashboard_address=None,
@@ -177,13 +189,17 @@ class DaskExecutor(Executor):
     def prefetch(self, jobs: Sequence[CaseJob]) -> None:
         """Submit these cases now, in this order; :meth:`run` collects each later.
 
-        Jobs without a driver (a conftest overrides ``avs_driver``: its value exists only
-        when the item runs) cannot start ahead and are left to :meth:`run`.
+        Consecutive cases of one test go in chunks of up to ``chunk_size`` per Dask task (auto:
+        at least four tasks per worker thread, at most 16 cases each): a vehicle-following case
+        costs ~7 ms, while every task costs the scheduler, client and worker ~2 ms on its own.
+        Jobs without a driver (a conftest overrides ``avs_driver``: its value exists only when
+        the item runs) cannot start ahead and are left to :meth:`run`.
         """
         self._start_ahead(jobs, urgent=False)
 
     def submit(self, jobs: Sequence[CaseJob]) -> None:
-        """Start these cases now, ahead of every prefetched one; :meth:`run` collects each.
+        """Start these cases now, one task each, ahead of every prefetched one; :meth:`run`
+        collects each.
 
         For active samplers asking in batches: submit the batch, then ``run`` each job when
         its item runs (feedback then arrives while later cases of the batch still run).
@@ -200,13 +216,13 @@ class DaskExecutor(Executor):
         if wire is not None:
             self.stats["matched"] += 1
         else:
-            future = self._ahead.pop(key, None)
-            if future is not None:
+            task = self._ahead.pop(key, None)
+            if task is not None:
                 self.stats["matched"] += 1
             else:
                 self.stats["on_demand"] += 1
-                future = self._submit(job, _URGENT)
-            wire = self._wait(future, job)
+                task = self._submit([job], [key], _URGENT)
+            wire = self._collect(task, key, job)
         return to_outcome(wire)
 
     def close(self) -> None:
@@ -214,8 +230,9 @@ class DaskExecutor(Executor):
         client, self._client = self._client, None
         if client is not None:
             try:
-                if self._ahead:
-                    client.cancel(list(self._ahead.values()))
+                pending = {id(t): t.future for t in self._ahead.values()}
+                if pending:
+                    client.cancel(list(pending.values()))
             except Exception:  # closing must not fail the session
                 pass
             self._ahead.clear()
@@ -237,23 +254,45 @@ class DaskExecutor(Executor):
     def _start_ahead(self, jobs: Sequence[CaseJob], urgent: bool) -> None:
         if self._broken is not None:
             return
-        for i, job in enumerate(jobs):
+        runnable = []
+        for job in jobs:
             if job.driver is None and ("world" in job.argnames or "avs_driver" in job.argnames):
                 continue
             key = self._match_key(job)
-            if key in self._ahead or key in self._results:
-                continue
-            self._ahead[key] = self._submit(job, _URGENT if urgent else -i, key)
-            self.stats["prefetched" if not urgent else "submitted_ahead"] += 1
+            if key not in self._ahead and key not in self._results:
+                runnable.append((job, key))
+        if not runnable:
+            return
+        if urgent:
+            size = 1
+        else:  # >= 4 tasks per worker thread keeps the tail balanced; <= 16 cases per task
+            size = self.chunk_size or max(1, min(16, len(runnable) // (4 * self.capacity)))
+        pieces: list[list[tuple[CaseJob, tuple]]] = []
+        for job, key in runnable:  # consecutive jobs of one test share a chunk
+            last = pieces[-1] if pieces else None
+            if last and len(last) < size and self._spec_key(last[0][0]) == self._spec_key(job):
+                last.append((job, key))
+            else:
+                pieces.append([(job, key)])
+        for i, piece in enumerate(pieces):
+            keys = [k for _, k in piece]
+            task = self._submit([j for j, _ in piece], keys, _URGENT if urgent else -i)
+            for key in keys:
+                self._ahead[key] = task
+        self.stats["submitted_ahead" if urgent else "prefetched"] += len(runnable)
 
     @staticmethod
     def _match_key(job: CaseJob) -> tuple:
         case = job.case
         return (job.nodeid, json.dumps(dict(case.params), sort_keys=True, default=repr), case.seed)
 
-    def _spec(self, job: CaseJob) -> tuple[bytes, str]:
+    @staticmethod
+    def _spec_key(job: CaseJob) -> tuple:
         driver_id = job.driver if isinstance(job.driver, (str, type(None))) else id(job.driver)
-        cache_key = (job.module_path, job.function, job.argnames, id(job.monitor_set), driver_id)
+        return (job.module_path, job.function, tuple(job.argnames), id(job.monitor_set), driver_id)
+
+    def _spec(self, job: CaseJob) -> tuple[bytes, str]:
+        cache_key = self._spec_key(job)
         hit = self._specs.get(cache_key)
         if hit is None:
             spec = TestSpec(module_path=job.module_path, rootdir=job.rootdir, function=job.function,
@@ -261,85 +300,115 @@ class DaskExecutor(Executor):
                             driver=job.driver)
             data = pack_spec(spec)
             hit = (data, spec_digest(data))
-            if isinstance(driver_id, (str, type(None))):  # objects may die and reuse their id
+            if isinstance(cache_key[-1], (str, type(None))):  # objects may die and reuse their id
                 self._specs[cache_key] = hit
         return hit
 
-    def _submit(self, job: CaseJob, priority: int, key: tuple | None = None) -> Any:
-        data, digest = self._spec(job)
-        case = job.case
-        fields = CaseFields(nodeid=job.nodeid, params=dict(case.params), index=case.index,
-                            seed=case.seed, sampler=case.sampler, origin=case.origin,
-                            test=case.test, timeout_s=getattr(job, "timeout_s", None))
-        name = f"avs-{job.function}-{case.sampler}-{case.index}-{next(self._counter)}"
-        self.stats["submitted"] += 1
+    def _submit(self, jobs: list[CaseJob], keys: list[tuple], priority: int) -> "_Task":
+        """One Dask task for ``jobs`` (cases of one test), in order."""
+        first = jobs[0]
+        data, digest = self._spec(first)
+        fields = [CaseFields(nodeid=j.nodeid, params=dict(j.case.params), index=j.case.index,
+                             seed=j.case.seed, sampler=j.case.sampler, origin=j.case.origin,
+                             test=j.case.test, timeout_s=getattr(j, "timeout_s", None))
+                  for j in jobs]
+        name = f"avs-{first.function}-{first.case.sampler}-{first.case.index}-{next(self._counter)}"
+        self.stats["tasks"] += 1
         # fifo_timeout=0: every submission is its own generation, so equal priorities keep
         # submission order; pure=False: a shrink replay of the same case must really rerun
-        future = self._client.submit(run_remote, data, digest, job.module_path, job.rootdir,
-                                     fields, key=name, pure=False, priority=priority,
-                                     fifo_timeout=0)
-        if key is not None:
-            # runs on the client's event-loop thread: only note the key (deque is thread-safe)
-            future.add_done_callback(lambda _f, k=key: self._ready.append(k))
-        return future
+        future = self._client.submit(run_remote_many, data, digest, first.module_path,
+                                     first.rootdir, fields, key=name, pure=False,
+                                     priority=priority, fifo_timeout=0)
+        task = _Task(future, list(jobs), list(keys))
+        # runs on the client's event-loop thread: only note the task (deque is thread-safe)
+        future.add_done_callback(lambda _f, t=task: self._ready.append(t))
+        return task
 
     def _harvest(self) -> None:
-        """Pull every finished prefetched result in one round trip and release its future."""
-        done = []
+        """Pull every finished prefetched task's outcomes in one round trip."""
+        done: list[_Task] = []
         while self._ready:
-            key = self._ready.popleft()
-            future = self._ahead.get(key)
-            if future is not None and future.status == "finished":
-                done.append((key, future))
+            task = self._ready.popleft()
+            if task.future.status == "finished" and any(self._ahead.get(k) is task for k in task.keys):
+                done.append(task)
         if not done:
             return
         try:
-            values = self._client.gather([f for _, f in done], errors="skip")
+            values = self._client.gather([t.future for t in done], errors="skip")
         except Exception:  # leave them to _wait, which reports per case
             return
-        if len(values) != len(done):  # errors="skip" dropped some: match them one by one
+        if len(values) != len(done):  # errors="skip" dropped some: each is collected on its own
             return
-        for (key, _), wire in zip(done, values):
-            self._results[key] = wire
-            del self._ahead[key]
+        for task, outs in zip(done, values):
+            self._store(task, outs, skip=None)
+
+    def _store(self, task: "_Task", outs: list[WireOutcome], skip: tuple | None) -> None:
+        for key, wire in zip(task.keys, outs):
+            if key != skip and self._ahead.get(key) is task:
+                self._results[key] = wire
+                del self._ahead[key]
 
     # -- waiting ------------------------------------------------------------------------
-    def _wait(self, future: Any, job: CaseJob) -> WireOutcome:
-        """The future's outcome; worker deaths and task errors become error outcomes."""
+    def _collect(self, task: "_Task", key: tuple, job: CaseJob) -> WireOutcome:
+        """``job``'s outcome from ``task``; the task's other outcomes are kept for later."""
+        outs = self._wait(task)
+        if outs is None:
+            # A chunk whose worker kept dying: run each of its cases as its own task, so the
+            # case that crashes the process fails alone and the others get their retries.
+            self.stats["chunks_split"] += 1
+            for other_job, other_key in zip(task.jobs, task.keys):
+                if other_key != key and self._ahead.get(other_key) is task:
+                    self._ahead[other_key] = self._submit([other_job], [other_key], 0)
+            return self._collect(self._submit([job], [key], _URGENT), key, job)
+        self._store(task, outs, skip=key)
+        return outs[task.keys.index(key)]
+
+    def _wait(self, task: "_Task") -> list[WireOutcome] | None:
+        """The task's outcomes, in order; errors become error outcomes (never passes).
+
+        None means a chunk of several cases lost its worker too often: the caller splits it.
+        """
         lost_since: float | None = None
         attempts = 0
-        limit = getattr(job, "timeout_s", None)
+        limits = [getattr(j, "timeout_s", None) for j in task.jobs]
         # The worker ends a body that overruns its limit itself; this deadline is for a case
-        # stuck where that cannot reach (inside one C call). Counted from when pytest waits
-        # for the case, with a grace for queueing behind cases that started just before.
-        deadline = None if limit is None else time.monotonic() + limit + max(10.0, limit)
+        # stuck where that cannot reach (inside one C call). Counted from when pytest waits,
+        # with a grace for queueing behind cases that started just before.
+        budget = None if None in limits else sum(limits) + max(10.0, max(limits))
+        deadline = None if budget is None else time.monotonic() + budget
         while True:
             try:
-                return future.result(timeout=1.0)
+                return task.future.result(timeout=1.0)
             except TimeoutError:
                 if deadline is not None and time.monotonic() > deadline:
-                    future.cancel()
-                    return self._error(job, (
+                    task.future.cancel()
+                    return self._errors(task, (
                         f"CaseTimeout: the case did not come back from its Dask worker within "
-                        f"its time limit of {limit:g} s plus {max(10.0, limit):g} s grace (stuck "
-                        "in native code?); the worker may stay busy until the call returns"))
+                        f"{budget:g} s (its time limit plus grace; stuck in native code?); the "
+                        "worker may stay busy until that call returns"))
                 lost_since = self._check_cluster(lost_since)
             except distributed.KilledWorker as exc:
+                if len(task.jobs) > 1:
+                    return None
                 retries = f"{self.max_retries} time(s)" if self._cluster is not None else \
                     "as often as the scheduler allows (distributed.scheduler.allowed-failures)"
-                return self._error(job, (
+                return self._errors(task, (
                     f"the Dask worker running this case died, and so did the workers it was "
                     f"resubmitted to ({retries}): {exc}. The case (or the worker's environment) "
                     "crashes the process: a segfault, os._exit, running out of memory"))
             except CancelledError:
                 # the scheduler forgot the task (it restarted, or the client reconnected)
                 if self._client is None or attempts >= self.max_retries:
-                    return self._error(job, "the case was cancelled on the Dask cluster "
-                                            f"{attempts + 1} time(s)")
+                    return self._errors(task, "the case was cancelled on the Dask cluster "
+                                              f"{attempts + 1} time(s)")
                 attempts += 1
-                future = self._submit(job, _URGENT)
+                fresh = self._submit(task.jobs, task.keys, _URGENT)
+                for key in task.keys:
+                    if self._ahead.get(key) is task:
+                        self._ahead[key] = fresh
+                task = fresh
             except Exception as exc:  # the task itself failed (e.g. it did not unpickle there)
-                return self._error(job, (
+                return self._errors(task, (
                     f"the Dask worker could not run the case: {type(exc).__name__}: {exc} — is "
                     "pytest-avscenario (and everything the test module imports) installed on "
                     "every worker, and the test file at the same path?"))
@@ -368,5 +437,15 @@ class DaskExecutor(Executor):
         return lost_since
 
     @staticmethod
-    def _error(job: CaseJob, message: str) -> WireOutcome:
-        return WireOutcome(params=dict(job.case.params), verdict="error", infra_error=message)
+    def _errors(task: "_Task", message: str) -> list[WireOutcome]:
+        return [WireOutcome(params=dict(j.case.params), verdict="error", infra_error=message)
+                for j in task.jobs]
+
+
+@dataclass(eq=False)
+class _Task:
+    """One Dask task: a case, or a chunk of consecutive prefetched cases of one test."""
+
+    future: Any
+    jobs: list[CaseJob]
+    keys: list[tuple]

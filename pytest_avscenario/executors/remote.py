@@ -195,6 +195,12 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
     return to_wire(outcome)
 
 
+def run_remote_many(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
+                    fields: list[CaseFields]) -> list[WireOutcome]:
+    """:func:`run_remote` for several cases of one test, in order (one task, one round trip)."""
+    return [run_remote(spec_bytes, digest, module_path, rootdir, f) for f in fields]
+
+
 def _bounded(func: Any, seconds: float) -> Any:
     """``func`` ended by the runner's ``CaseTimeout`` after ``seconds``, in any thread.
 
