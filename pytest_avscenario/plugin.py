@@ -32,6 +32,7 @@ from .space import FeatureSpace, SpaceError
 
 DEFAULT_SAMPLES = 20
 DEFAULT_SAMPLER = "halton"
+MAX_SAMPLES = 100_000
 
 plans_key = pytest.StashKey[dict[str, "ScenarioPlan"]]()
 seed_key = pytest.StashKey[int]()
@@ -91,6 +92,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         metavar="N", default=None, type=int,
         help="render a GIF of at most N minimized counterexamples per test (default 3; every "
              "one gets a PNG of its worst moment)")
+    add("case-timeout", "seconds one scenario case may run before it is ended as an error",
+        metavar="SECONDS", default=None,
+        help="end a scenario case that runs longer than SECONDS (reported as an error with "
+             "the time it ran)")
     group.addoption(
         "--avs-params", dest="avs_params", metavar="JSON", default=None,
         help="run the selected scenario cases with these parameter values "
@@ -107,6 +112,7 @@ def pytest_configure(config: pytest.Config) -> None:
     )
     config.stash[plans_key] = {}
     config.stash[seed_key] = _session_seed(config)
+    _terminate_like_ctrl_c()
     config.stash[db_key] = _open_db(config)
     config.stash[session_key] = state = RunState(config)
     config.pluginmanager.register(state, "avscenario-run")
@@ -142,6 +148,26 @@ def _session_seed(config: pytest.Config) -> int:
     if cache is not None and workerinput is None:
         cache.set("avscenario/seed", seed)
     return seed
+
+
+def _terminate_like_ctrl_c() -> None:
+    """Let SIGTERM end a run the way Ctrl-C does: pytest then still finishes the session, so
+    the error table is closed and the partial summary and index are written.
+
+    Only when nobody installed a handler of their own, and only in the main thread."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        return
+
+    def terminate(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM kills at once
+        raise KeyboardInterrupt("SIGTERM")
+
+    signal.signal(signal.SIGTERM, terminate)
 
 
 def _open_db(config: pytest.Config) -> Any:
@@ -211,6 +237,7 @@ class ScenarioPlan:
     shrink_budget: int = 20
     replays: dict[int, Any] = field(default_factory=dict)  # replay index -> db entry
     gifs: int = 0  # GIFs rendered so far for this test
+    case_timeout_s: float | None = None
     active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
@@ -229,8 +256,8 @@ class ScenarioPlan:
         opts = dict(self.sampler_options)
         if samplers.base.is_active(name) and self.monitor_set is not None:
             opts.setdefault("metrics", list(self.monitor_set.names))
-            if getattr(self.monitor_set, "priority", None):
-                opts.setdefault("priority", self.monitor_set.priority)
+            if self.monitor_set.priority_edges:
+                opts.setdefault("priority", [list(e) for e in self.monitor_set.priority_edges])
         return samplers.make(name, self.space, seed=stable_seed(self.seed, name), **opts)
 
 
@@ -296,6 +323,11 @@ def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan,
             )
 
     samples = _setting_int(config, spec, "samples", DEFAULT_SAMPLES, minimum=1)
+    if samples > MAX_SAMPLES:
+        raise DeclarationError(
+            f"samples must be at most {MAX_SAMPLES} per test (got {samples}): every case is a "
+            "pytest item; for a long campaign give time_budget= (e.g. '30m') with a large count"
+        )
     sampler_names = _samplers(config, spec)
 
     if spec.seed is not None:
@@ -322,7 +354,8 @@ def _plan(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[ScenarioPlan,
     plan = ScenarioPlan(test=test, space=space, samplers=sampler_names, samples=samples,
                         seed=seed, monitor_set=monitor_set, sampler_options=dict(opts),
                         time_budget_s=_time_budget(config, spec),
-                        shrink_budget=_shrink_budget(config, spec))
+                        shrink_budget=_shrink_budget(config, spec),
+                        case_timeout_s=_case_timeout(config, spec))
 
     pinned = _pinned_params(config, space)
     slots: list[CaseSlot] = []
@@ -431,6 +464,24 @@ def parse_duration(value: Any) -> float:
     if not math.isfinite(seconds) or seconds <= 0:
         raise ValueError(value)
     return seconds
+
+
+def _case_timeout(config: pytest.Config, spec: ScenarioSpec) -> float | None:
+    if "case_timeout" in spec.given and spec.case_timeout is not None:
+        raw, source = spec.case_timeout, "@scenario(case_timeout=...)"
+    elif config.getoption("avs_case_timeout"):
+        raw, source = config.getoption("avs_case_timeout"), "--avs-case-timeout"
+    elif config.getini("avs_case_timeout"):
+        raw, source = config.getini("avs_case_timeout"), "ini avs_case_timeout"
+    else:
+        return None
+    try:
+        return parse_duration(raw)
+    except (ValueError, TypeError):
+        raise DeclarationError(
+            f"case_timeout must be a positive number of seconds (or 90s, 2m), got {raw!r} "
+            f"(from {source})"
+        ) from None
 
 
 def _time_budget(config: pytest.Config, spec: ScenarioSpec) -> float | None:
@@ -764,7 +815,7 @@ def _job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: boo
         nodeid=item.nodeid, module_path=str(item.path), rootdir=str(item.config.rootpath),
         function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
         case=case, monitor_set=plan.monitor_set, driver=driver, fresh_world=fresh_world,
-        make_world=lambda c: _make_world(c, driver, item.nodeid),
+        timeout_s=plan.case_timeout_s, make_world=lambda c: _make_world(c, driver, item.nodeid),
     )
 
 
@@ -948,14 +999,18 @@ class RunState:
         from .report.junit import add_suite_properties_to_logxml
         from .report.summary import suite_properties
 
+        self.summary_rows = None
         if self.directory is not None and self.table is not None:
             from .report.build import finish_report
 
-            self.table.close()  # every row is on disk; the report is built from the files
-            self.summary_rows = finish_report(self.directory, self.test_infos(),
-                                              seed=self.config.stash[seed_key], versions=_versions(),
-                                              case_images=self.pictures)
-        else:
+            try:
+                self.table.close()  # every row is on disk; the report is built from the files
+                self.summary_rows = finish_report(
+                    self.directory, self.test_infos(), seed=self.config.stash[seed_key],
+                    versions=_versions(), case_images=self.pictures)
+            except OSError as exc:
+                self.report_failed(exc)
+        if self.summary_rows is None:
             self.summary_rows = self.summary()
         props = suite_properties(self.summary_rows, seed=self.config.stash[seed_key],
                                  versions=_versions())
@@ -979,13 +1034,30 @@ class RunState:
         self.rows.append(row)
         if self.directory is None:
             return
-        if self.table is None:
-            from .report.table import ErrorTable, prepare_report_dir
+        try:
+            if self.table is None:
+                from .report.table import ErrorTable, prepare_report_dir
 
-            prepare_report_dir(self.directory)
-            _remove_stale_pictures(self.directory / "cases", self.started)
-            self.table = ErrorTable(self.directory)
-        self.table.append(row)
+                prepare_report_dir(self.directory)
+                _remove_stale_pictures(self.directory / "cases", self.started)
+                self.table = ErrorTable(self.directory)
+            self.table.append(row)
+        except OSError as exc:
+            # the run goes on (verdicts, the replay database and the terminal summary do not
+            # depend on the report); say once what was lost and where
+            self.report_failed(exc)
+
+    def report_failed(self, exc: OSError) -> None:
+        directory, self.directory = self.directory, None
+        if self.table is not None:
+            try:
+                self.table.close()
+            except OSError:
+                pass
+        self.table = None
+        self.config.issue_config_time_warning(pytest.PytestWarning(
+            f"avscenario: cannot write the report under {directory} ({exc}); the rest of "
+            "this run is reported in the terminal only"), 2)
 
     def close(self) -> None:
         if self.table is not None:

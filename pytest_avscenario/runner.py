@@ -11,8 +11,11 @@ monitor; any other exception (a driver that raised, a bad scene) makes the case 
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import time
 import traceback
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
@@ -58,6 +61,39 @@ class CaseOutcome:
         return min(vals) if vals else None
 
 
+class CaseTimeout(BaseException):
+    """Raised inside a case that ran past its time limit.
+
+    A BaseException, so that a scenario body or driver catching ``Exception`` cannot swallow it.
+    """
+
+
+@contextmanager
+def time_limit(seconds: float | None):
+    """End the enclosed code with :class:`CaseTimeout` after ``seconds`` of wall time.
+
+    Uses SIGALRM (it interrupts pure-Python loops and sleeps alike) in the main thread of a
+    POSIX process — where pytest, and pytest-xdist's workers, run tests. Elsewhere the limit
+    is not enforced here; executors that run cases in threads or remotely bound them themselves.
+    """
+    usable = (seconds is not None and hasattr(signal, "setitimer")
+              and threading.current_thread() is threading.main_thread())
+    if not usable:
+        yield
+        return
+
+    def expire(signum: int, frame: Any) -> None:
+        raise CaseTimeout(f"the case ran longer than its time limit of {seconds:g} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, float(seconds))
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
 def run_case(
     func: Callable[..., Any],
     argnames: tuple[str, ...],
@@ -65,12 +101,14 @@ def run_case(
     case: Case,
     monitor_set: Any,
     make_world: Callable[[Case], Any] | None,
+    timeout_s: float | None = None,
 ) -> CaseOutcome:
     """Call the test body for ``case`` and judge what it recorded.
 
     ``fixtures`` holds the values of the test's other fixtures; ``case`` replaces the
     ``case`` argument and, when the test requests ``world``, ``make_world(case)`` builds a
-    fresh one (``None`` means: use ``fixtures["world"]`` as it is).
+    fresh one (``None`` means: use ``fixtures["world"]`` as it is). ``timeout_s`` bounds the
+    body (see :func:`time_limit`); a case that runs past it is an error saying how long it ran.
     """
     from .sim.trajectory import Trajectory
 
@@ -84,7 +122,12 @@ def run_case(
     t0 = time.perf_counter()
     ret = None
     try:
-        ret = func(**{a: args[a] for a in argnames})
+        with time_limit(timeout_s):
+            ret = func(**{a: args[a] for a in argnames})
+    except CaseTimeout as exc:
+        ran = time.perf_counter() - t0
+        outcome.verdict, outcome.exc = "error", exc
+        outcome.error = f"CaseTimeout: {exc} (ran {ran:.2f} s)"
     except AssertionError as exc:
         outcome.verdict, outcome.exc = "fail", exc
         outcome.error = _one_line(exc)

@@ -11,6 +11,7 @@ Constants take no coordinate. Nothing here imports anything heavier than numpy.
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import math
 from dataclasses import dataclass
@@ -44,6 +45,13 @@ def _finite_number(value: Any, what: str) -> float:
     return value
 
 
+def _plain_signature(fn: Any) -> str:
+    return ", ".join(
+        p.name if p.default is inspect.Parameter.empty else f"{p.name}={p.default!r}"
+        for p in inspect.signature(fn).parameters.values()
+    )
+
+
 class Distribution:
     """One parameter's distribution.
 
@@ -61,9 +69,21 @@ class Distribution:
         # feature space (and so the plugin, at collection) raises with the parameter's name.
         self._args = (args, kwargs)
         try:
+            inspect.signature(self._setup).bind(*args, **kwargs)
+        except TypeError as exc:
+            self.error = f"{type(self).__name__}({_plain_signature(self._setup)}): {exc}"
+            return
+        try:
             self._setup(*args, **kwargs)
         except SpaceError as exc:
             self.error = str(exc)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "_setup" in cls.__dict__:
+            # help(Uniform) and IDEs show the real arguments, not (*args, **kwargs)
+            params = list(inspect.signature(cls._setup).parameters.values())
+            cls.__signature__ = inspect.Signature(params[1:])
 
     def _setup(self, *args: Any, **kwargs: Any) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -248,6 +268,8 @@ class Choice(Distribution):
         if not self.options:
             raise SpaceError("Choice needs at least one option, got an empty list")
         for o in self.options:
+            if isinstance(o, float) and not math.isfinite(o):
+                raise SpaceError(f"Choice option {o!r} is not finite; options must compare equal to themselves")
             try:
                 json.dumps(o)
             except (TypeError, ValueError):

@@ -31,6 +31,7 @@ class CaseJob:
     monitor_set: Any
     driver: Any  # the ego's driver (avs_driver's value)
     fresh_world: bool = True  # build a new world for the case (False: use fixtures["world"])
+    timeout_s: float | None = None  # wall-time limit of the body (None: none)
     make_world: Callable[[Case], Any] | None = field(default=None, repr=False)
 
 
@@ -56,7 +57,8 @@ class InProcessExecutor(Executor):
 
     def run(self, job: CaseJob) -> CaseOutcome:
         return run_case(job.func, job.argnames, job.fixtures, job.case, job.monitor_set,
-                        make_world=job.make_world if job.fresh_world else None)
+                        make_world=job.make_world if job.fresh_world else None,
+                        timeout_s=job.timeout_s)
 
 
 def make_executor(name: str, **options: Any) -> Executor:

@@ -1,0 +1,238 @@
+"""Hostile input and unlucky machines: clear errors, nothing silently passed, nothing lost."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pytest_avscenario.space import Choice, Constant, FeatureSpace, IntRange, Normal, SpaceError, Uniform
+
+ANY_VALUE = st.one_of(
+    st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=5),
+    st.lists(st.integers(), max_size=3), st.just(float("nan")), st.just(float("inf")),
+    st.just(object()),
+)
+
+
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@given(kind=st.sampled_from([Uniform, Normal, IntRange, Choice, Constant]),
+       args=st.lists(ANY_VALUE, max_size=4))
+def test_any_distribution_arguments_give_a_distribution_or_a_space_error(kind, args):
+    dist = kind(*args) if kind is not Choice or len(args) <= 2 else kind(args)
+    try:
+        space = FeatureSpace({"p": dist})
+    except SpaceError as exc:
+        assert "parameter 'p'" in str(exc) and "_setup" not in str(exc)
+        return
+    # a valid one maps the unit cube into itself and back
+    params = space.from_unit([0.3] * space.d)
+    space.validate(params)
+
+
+@settings(max_examples=60, deadline=None)
+@given(name=st.text(min_size=1, max_size=8))
+def test_unicode_parameter_names_are_accepted_as_mapping_keys(name):
+    space = FeatureSpace({name: Uniform(0, 1)})
+    assert space.from_unit([0.5]) == {name: 0.5}
+
+
+def test_huge_sample_counts_are_refused_at_collection(pytester):
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+@scenario(x=Uniform(0, 1), samples=10**12)
+def test_huge(case):
+    pass
+""")
+    result = pytester.runpytest()
+    result.stdout.fnmatch_lines(["*::test_huge: samples must be at most *time_budget*"])
+
+
+@pytest.mark.parametrize("monitor", ["distance(float('nan'))", "ttc(2.0, radius=-1)",
+                                     "progress(float('inf'))", "lane_keeping('wide')", "distance"])
+def test_bad_monitor_arguments_are_collection_errors(pytester, monitor):
+    pytester.makepyfile(f"""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance, ttc, progress, lane_keeping
+@scenario(x=Uniform(0, 1), monitors=[{monitor}])
+def test_bad(case):
+    pass
+""")
+    result = pytester.runpytest()
+    out = result.stdout.str()
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert "test_bad" in out and "Traceback" not in out or "MonitorError" in out
+
+
+BODY = """
+import time
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+from pytest_avscenario.sim import behaviors as b
+
+@scenario(x=Uniform(0, 1), samples=4, monitors=[distance(5.0)], case_timeout=1.0)
+def test_body(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=10.0)
+    world.car(road.lane(0), s=60.0, speed=10.0)
+    if case.index == 0:
+        raise RuntimeError("before the run")
+    world.run(seconds=2)
+    if case.index == 1:
+        raise RuntimeError("after the run")
+"""
+
+
+@pytest.mark.parametrize("driver, cause", [
+    ("raise ValueError('bad perception')", "bad perception"),
+    ("return (float('nan'), 0.0)", "non-finite action"),
+    ("return (1.0, 2.0, 3.0)", "shape"),
+    ("time.sleep(1e6)", "CaseTimeout"),
+])
+def test_broken_drivers_make_error_cases_and_the_campaign_goes_on(pytester, driver, cause):
+    pytester.makeconftest(f"""
+import time
+import pytest
+
+@pytest.fixture
+def avs_driver():
+    def policy(observation):
+        {driver}
+    return policy
+""")
+    pytester.makepyfile(test_body=BODY)
+    result = pytester.runpytest("--avs-db=none", "--avs-seed=1")
+    result.assert_outcomes(failed=4)
+    rows = [json.loads(l) for l in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
+    assert [r["verdict"] for r in rows] == ["error"] * 4
+    assert "before the run" in rows[0]["error"]
+    assert all(cause in r["error"] for r in rows[1:]), [r["error"] for r in rows]
+
+
+def test_body_raising_before_or_after_the_run_is_an_error_with_the_cause(pytester):
+    pytester.makepyfile(test_body=BODY)
+    result = pytester.runpytest("--avs-db=none", "--avs-seed=1", "--avs-driver=idm")
+    result.assert_outcomes(failed=2, passed=2)
+    rows = [json.loads(l) for l in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
+    assert [r["verdict"] for r in rows] == ["error", "error", "pass", "pass"]
+    assert "RuntimeError: before the run" in rows[0]["error"]
+    assert "RuntimeError: after the run" in rows[1]["error"]
+
+
+def test_active_sampler_is_told_errors_as_invalid(pytester):
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+import pytest_avscenario.plugin as plugin
+
+@scenario(x=Uniform(0, 1), samples=3, sampler="mab")
+def test_err(case):
+    raise RuntimeError("broken scene")
+
+def test_zz_sampler_state(request):
+    plan = request.config.stash[plugin.plans_key]["test_active_sampler_is_told_errors_as_invalid.py::test_err"]
+    sampler = plan.active["mab"]
+    assert sampler.n_told == 3 and sampler.n_invalid == 3
+""")
+    result = pytester.runpytest("-p", "no:randomly", "--avs-db=none")
+    result.assert_outcomes(failed=3, passed=1)
+
+
+def test_case_timeout_reports_the_time_it_ran(pytester):
+    pytester.makepyfile("""
+import time
+from pytest_avscenario import scenario, Uniform
+@scenario(x=Uniform(0, 1), samples=2)
+def test_hang(case):
+    while True:
+        pass
+""")
+    t0 = time.monotonic()
+    result = pytester.runpytest("--avs-case-timeout=0.5", "--avs-db=none")
+    assert time.monotonic() - t0 < 30
+    result.assert_outcomes(failed=2)
+    result.stdout.fnmatch_lines(["*CaseTimeout: the case ran longer than its time limit of 0.5 s (ran 0.5* s)*"])
+
+
+def test_bad_case_timeout_is_a_collection_error(pytester):
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+@scenario(x=Uniform(0, 1), case_timeout=-3)
+def test_t(case):
+    pass
+""")
+    pytester.runpytest().stdout.fnmatch_lines(["*::test_t: case_timeout must be a positive number*-3*"])
+
+
+SLOW = """
+import time
+from pytest_avscenario import scenario, Uniform
+@scenario(x=Uniform(0, 1), samples=200)
+def test_slow(case):
+    time.sleep(0.05)
+    assert case.x < 0.9
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_interrupted_campaign_keeps_finished_rows_and_a_partial_summary(pytester, sig):
+    pytester.makepyfile(test_slow=SLOW)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--avs-shrink-budget=2",
+         "test_slow.py"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+    )
+    table = pytester.path / "avs-report" / "errors.jsonl"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and (not table.exists() or len(table.read_text().splitlines()) < 5):
+        time.sleep(0.1)
+    proc.send_signal(sig)
+    out = proc.communicate(timeout=60)[0].decode()
+    assert "Interrupted" in out or "KeyboardInterrupt" in out
+    rows = [json.loads(l) for l in table.read_text().splitlines()]
+    assert 5 <= len(rows) < 200
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["tests"][0]["samples"] == len(rows)
+    assert (pytester.path / "avs-report" / "index.html").exists()
+    leftovers = [p for p in (pytester.path / ".avscenario").glob("*") if not p.name.endswith(".json")] \
+        if (pytester.path / ".avscenario").exists() else []
+    assert leftovers == []
+
+
+def test_unwritable_report_directory_warns_and_the_run_goes_on(pytester):
+    (pytester.path / "blocked").write_text("a file where the report directory should be")
+    pytester.makepyfile(test_ok="""
+from pytest_avscenario import scenario, Uniform
+@scenario(x=Uniform(0, 1), samples=3)
+def test_ok(case):
+    assert case.x < 0.7
+""")
+    result = pytester.runpytest("--avs-report=blocked", "--avs-db=none", "--avs-shrink-budget=0")
+    result.assert_outcomes(passed=2, failed=1)
+    result.stdout.fnmatch_lines(["*cannot write the report under *blocked*", "*= avscenario =*"])
+    assert "INTERNALERROR" not in result.stdout.str()
+
+
+def test_database_path_that_is_a_file_is_a_usage_error(pytester):
+    (pytester.path / "db").write_text("not a directory")
+    pytester.makepyfile("def test_x(): pass")
+    result = pytester.runpytest("--avs-db=db")
+    result.stderr.fnmatch_lines(["*avscenario replay database (--avs-db):*db*"])
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+
+
+def test_nothing_in_the_database_is_executed_or_escapes_it(pytester):
+    db = pytester.path / ".avscenario"
+    db.mkdir()
+    (db / "..%2f..%2fevil.json").write_text(json.dumps({"test": "x", "params": {"__import__": "os"}}))
+    (db / "0123456789ab-0123456789abcdef0123.json").write_text(
+        '{"format": 1, "test": "t.py::test_x", "path": "/etc/passwd", "params": {}}')
+    pytester.makepyfile("def test_x(): pass")
+    result = pytester.runpytest()
+    result.assert_outcomes(passed=1)
+    assert "INTERNALERROR" not in result.stdout.str()
