@@ -7,8 +7,8 @@ starting ``d_ego`` m before the slot centre at 6 m/s, with the goal of parking i
 east, centred). A fourth car comes the other way in the oncoming lane, ``oncoming_s`` m
 beyond the slot at ``oncoming_speed``, passing while the ego pulls up or reverses.
 
-Parameters: ``slot_length`` [m] U(6.5, 10); ``d_ego`` [m] U(20, 60); ``oncoming_s`` [m]
-U(20, 120); ``oncoming_speed`` [m/s] U(4, 12).
+Parameters: ``slot_length`` [m] U(5.5, 10) (the autopilot gives up below L + 1.5 = 6.5 m);
+``d_ego`` [m] U(20, 60); ``oncoming_s`` [m] U(20, 120); ``oncoming_speed`` [m/s] U(4, 12).
 
 Monitors: the paper's four; ``parked`` — the ego ends within 0.5 m of the slot centre and
 within 0.15 rad of the kerb's heading; ``collision``; ``clearance`` — the footprints stay
@@ -30,7 +30,7 @@ KERB_Y = -4.75  # [m] centre line of the forward parking lane (3.5 m lane + half
 
 
 @scenario(
-    slot_length=Uniform(6.5, 10.0, nominal=8.5),  # [m] free kerb between the parked cars
+    slot_length=Uniform(5.5, 10.0, nominal=8.5),  # [m] free kerb between the parked cars
     d_ego=Uniform(20.0, 60.0, nominal=40.0),  # [m] ego centre before the slot centre
     oncoming_s=Uniform(20.0, 120.0, nominal=80.0),  # [m] oncoming car beyond the slot
     oncoming_speed=Uniform(4.0, 12.0, nominal=8.0),  # [m/s]
