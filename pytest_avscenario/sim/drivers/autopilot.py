@@ -430,6 +430,16 @@ class Autopilot:
                 need = 0.5 * W + ext_perp + o.lateral_margin - lat
                 if need > 0.0 and (s_a - s_ego) < (v - v_par) * o.horizon:
                     shift = max(shift, min(need, o.evasive_offset))
+            if a.ped and crosswalks and abs(lat) < 3.6 and not (
+                    lat * v_perp > 0.0 and abs(lat) > 0.5 * W + 1.5):
+                # A pedestrian on a crosswalk ahead, in the road and not yet walking clear of
+                # our lane: wait at the crosswalk's line, whatever it is predicted to do.
+                front = s_ego + 0.5 * L
+                for c in crosswalks:
+                    if -1.0 < s_a - c < 5.0 and c > front:
+                        d = c - front - o.stop_margin
+                        if v * v / (2.0 * max(d, 0.05)) <= o.max_decel:
+                            stops.append((d, "crosswalk"))
             speed_a = math.hypot(a.vx, a.vy)
             if in_corridor and abs(v_perp) < max(0.5, 0.15 * speed_a) and v_par >= -0.1:
                 continue  # ahead or behind on our path, going our way: the lead logic's job
