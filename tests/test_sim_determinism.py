@@ -115,13 +115,15 @@ def test_importing_the_simulator_imports_nothing_heavy():
 
 
 def test_building_a_road_imports_highway_env_but_not_pygame():
+    # only highway-env's road and vehicle modules: not pygame, nor its gym environments
     code = ("import sys; from pytest_avscenario.sim import World;"
             "w = World(seed=1, driver='idm'); w.straight_road();"
-            "print('highway_env' in sys.modules)")
+            "print('highway_env.road.road' in sys.modules,"
+            " any(m in sys.modules for m in ('pygame', 'gymnasium', 'highway_env.envs')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "True"
+    assert out.stdout.strip() == "True False"
 
 
 @pytest.mark.parametrize("case", [following_case, intersection_case])

@@ -19,10 +19,14 @@ import traceback
 from typing import Any
 
 import numpy as np
-from highway_env.road.lane import CircularLane, LineType, StraightLane
-from highway_env.road.road import Road
-from highway_env.vehicle.behavior import IDMVehicle
-from highway_env.vehicle.kinematics import Vehicle
+from ._hwenv import load_core
+
+load_core()  # roads and vehicles without highway-env's gym environments (see _hwenv)
+
+from highway_env.road.lane import CircularLane, LineType, StraightLane  # noqa: E402
+from highway_env.road.road import Road  # noqa: E402
+from highway_env.vehicle.behavior import IDMVehicle  # noqa: E402
+from highway_env.vehicle.kinematics import Vehicle  # noqa: E402
 
 from . import control
 from .drivers import action_pair

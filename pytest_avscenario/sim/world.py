@@ -71,6 +71,9 @@ class World:
         if self.road is not None:
             raise SimError(f"{what}: this world already has a {self.road.kind} road; "
                            "build one road per world", test=self.name)
+        from ._hwenv import load_core
+
+        load_core()
         from highway_env.road.road import RoadNetwork
 
         return RoadNetwork()
@@ -182,7 +185,9 @@ class World:
 
     def _overlapping(self, new: Any, others: list[Any]) -> Any:
         """The first of ``others`` whose footprint intersects ``new``'s, or None."""
-        from highway_env import utils
+        # ``from highway_env.utils import`` (not ``from highway_env import utils``): the latter
+        # would import the whole package with its gym environments (see _hwenv)
+        from highway_env.utils import are_polygons_intersecting
 
         poly = new.polygon()
         zero = np.zeros(2)
@@ -191,7 +196,7 @@ class World:
                 continue
             if np.hypot(*(other.position - new.position)) > (other.diagonal + new.diagonal) / 2:
                 continue
-            if utils.are_polygons_intersecting(poly, other.polygon(), zero, zero)[0]:
+            if are_polygons_intersecting(poly, other.polygon(), zero, zero)[0]:
                 return other
         return None
 
