@@ -819,6 +819,23 @@ def _job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: boo
     )
 
 
+def _attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]) -> None:
+    """Show a failing case's pictures in its pytest-html row (embedded, so the page travels)."""
+    import base64
+
+    from pytest_html import extras
+
+    attached = list(getattr(report, "extras", []))
+    for caption, path in pictures.items():
+        try:
+            data = base64.b64encode(open(path, "rb").read()).decode()
+        except OSError:
+            continue
+        kind = "gif" if str(path).endswith(".gif") else "png"
+        attached.append(extras.image(data, caption, mime_type=f"image/{kind}", extension=kind))
+    report.extras = attached
+
+
 def pytest_collection_finish(session: pytest.Session) -> None:
     """Hand a remote executor the passive cases ahead, so its workers stay busy."""
     config = session.config
@@ -1086,6 +1103,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         report.avs_row = item.stash[row_key]
         report.avs_shrink_rows = item.stash.get(shrink_rows_key, [])
         report.avs_pictures = item.stash.get(pictures_key, {})
+        if report.avs_pictures and item.config.pluginmanager.hasplugin("html"):
+            _attach_to_html_report(report, report.avs_pictures)
         report.avs_test = _plan_of(item).info()
     return report
 

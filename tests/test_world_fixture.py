@@ -112,3 +112,23 @@ def test_close(case, world):
     png = Image.open(next(cases.glob("*.png")))
     colours = png.convert("RGB").getcolors(maxcolors=1 << 16) or []
     assert png.size[0] > 100 and len(colours) > 3  # not a blank frame
+
+
+def test_pytest_html_rows_carry_the_pictures_of_a_failing_case(pytester):
+    pytest_html = __import__("pytest").importorskip("pytest_html")
+    pytester.makepyfile(test_close="""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+
+@scenario(gap=Uniform(6, 40, nominal=35), samples=2, monitors=[distance(25.0)], shrink_budget=2)
+def test_close(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=10.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0)
+    world.run(seconds=2)
+""")
+    result = pytester.runpytest("--avs-seed=1", "--avs-db=none", "--avs-driver=idm",
+                                "--html=page.html", "--self-contained-html")
+    assert result.parseoutcomes()["failed"] == 2  # gaps 23 m and 14.5 m are both under 25 m
+    page = (pytester.path / "page.html").read_text()
+    assert "worst moment" in page and "data:image/png;base64," in page and "image/gif" in page
