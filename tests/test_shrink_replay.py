@@ -162,3 +162,34 @@ def test_speed(case):
     line = [l for l in result.outlines if "@example(" in l][0]
     speed = float(line.split("speed=")[1].rstrip(")"))
     assert 21.0 <= speed <= 21.0 + 0.05 * 30
+
+
+def test_replays_and_database_under_xdist(pytester):
+    pytest.importorskip("xdist")
+    pytester.makepyfile(test_gap=_src())
+    first = pytester.runpytest_subprocess("--avs-seed=1", "-n", "2", "-p", "no:cacheprovider")
+    assert first.parseoutcomes()["failed"] >= 1
+    db = pytester.path / ".avscenario"
+    stored = sorted(db.glob("*.json"))
+    assert stored and not [p for p in db.iterdir() if not p.name.endswith(".json")]
+    assert all(json.loads(p.read_text())["minimized"] for p in stored)
+    # the controller ships the database: every worker collects the same replay items
+    # (xdist refuses to run when worker collections differ)
+    second = pytester.runpytest_subprocess("--avs-seed=1", "-n", "2", "-v", "-p", "no:cacheprovider")
+    replays = [l for l in second.outlines if l.startswith("[gw") and "[replay-" in l]
+    assert len(replays) == len(stored)
+    assert "Different tests were collected" not in second.stdout.str()
+
+
+def test_case_timeout_under_xdist(pytester):
+    pytest.importorskip("xdist")
+    pytester.makepyfile(test_hang="""
+from pytest_avscenario import scenario, Uniform
+@scenario(x=Uniform(0, 1), samples=2, case_timeout=0.5)
+def test_hang(case):
+    while True:
+        pass
+""")
+    result = pytester.runpytest_subprocess("-n", "2", "--avs-db=none", "-p", "no:cacheprovider")
+    result.assert_outcomes(failed=2)
+    result.stdout.fnmatch_lines(["*CaseTimeout*0.5 s*"])
