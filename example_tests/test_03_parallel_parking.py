@@ -2,8 +2,8 @@
 
 Situation: a two-way road, one lane each way, with a parking lane along the south kerb. Two
 cars are parked there with a free slot of ``slot_length`` m (bumper to bumper) between them,
-centred 125 m from the road's start. The ego drives east in the kerb-side lane,
-starting ``d_ego`` m before the slot centre at 6 m/s, with the goal of parking in the slot (heading
+centred 125 m from the road's start. The ego drives east in the kerb-side lane, starting
+``d_ego`` m before the slot centre at 6 m/s, with the goal of parking in the slot (heading
 east, centred). A fourth car comes the other way in the oncoming lane, ``oncoming_s`` m
 beyond the slot at ``oncoming_speed``, passing while the ego pulls up or reverses.
 
@@ -15,9 +15,11 @@ within 0.15 rad of the kerb's heading; ``collision``; ``clearance`` — the foot
 0.2 m apart. Failures of ``parked``/``collision``/``clearance`` are the manoeuvre's own.
 
 The paper's distance (5 m between centres) and TTC metrics cannot hold for parallel parking:
-the manoeuvre starts beside the car in front of the slot (about 2.5 m centre to centre) and
-ends a metre from both neighbours, so every case violates them, as they would for any
-driver; they are reported for comparability with the paper's table.
+the kerb lane's centre is 3 m from the travel lane's, so merely driving past the parked car
+behind the slot, and pulling up beside the one in front of it (about 3 m centre to centre),
+is inside the 5-m circle — where the paper's TTC is 0 by definition. Every case of every
+driver violates both; they are reported for comparability with the paper's table, and the
+scenario is judged by ``parked``, ``collision`` and ``clearance``.
 """
 
 from pytest_avscenario import Uniform, scenario
