@@ -7,9 +7,9 @@ after ``bus_stop_at`` s it brakes to a stop at ``bus_decel``, puts its stop arm 
 ``arm_for`` s, then drives on. Traffic in both directions must stop and stay behind a bus with
 its arm out.
 
-Parameters: ``bus_from`` in {"ahead", "oncoming"}; ``d_bus`` [m] U(20, 110); ``bus_speed``
-[m/s] U(4, 13); ``bus_decel`` [m/s^2] U(1.5, 5); ``bus_stop_at`` [s] U(0.5, 6); ``arm_for`` [s]
-U(3, 10); ``ego_speed`` [m/s] U(8, 16).
+Parameters: ``bus_from`` in {"ahead", "oncoming"}; ``d_bus`` [m] U(15, 110); ``bus_speed``
+[m/s] U(4, 13); ``bus_decel`` [m/s^2] U(1.5, 6); ``bus_stop_at`` [s] U(0.5, 6); ``arm_for`` [s]
+U(3, 10); ``ego_speed`` [m/s] U(8, 18).
 
 A failure means the AV drove past the bus's near end (plus 2 m) while the arm was out
 (``school_bus``; excused when the arm came out too late to stop after 0.5 s at 6 m/s^2),
@@ -28,12 +28,12 @@ EGO_S = 20.0  # [m]
 
 @scenario(
     bus_from=Choice(["ahead", "oncoming"]),
-    d_bus=Uniform(20.0, 110.0, nominal=70.0),  # [m] bus centre from the ego centre
+    d_bus=Uniform(15.0, 110.0, nominal=70.0),  # [m] bus centre from the ego centre
     bus_speed=Uniform(4.0, 13.0, nominal=7.0),  # [m/s]
-    bus_decel=Uniform(1.5, 5.0, nominal=3.0),  # [m/s^2]
+    bus_decel=Uniform(1.5, 6.0, nominal=3.0),  # [m/s^2]
     bus_stop_at=Uniform(0.5, 6.0, nominal=3.0),  # [s]
     arm_for=Uniform(3.0, 10.0, nominal=6.0),  # [s]
-    ego_speed=Uniform(8.0, 16.0, nominal=11.0),  # [m/s]
+    ego_speed=Uniform(8.0, 18.0, nominal=11.0),  # [m/s]
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(),
