@@ -19,7 +19,8 @@ simulations and their judging are measured:
 2. Per-case overhead of the Dask path against the in-process path, through the executor API
    (no pytest): the same 40 jobs run by ``InProcessExecutor``; by ``DaskExecutor`` with one
    worker one at a time (round-trip latency: submit, simulate there, return); and prefetched
-   (pipelined, as the plugin runs passive cases), with one and with two workers. Wall time
+   (pipelined, as the plugin runs passive cases), with one and with two workers, one case
+   per Dask task and in the executor's automatic chunks. Wall time
    per case, and CPU per case summed over the client (which hosts the local scheduler) and
    the workers, so the overhead is visible even when other jobs load the machine.
 
@@ -130,7 +131,7 @@ def run_pytest(suite: Path, extra: list[str], timing: Path) -> dict:
             "n": span["n"], "summary": last}
 
 
-def bench_pytest(tmp: Path, cases: int, repeats: int) -> None:
+def bench_pytest(tmp: Path, cases: int, repeats: int) -> dict[str, float]:
     suite = write_suite(tmp, cases)
     timing = tmp / "timing.json"
     runs: dict[str, dict[str, list[float]]] = {m: collections.defaultdict(list) for m in MODES}
@@ -154,6 +155,19 @@ def bench_pytest(tmp: Path, cases: int, repeats: int) -> None:
         print(f"{mode:<16}{med['wall']:8.2f}{base['wall'] / med['wall']:10.2f}"
               f"{med['cases']:9.2f}{base['cases'] / med['cases']:10.2f}{med['cpu']:8.2f}"
               f"   (cases: best {best:.2f} s, all {' '.join(f'{v:.2f}' for v in runs[mode]['cases'])})")
+    return {mode: statistics.median(runs[mode]["wall"]) for mode in MODES}
+
+
+def fit(walls: dict[int, dict[str, float]]) -> None:
+    """wall = fixed + N x per-case from the smallest and largest N: where scale-out pays."""
+    lo, hi = min(walls), max(walls)
+    per = {m: (walls[hi][m] - walls[lo][m]) / (hi - lo) for m in MODES}
+    fixed = {m: walls[lo][m] - lo * per[m] for m in MODES}
+    print(f"\nfit from N={lo} and N={hi}: wall = fixed + N x per-case")
+    for m in MODES:
+        ratio = per["serial"] / per[m] if per[m] > 0 else float("nan")
+        print(f"  {m:<16} fixed {fixed[m]:6.2f} s  per case {1e3 * per[m]:6.2f} ms  "
+              f"per-case speed-up {ratio:5.2f}")
 
 
 def bench_overhead(tmp: Path, cases: int, repeats: int) -> None:
@@ -214,15 +228,19 @@ def bench_overhead(tmp: Path, cases: int, repeats: int) -> None:
                     results["dask round trip, 1 worker"].append(
                         timed(lambda: outs.extend(ex.run(j) for j in one), ex))
                     sim_remote.extend(o.sim_time_s for o in outs)
-                ahead = jobs(f"pf{workers}{r}")
+                plural = "s" if workers > 1 else ""
+                for chunk in (1, None):
+                    ahead = jobs(f"pf{workers}{r}{chunk}")
+                    ex.chunk_size = chunk
 
-                def prefetched() -> None:
-                    ex.prefetch(ahead)
-                    for j in ahead:
-                        ex.run(j)
+                    def prefetched() -> None:
+                        ex.prefetch(ahead)
+                        for j in ahead:
+                            ex.run(j)
 
-                results[f"dask prefetched, {workers} worker{'s' if workers > 1 else ''}"].append(
-                    timed(prefetched, ex))
+                    how = "one case per task" if chunk == 1 else "chunked (auto)"
+                    results[f"dask prefetched, {workers} worker{plural}, {how}"].append(
+                        timed(prefetched, ex))
                 print(f"  overhead repeat {r + 1}, {workers} worker(s), load {load()}", flush=True)
         finally:
             ex.close()
@@ -230,11 +248,11 @@ def bench_overhead(tmp: Path, cases: int, repeats: int) -> None:
     base_cpu = statistics.median(c for _, c in results["in-process"])
     print(f"\nper case, medians of {repeats} x {cases} cases (load {load()}); the case's own time "
           f"(sim_time_s) on the worker: median {1e3 * statistics.median(sim_remote):.1f} ms")
-    print(f"  {'':<28} {'wall ms':>8} {'vs in-process':>14} {'cpu ms':>8} {'vs in-process':>14}")
+    print(f"  {'':<48} {'wall ms':>8} {'vs in-process':>14} {'cpu ms':>8} {'vs in-process':>14}")
     for name, values in results.items():
         wall = statistics.median(w for w, _ in values)
         cpu = statistics.median(c for _, c in values)
-        print(f"  {name:<28} {1e3 * wall:8.1f} {1e3 * (wall - base_wall):+14.1f} "
+        print(f"  {name:<48} {1e3 * wall:8.1f} {1e3 * (wall - base_wall):+14.1f} "
               f"{1e3 * cpu:8.1f} {1e3 * (cpu - base_cpu):+14.1f}")
 
 
@@ -292,7 +310,8 @@ def check_modes(tmp: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--cases", type=int, default=40)
+    ap.add_argument("--cases", default="40",
+                    help="cases per run; a comma list (40,400) also fits wall = fixed + N x per-case")
     ap.add_argument("--modes", action="store_true", help="check the --dist modes instead")
     ap.add_argument("--skip-overhead", action="store_true")
     ap.add_argument("--skip-pytest", action="store_true")
@@ -304,10 +323,13 @@ def main() -> None:
         if args.modes:
             check_modes(Path(tmp))
             return
+        sizes = [int(x) for x in str(args.cases).split(",")]
         if not args.skip_pytest:
-            bench_pytest(Path(tmp), args.cases, args.repeats)
+            walls = {n: bench_pytest(Path(tmp), n, args.repeats) for n in sizes}
+            if len(sizes) > 1:
+                fit(walls)
         if not args.skip_overhead:
-            bench_overhead(Path(tmp), args.cases, args.repeats)
+            bench_overhead(Path(tmp), sizes[0], args.repeats)
 
 
 if __name__ == "__main__":

@@ -137,6 +137,39 @@ def test_a_worker_killed_mid_case_is_resubmitted_and_every_case_reports(pytester
     assert len(second) == 1, runs
 
 
+def test_a_conftest_driver_drives_on_the_workers(pytester, cluster_address):
+    # the driver exists only when an item runs (no prefetch); its class lives in a
+    # conftest.py, which workers cannot import by name: it must travel by value
+    pytester.makeconftest("""
+import pytest
+
+class StandStill:
+    def act(self, observation):
+        return (-6.0, 0.0)
+
+@pytest.fixture
+def avs_driver():
+    return StandStill()
+""")
+    pytester.makepyfile(test_stand="""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import progress
+
+@scenario(gap=Uniform(25, 40), samples=3, monitors=[progress(30.0)])
+def test_follow(case, world):
+    road = world.straight_road(lanes=1, length=400)
+    world.ego(road.lane(0), s=20.0, speed=12.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=12.0)
+    world.run(seconds=5)
+""")
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--avs-seed=1", "--avs-db=none",
+                                           "--avs-shrink-budget=0", "--avs-report=none",
+                                           "--avs-executor=dask", f"--avs-dask-address={cluster_address}")
+    # braking at 6 m/s^2 from 12 m/s stops the ego after 12 m: never 30 m of progress
+    result.assert_outcomes(failed=3)
+    result.stdout.fnmatch_lines(["*scenario violated: progress*"])
+
+
 def test_prefetched_cases_are_chunked_matched_and_a_replay_runs_again(tmp_path, cluster_address):
     from pytest_avscenario.case import Case
     from pytest_avscenario.executors import CaseJob
@@ -165,9 +198,15 @@ def test_prefetched_cases_are_chunked_matched_and_a_replay_runs_again(tmp_path, 
         # a shrink replay of a consumed case is simulated anew, with the same result
         again = [executor.run(j) for j in jobs]
         assert executor.stats["on_demand"] == 4 and executor.stats["tasks"] == 6
+        # an active sampler's batch: submitted ahead, one task each, collected by run
+        executor.submit(jobs[:2])
+        batch = [executor.run(j) for j in jobs[:2]]
+        assert executor.stats["submitted_ahead"] == 2 and executor.stats["on_demand"] == 4
+        assert executor.stats["tasks"] == 8 and executor.capacity == 2
     finally:
         executor.close()
     assert [o.rho for o in outcomes] == [o.rho for o in again]
+    assert [o.rho for o in batch] == [o.rho for o in outcomes[:2]]
     assert [o.verdict for o in outcomes] == ["fail", "pass", "pass", "pass"]
 
 

@@ -70,7 +70,8 @@ class DaskExecutor(Executor):
     ``LocalCluster`` with ``n_workers`` (default: the cores this process may use) single-
     threaded worker processes. ``max_retries``: how often a case is resubmitted after the
     worker running it died (local cluster only). ``connect_timeout_s``: how long to try to
-    reach the scheduler (default 10 s, or ``$AVS_DASK_TIMEOUT``).
+    reach the scheduler (default 10 s, or ``$AVS_DASK_TIMEOUT``). ``chunk_size``: prefetched
+    cases per Dask task (default: automatic, see :meth:`prefetch`).
 
     Raises ValueError (which the plugin shows as a usage error) when the scheduler cannot be
     reached or has no workers.
@@ -86,12 +87,16 @@ class DaskExecutor(Executor):
             try:
                 connect_timeout_s = float(raw) if raw else DEFAULT_CONNECT_TIMEOUT_S
             except ValueError:
-                raise ValueError(f"${TIMEOUT_ENV} must be a number of seconds, got {raw!r}") from None
+                raise ValueError(
+                    f"${TIMEOUT_ENV} must be a number of seconds, got {raw!r}") from None
         if max_retries < 0:
             raise ValueError(f"max_retries must be >= 0, got {max_retries}")
         if chunk_size is not None and chunk_size < 1:
             raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+        if n_workers is not None and n_workers < 1:
+            raise ValueError(f"n_workers must be >= 1, got {n_workers}")
         self.address = address
+        self.n_workers = n_workers
         self.chunk_size = chunk_size
         self.max_retries = int(max_retries)
         self.connect_timeout_s = float(connect_timeout_s)
@@ -111,10 +116,11 @@ class DaskExecutor(Executor):
     def _start(self) -> None:
         timeout = self.connect_timeout_s
         if self.address is None:
-            workers = self._cores()
-            # (read by the local scheduler when it starts) allowed-failures bounds the resubmissions of a case whose worker died. With a
-            # worker-saturation of 1.0 a worker holds only the task it runs, so a worker
-            # killed by one case does not count as a failure of others queued behind it.
+            workers = self.n_workers or self._cores()
+            # Read by the local scheduler when it starts: allowed-failures bounds the
+            # resubmissions of a case whose worker died; with a worker-saturation of 1.0 a
+            # worker holds only the task it runs, so a worker killed by one case does not
+            # count as a failure of the cases queued behind it.
             settings = {"distributed.scheduler.allowed-failures": self.max_retries,
                         "distributed.scheduler.worker-saturation": 1.0}
             try:
@@ -329,7 +335,8 @@ class DaskExecutor(Executor):
         done: list[_Task] = []
         while self._ready:
             task = self._ready.popleft()
-            if task.future.status == "finished" and any(self._ahead.get(k) is task for k in task.keys):
+            wanted = any(self._ahead.get(k) is task for k in task.keys)
+            if wanted and task.future.status == "finished":
                 done.append(task)
         if not done:
             return

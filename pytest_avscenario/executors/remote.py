@@ -104,7 +104,8 @@ def pack_spec(spec: TestSpec) -> bytes:
     by_value = []
     for obj in (spec.driver, type(spec.driver)):
         mod = sys.modules.get(getattr(obj, "__module__", None) or "")
-        if mod is not None and mod.__name__.rpartition(".")[2] == "conftest" and mod not in by_value:
+        is_conftest = mod is not None and mod.__name__.rpartition(".")[2] == "conftest"
+        if is_conftest and mod not in by_value:
             by_value.append(mod)
     for mod in by_value:
         cloudpickle.register_pickle_by_value(mod)
