@@ -220,6 +220,19 @@ def test_waits_at_a_stop_line_while_cross_traffic_approaches():
     assert run.x[-1] > 75.0
 
 
+def test_waits_at_a_stop_line_for_both_of_two_crossing_cars():
+    # Two cars crossing at x = 66 from opposite sides, there at ~6 s and ~8.5 s: after the
+    # first has passed, the second (further away at first) must still hold the ego.
+    line = StopLine(route_index=0, s=60.0)
+    first = Actor("first", 66.0, -60.0, math.pi / 2, 10.0)
+    second = Actor("second", 66.0, 85.0, -math.pi / 2, 10.0)
+    run = simulate([straight()], speed=10.0, target_speed=10.0, stop_lines=[line],
+                   actors=[first, second], seconds=16.0)
+    assert not run.collided
+    assert np.interp(8.5, run.t, run.x) + 2.5 < 63.0  # still waiting when the second passes
+    assert run.x[-1] > 75.0
+
+
 def test_yields_to_a_crossing_pedestrian_predicted_to_enter_its_path():
     # A pedestrian 4 m right of the lane at x = 45 walks across at 1.4 m/s.
     ped = Actor("ped", 45.0, -4.0, math.pi / 2, 1.4, kind="pedestrian", length=0.6, width=0.6)
@@ -413,9 +426,10 @@ def test_world_stops_for_an_oncoming_school_bus_with_its_stop_arm_out():
     w = _world()
     road = w.two_way_road()
     w.ego(road.lane(0), s=20.0, speed=10.0, target_speed=10.0)
-    w.bus(road.lane(0, "backward"), s=200.0, speed=8.0, behavior=b.bus_stop(t=1.0, duration=6.0))
+    bus = w.bus(road.lane(0, "backward"), s=200.0, speed=8.0,
+                behavior=b.bus_stop(t=1.0, duration=6.0))
     tr = w.run(seconds=14)
-    arm = np.asarray(tr.signals["bus1.stop_arm"], dtype=bool)
+    arm = np.asarray(tr.signals[f"{bus.name}.stop_arm"], dtype=bool)
     assert arm.any()
     ego_front = tr.x[0] + 2.5
     bus_front = tr.x[1] - 6.0
