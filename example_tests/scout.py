@@ -38,7 +38,7 @@ def scenario_tests(module):
     return out
 
 
-def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=960):
+def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=960, view=None):
     from pytest_avscenario import Case
     from pytest_avscenario.monitors import MonitorSet
     from pytest_avscenario.sim import World
@@ -55,7 +55,7 @@ def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=960):
     traj = world.trajectory
     verdict = MonitorSet(list(spec.monitors), priority=spec.priority).evaluate(traj)
     if png:
-        world.render_png(png)
+        world.render_png(png, **(view or {}))
         if width:
             _shrink(png, width)
     if gif:
@@ -85,6 +85,8 @@ def main(argv=None):
     ap.add_argument("--png", default=None, help="render the (first) case to this PNG")
     ap.add_argument("--gif", default=None)
     ap.add_argument("--width", type=int, default=960, help="downscale PNGs to this width [px]")
+    ap.add_argument("--view", default=None,
+                    help="fixed view 'x,y,width' [m] for the PNG (default: follow the ego)")
     ap.add_argument("--render-failures", default=None, help="directory: PNG of each failure")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
@@ -94,6 +96,10 @@ def main(argv=None):
     from pytest_avscenario.case import stable_seed
     from pytest_avscenario.space import FeatureSpace
 
+    view = None
+    if args.view:
+        x, y, w = (float(v) for v in args.view.split(","))
+        view = {"centre": (x, y), "width": w}
     module = importlib.import_module(args.module.removesuffix(".py").split("/")[-1])
     for name, fn, spec in scenario_tests(module):
         space = FeatureSpace(spec.parameters)
@@ -111,7 +117,7 @@ def main(argv=None):
             verdict, wall, error, world = run_one(fn, spec, params, stable_seed(args.seed, label),
                                                   args.driver, png=png,
                                                   gif=args.gif if k == 0 else None,
-                                                  width=args.width)
+                                                  width=args.width, view=view)
             total += wall
             bad = verdict.violated
             for m in bad:
