@@ -462,3 +462,10 @@ def test_world_parallel_parking():
     assert not tr.crashed.any()
     assert math.hypot(tr.x[0, -1] - goal["x"], tr.y[0, -1] - y_park) < 0.5
     assert abs(math.degrees(tr.heading[0, -1])) < 10.0
+
+
+def test_keeps_driving_straight_after_its_route_ends():
+    # A 60-m route and 30 s at 12 m/s: 300 m past its end, it must not circle back.
+    run = simulate([StraightLane([0.0, 0.0], [60.0, 0.0])], speed=12.0, target_speed=12.0,
+                   seconds=30.0)
+    assert run.x[-1] > 330.0 and max(abs(y) for y in run.y) < 0.1

@@ -175,12 +175,19 @@ class RoutePath:
         return 0 if i < 0 else (self.n - 2 if i > self.n - 2 else i)
 
     def point(self, s: float) -> tuple[float, float]:
-        """Centre-line point (x, y) [m] at arc length ``s`` [m], linear between samples."""
+        """Centre-line point (x, y) [m] at arc length ``s`` [m], linear between samples.
+
+        Beyond either end the line goes on straight, so an ego that outlives its route keeps
+        driving ahead instead of circling back to the last point.
+        """
         i = self.index(s)
         f = (s - self.S0) / self.ds - i
-        f = 0.0 if f < 0.0 else (1.0 if f > 1.0 else f)
         xl, yl = self._xl, self._yl
-        return xl[i] + f * (xl[i + 1] - xl[i]), yl[i] + f * (yl[i + 1] - yl[i])
+        if 0.0 <= f <= 1.0:
+            return xl[i] + f * (xl[i + 1] - xl[i]), yl[i] + f * (yl[i + 1] - yl[i])
+        j = 0 if f < 0.0 else i + 1
+        extra = (s - self.S0) - j * self.ds
+        return xl[j] + extra * self._txl[j], yl[j] + extra * self._tyl[j]
 
     def tangent(self, s: float) -> tuple[float, float]:
         """Unit tangent (cos, sin of the heading) at arc length ``s`` [m]."""
