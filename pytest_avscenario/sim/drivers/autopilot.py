@@ -507,10 +507,13 @@ class Autopilot:
             te_in = self._travel_time(d_in, v, v0)
             te_out = self._travel_time(s_out - rear, v, v0)
             gap = o.gap_time + (0.5 if a.ped else 0.0)
+            # Hysteresis: once yielding to an agent, letting go needs twice the margin (else
+            # slowing makes the conflict vanish, speeding up brings it back: stop-and-go).
+            if a.name in self._yielding:
+                gap *= 2.0
             if ta_out + gap <= te_in:
                 continue  # it will be gone before we get there
-            # Hysteresis: once yielding to an agent, going first needs twice the margin.
-            if te_out + gap * (2.0 if a.name in self._yielding else 1.0) <= ta_in:
+            if te_out + gap <= ta_in:
                 continue  # we clear the zone well before it arrives
             clear = False
             d_stop = d_in - o.stop_margin
