@@ -1,0 +1,88 @@
+"""What a failing case says: every metric, the parameters as found and minimized, and how to
+re-run just that case or pin it as a regression."""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import pytest
+
+from .case import Case
+from .expansion import CaseSlot, call_text, plan_of
+from .keys import seed_key
+from .runner import CaseOutcome
+
+
+def fmt_rho(v: float | None) -> str:
+    if v is None:
+        return "—"
+    if math.isinf(v):
+        return "+inf" if v > 0 else "-inf"
+    return f"{v:+.3f}"
+
+
+def fmt_value(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return repr(v)
+
+
+def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
+                    shrink: Any = None, note: str | None = None) -> str:
+    """The text a failing case shows: metrics, parameters (found and minimized), what to do."""
+    lines = []
+    if outcome.verdict == "fail" and outcome.violated:
+        lines.append(f"scenario violated: {', '.join(outcome.violated)}")
+    elif outcome.verdict == "fail":
+        lines.append(f"scenario failed: {outcome.error}")
+    else:
+        lines.append(f"scenario case could not be judged: {outcome.error}")
+    shrunk = shrink is not None and shrink.minimized is not None and shrink.outcome is not None
+    if outcome.results:
+        head = "  metric            rho" + ("   minimized" if shrunk else "") + "  threshold  verdict   worst (as found)"
+        lines.append(head)
+        for name, res in outcome.results.items():
+            thr = "" if res.threshold is None else f"{res.threshold:g}"
+            mid = f"  {fmt_rho(shrink.outcome.rho.get(name)):>10}" if shrunk else ""
+            verdict = "VIOLATED" if res.rho < 0 else "ok"
+            lines.append(f"  {name:<12} {fmt_rho(res.rho):>9}{mid}  {thr:>9}  {verdict:<8}  {res.detail}")
+    if shrunk:
+        nominal = plan_of(item).space.nominal()
+        lines.append("  parameter          found      minimized        nominal")
+        for k, v in case.params.items():
+            lines.append(f"  {k:<12} {fmt_value(v):>11}  {fmt_value(shrink.minimized[k]):>13}  "
+                         f"{fmt_value(nominal.get(k)):>13}")
+        how = "budget spent" if shrink.exhausted else "done"
+        lines.append(f"  shrinking: {shrink.sims} of {shrink.budget} simulations ({how})")
+        lines.append(f"  pin it as a regression above the test: {call_text('example', shrink.minimized)}")
+    else:
+        params = ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items())
+        lines.append(f"  parameters: {params}")
+        if shrink is not None and shrink.flaky:
+            lines.append("  FLAKY: a replay of this case with the same seed did not fail the same way; "
+                         "it was not shrunk (is the scene or the driver nondeterministic?)")
+    lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
+                 f"simulated in {outcome.sim_time_s:.3f} s")
+    if note:
+        lines.append(f"  {note}")
+    lines.append(f"  re-run only this case: {rerun_command(item, case)}")
+    return "\n".join(lines)
+
+
+def rerun_command(item: pytest.Item, case: Case) -> str:
+    """A command that re-runs just this case, with the same values."""
+    seed = item.config.stash[seed_key]
+    cmd = f"pytest '{item.nodeid}' --avs-seed={seed}"
+    plan = plan_of(item)
+    slot: CaseSlot = item.callspec.params["case"]
+    if slot.params is None or item.config.getoption("avs_params"):
+        # an active sampler's case depends on the cases before it: pin its values instead
+        pinned = json.dumps({k: v for k, v in case.params.items() if k in plan.space.parameters})
+        cmd += f" --avs-params '{pinned}'"
+    for opt in ("avs_samples", "avs_sampler", "avs_driver"):
+        val = item.config.getoption(opt)
+        if val is not None:
+            cmd += f" --{opt.replace('_', '-')}={val}"
+    return cmd

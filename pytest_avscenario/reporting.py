@@ -1,0 +1,155 @@
+"""The controller's reporting: the error table as cases finish, and the report at the end.
+
+:class:`RunState` is registered as a plugin object of its config. Rows reach it through
+``pytest_runtest_logreport`` — from this process, or from pytest-xdist's workers, whose
+reports carry them — and are written to the error table at once. At the end of the session
+it builds the report (summary, plots, index page), adds the suite properties to the JUnit
+file, and prints the paper's table.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import pytest
+
+from .keys import seed_key
+from .space import FeatureSpace
+
+
+class RunState:
+    """The controller's view of the run: the error table and what the summary needs."""
+
+    def __init__(self, config: pytest.Config):
+        self.config = config
+        self.is_worker = hasattr(config, "workerinput")
+        raw = config.getoption("avs_report") or config.getini("avs_report") or "avs-report"
+        self.directory = None if str(raw).lower() == "none" else (
+            config.invocation_params.dir / str(raw))
+        self.table: Any = None
+        self.rows: list[dict[str, Any]] = []
+        self.tests: dict[str, dict[str, Any]] = {}
+        self.summary_rows: list[Any] | None = None
+        self.pictures: dict[str, dict[str, str]] = {}
+        self.started = time.time()
+
+    # -- hooks (this object is registered as a plugin for its config) ---------------------
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        row = getattr(report, "avs_row", None)
+        if row is not None and not self.is_worker:
+            for shrink_row in getattr(report, "avs_shrink_rows", ()):
+                self.add(shrink_row, report.avs_test)
+            self.add(row, report.avs_test)
+            pictures = getattr(report, "avs_pictures", None)
+            if pictures:
+                self.pictures.setdefault(row["test"], {}).update(pictures)
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> None:
+        # tryfirst: the suite properties must reach pytest's JUnit writer before it writes
+        if self.is_worker or not self.rows:
+            return
+        from _pytest.junitxml import xml_key
+
+        from .report.junit import add_suite_properties_to_logxml
+        from .report.summary import suite_properties
+
+        self.summary_rows = None
+        if self.directory is not None and self.table is not None:
+            from .report.build import finish_report
+
+            try:
+                self.table.close()  # every row is on disk; the report is built from the files
+                self.summary_rows = finish_report(
+                    self.directory, self.test_infos(), seed=self.config.stash[seed_key],
+                    versions=versions(), case_images=self.pictures)
+            except OSError as exc:
+                self.report_failed(exc)
+        if self.summary_rows is None:
+            self.summary_rows = self.summary()
+        props = suite_properties(self.summary_rows, seed=self.config.stash[seed_key],
+                                 versions=versions())
+        add_suite_properties_to_logxml(self.config.stash.get(xml_key, None), props)
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        if self.is_worker or not self.rows:
+            return
+        from .report.summary import format_pointer, format_table
+
+        summary = self.summary_rows if self.summary_rows is not None else self.summary()
+        terminalreporter.write_sep("=", "avscenario")
+        for line in format_table(summary).splitlines():
+            terminalreporter.write_line(line)
+        if self.directory is not None:
+            terminalreporter.write_line(format_pointer(self.directory))
+
+    # -- state ----------------------------------------------------------------------------
+    def add(self, row: dict[str, Any], info: dict[str, Any]) -> None:
+        self.tests.setdefault(row["test"], info)
+        self.rows.append(row)
+        if self.directory is None:
+            return
+        try:
+            if self.table is None:
+                from .report.table import ErrorTable, prepare_report_dir
+
+                prepare_report_dir(self.directory)
+                remove_stale_pictures(self.directory / "cases", self.started)
+                self.table = ErrorTable(self.directory)
+            self.table.append(row)
+        except OSError as exc:
+            # the run goes on (verdicts, the replay database and the terminal summary do not
+            # depend on the report); say once what was lost and where
+            self.report_failed(exc)
+
+    def report_failed(self, exc: OSError) -> None:
+        directory, self.directory = self.directory, None
+        if self.table is not None:
+            try:
+                self.table.close()
+            except OSError:
+                pass
+        self.table = None
+        self.config.issue_config_time_warning(pytest.PytestWarning(
+            f"avscenario: cannot write the report under {directory} ({exc}); the rest of "
+            "this run is reported in the terminal only"), 2)
+
+    def close(self) -> None:
+        if self.table is not None:
+            self.table.close()
+
+    def test_infos(self) -> dict[str, Any]:
+        from .report.summary import TestInfo
+
+        return {
+            test: TestInfo(metrics=tuple(info["metrics"]),
+                           space=FeatureSpace.from_description(info["space"]))
+            for test, info in self.tests.items()
+        }
+
+    def summary(self) -> list[Any]:
+        from .report.summary import summarize
+
+        return summarize(self.rows, self.test_infos())
+
+
+def remove_stale_pictures(folder: Any, since: float) -> None:
+    """Delete our case pictures left by earlier runs (workers may have drawn this run's already)."""
+    if not folder.is_dir():
+        return
+    for f in folder.iterdir():
+        if f.suffix in (".png", ".gif") and f.is_file() and f.stat().st_mtime < since - 1.0:
+            f.unlink()
+
+
+def versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for dist in ("pytest-avscenario", "highway-env"):
+        try:
+            out[dist] = version(dist)
+        except PackageNotFoundError:
+            out[dist] = "not installed"
+    return out
