@@ -115,7 +115,11 @@ def _children_cpu() -> float:
 
 
 def run_pytest(suite: Path, extra: list[str], timing: Path) -> dict:
-    env = dict(os.environ, AVS_BENCH_TIMING=str(timing), PYTHONPATH=str(suite))
+    stats = timing.with_name("dask-stats.json")
+    env = dict(os.environ, AVS_BENCH_TIMING=str(timing), PYTHONPATH=str(suite),
+               AVS_DASK_STATS=str(stats))
+    if stats.exists():
+        stats.unlink()
     if timing.exists():
         timing.unlink()
     cpu0, t0 = _children_cpu(), time.perf_counter()
@@ -127,6 +131,10 @@ def run_pytest(suite: Path, extra: list[str], timing: Path) -> dict:
         raise SystemExit(f"pytest {' '.join(extra)} failed ({proc.returncode}):\n"
                          f"{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
     span = json.loads(timing.read_text())
+    if stats.exists():  # the Dask executor's counters: did the cases start ahead?
+        counters = json.loads(stats.read_text())
+        last += (f"; dask: {counters.get('prefetched', 0)} prefetched in "
+                 f"{counters.get('tasks', 0)} tasks, {counters.get('on_demand', 0)} on demand")
     return {"wall": wall, "cases": span["last_stop"] - span["first_start"], "cpu": cpu,
             "n": span["n"], "summary": last}
 

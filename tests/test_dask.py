@@ -75,8 +75,11 @@ def _junit_props(path: Path) -> list[tuple]:
     return sorted(out)
 
 
-def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, cluster_address):
+def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, cluster_address,
+                                                                     monkeypatch):
     pytester.makepyfile(test_follow=COMPARED)
+    stats = pytester.path / "dask-stats.json"
+    monkeypatch.setenv("AVS_DASK_STATS", str(stats))
     # no report directory: its plots cost seconds; JUnit holds every case's row
     common = ("-p", "no:cacheprovider", "--avs-seed=5", "--avs-db=none", "--avs-shrink-budget=2",
               "--avs-samples=3", "--avs-report=none", "-rA")
@@ -91,6 +94,12 @@ def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, c
     local_props = _junit_props(pytester.path / "local.xml")
     assert _junit_props(pytester.path / "dask.xml") == local_props
     assert any(("avs.minimized" in dict(props)) for _, props in local_props)
+    # the three passive (halton) cases started at collection and were matched by their
+    # items; the active (mab) cases and the shrink candidates were run on demand
+    counters = json.loads(stats.read_text())
+    assert counters.get("prefetched") == 3 and counters.get("matched", 0) >= 3, (
+        f"passive cases were not started ahead: {counters} (does the plugin's prefetch job "
+        "carry the built-in driver name when avs_driver is not overridden?)")
     # the body's own traceback still points at the failing line of the test module
     remote_run.stdout.fnmatch_lines(["E * assert 3*.* < 30", "test_follow.py:5: AssertionError"])
 

@@ -53,6 +53,8 @@ from .remote import (CaseFields, TestSpec, WireOutcome, pack_spec, run_remote_ma
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
 #: environment variable that overrides the default above (no command-line option exists yet)
 TIMEOUT_ENV = "AVS_DASK_TIMEOUT"
+#: environment variable naming a file for the executor's counters at the end (diagnostics)
+STATS_ENV = "AVS_DASK_STATS"
 
 # Dask priorities: higher runs first. Prefetched cases get 0, -1, -2, ... (pytest's order);
 # a case someone is already waiting for outranks all of them.
@@ -232,7 +234,19 @@ class DaskExecutor(Executor):
         return to_outcome(wire)
 
     def close(self) -> None:
-        """Cancel what is still queued, disconnect, and stop a cluster this executor started."""
+        """Cancel what is still queued, disconnect, and stop a cluster this executor started.
+
+        With ``$AVS_DASK_STATS`` naming a file, the counters (cases prefetched, matched, run
+        on demand, tasks, chunks split) are written there as JSON: benchmarks and tests use
+        it to see that cases really started ahead.
+        """
+        stats_path = os.environ.get(STATS_ENV)
+        if stats_path:
+            try:
+                with open(stats_path, "w") as f:
+                    json.dump(dict(self.stats), f)
+            except OSError:
+                pass
         client, self._client = self._client, None
         if client is not None:
             try:
