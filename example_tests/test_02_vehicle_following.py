@@ -6,7 +6,7 @@ run, brakes at ``lead_decel`` down to ``lead_final_speed`` (0: a full stop), the
 speed. The lead driver is imprecise: every second its acceleration is perturbed by
 N(0, 0.3) m/s^2 drawn during the run from ``case.rng``. Units: m, m/s, s, m/s^2.
 
-Parameters: ``gap`` [m] U(8, 40), ``lead_speed`` [m/s] U(5, 15), ``brake_at`` [s] U(1, 5),
+Parameters: ``gap`` [m] U(10, 40) (the paper's range), ``lead_speed`` [m/s] U(5, 15), ``brake_at`` [s] U(1, 5),
 ``lead_decel`` [m/s^2] U(1, 8), ``lead_final_speed`` [m/s] U(0, 8). Nominal: a lead 30 m
 ahead at 10 m/s slowing gently (2.5 m/s^2) to 5 m/s after 3 s — ordinary traffic.
 
@@ -24,7 +24,7 @@ from subscenarios import slow_down, wobble
 
 
 @scenario(
-    gap=Uniform(8.0, 40.0, nominal=30.0),  # [m] lead centre ahead of the ego centre
+    gap=Uniform(10.0, 40.0, nominal=30.0),  # [m] lead centre ahead of the ego centre
     lead_speed=Uniform(5.0, 15.0, nominal=10.0),  # [m/s]
     brake_at=Uniform(1.0, 5.0, nominal=3.0),  # [s]
     lead_decel=Uniform(1.0, 8.0, nominal=2.5),  # [m/s^2]
