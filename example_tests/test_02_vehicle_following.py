@@ -6,9 +6,10 @@ run, brakes at ``lead_decel`` down to ``lead_final_speed`` (0: a full stop), the
 speed. The lead driver is imprecise: every second its acceleration is perturbed by
 N(0, 0.3) m/s^2 drawn during the run from ``case.rng``. Units: m, m/s, s, m/s^2.
 
-Parameters: ``gap`` [m] U(10, 40) (the paper's range), ``lead_speed`` [m/s] U(5, 15), ``brake_at`` [s] U(1, 5),
-``lead_decel`` [m/s^2] U(1, 8), ``lead_final_speed`` [m/s] U(0, 8). Nominal: a lead 30 m
-ahead at 10 m/s slowing gently (2.5 m/s^2) to 5 m/s after 3 s — ordinary traffic.
+Parameters: ``gap`` [m] U(10, 40) (as in the Scenic reference), ``lead_speed`` [m/s]
+U(5, 15), ``brake_at`` [s] U(1, 5), ``lead_decel`` [m/s^2] U(1, 8), ``lead_final_speed``
+[m/s] U(0, 8). Nominal: a lead 30 m ahead at 10 m/s slowing gently (2.5 m/s^2) to 5 m/s
+after 3 s — ordinary traffic.
 
 A failure means the AV came closer than 5 m (centre to centre) to the lead, was ever on a
 course to be within 5 m in under 2 s (TTC), stopped making progress, or left its lane centre.
