@@ -52,7 +52,8 @@ def table(runs: list[tuple[str, str]]) -> str:
             v = r["violations"]
             other = ", ".join(f"{SHORT[m]} {v[m]}" for m in EXTRA if m in v)
             eps = r.get("epsilon")
-            eps_s = "—" if eps is None or (isinstance(eps, float) and math.isnan(eps)) else f"{eps:.2f}"
+            missing = eps is None or (isinstance(eps, float) and math.isnan(eps))
+            eps_s = "—" if missing else f"{eps:.2f}"
             line += (f" {r['samples']} | {v.get('progress', 0)} | {v.get('distance', 0)} |"
                      f" {v.get('ttc', 0)} | {v.get('lane_keeping', 0)} | {other} | {eps_s} |")
         lines.append(line)
@@ -82,7 +83,8 @@ def failures(path: str) -> str:
             v, r = min(bad, key=lambda t: t[0])
             ps = ", ".join(f"{k}={x:.3g}" if isinstance(x, float) else f"{k}={x}"
                            for k, x in r["params"].items())
-            out.append(f"  {m}: {len(bad)} cases; worst rho={v:+.2f} ({r['sampler']}-{r['index']:03d}: {ps})")
+            out.append(f"  {m}: {len(bad)} cases; worst rho={v:+.2f} "
+                       f"({r['sampler']}-{r['index']:03d}: {ps})")
     return "\n".join(out)
 
 
@@ -91,7 +93,8 @@ def main() -> None:
     ap.add_argument("runs", nargs="+", help="DIR or LABEL=DIR of a report")
     ap.add_argument("--failures", action="store_true")
     args = ap.parse_args()
-    runs = [(r.split("=", 1) if "=" in r else (os.path.basename(r.rstrip("/")), r)) for r in args.runs]
+    runs = [(r.split("=", 1) if "=" in r else (os.path.basename(r.rstrip("/")), r))
+            for r in args.runs]
     if args.failures:
         for label, path in runs:
             print(f"## {label}\n{failures(path)}\n")

@@ -6,7 +6,8 @@ It is what the example scenarios were tuned with (and how ``frames/`` was made):
     python example_tests/scout.py test_02_vehicle_following -n 30            # nominal + 30 Halton
     python example_tests/scout.py test_06_pedestrian_crossing --driver idm -n 30
     python example_tests/scout.py test_05_encroaching_oncoming_car --png frames/05.png
-    python example_tests/scout.py test_07_oncoming_left_turn --params '{"d_ego": 20}' --png /tmp/x.png
+    python example_tests/scout.py test_07_oncoming_left_turn --params '{"d_ego": 20}' \
+        --png /tmp/x.png
 
 Cases are built the way the plugin builds them (``Case`` + ``World`` with the case's seed and
 rng), so a row here replays under pytest with ``--avs-params``.

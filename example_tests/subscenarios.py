@@ -60,7 +60,7 @@ def slow_down(t: float, decel: float, to_speed: float) -> SlowDown:
 
 @dataclass(frozen=True)
 class ThrottleEncroach(Behavior):
-    """Accelerate with ``throttle`` x 3 m/s^2 up to ``max_speed`` while drifting ``offset`` m left."""
+    """Accelerate with ``throttle`` x 3 m/s^2 up to ``max_speed``, drifting ``offset`` m left."""
 
     throttle: float = 0.5
     offset: float = 1.5
@@ -275,7 +275,8 @@ def school_bus_stop(world: Any, road: Any, *, direction: str, s: float, speed: f
     """A school bus ``s`` m along lane 0 of ``direction`` at ``speed`` [m/s] that brakes at
     ``decel`` [m/s^2] from ``stop_at`` [s] and shows its stop arm for ``duration`` [s]."""
     beh = b.bus_stop(t=stop_at, duration=duration, decel=decel)
-    return world.bus(road.lane(0, direction), s=s, speed=speed, **_spawn(world, beh, trigger, "bus"))
+    return world.bus(road.lane(0, direction), s=s, speed=speed,
+                     **_spawn(world, beh, trigger, "bus"))
 
 
 # -- monitors the situation needs ---------------------------------------------------------------

@@ -1,8 +1,9 @@
-"""Scenario 5 (NHTSA, the paper's Table 1): the AV responds to an oncoming car encroaching on its lane.
+"""Scenario 5 (NHTSA, the paper's Table 1): the AV responds to an oncoming car encroaching.
 
 Situation: a two-way road, one 5.5 m lane each way (so that an oncoming car keeping its
-lane passes the ego's centre at 5.5 m, outside the paper's 5-m distance bound), approaching a junction 200 m from the road's
-start (the paper's "intersection"; here only a reference point, the road carries on). The
+lane passes the ego's centre at 5.5 m, outside the paper's 5-m distance bound), approaching
+a junction 200 m from the road's start (the paper's "intersection"; here only a reference
+point, the road carries on). The
 ego drives east at ``ego_speed`` starting ``d_ego`` m before the junction. An oncoming car
 waits ``d_adv`` m beyond the junction in the westbound lane, pulls away with ``throttle``
 (fraction of 3 m/s^2) up to 12 m/s and, from ``encroach_at`` s for ``encroach_for`` s,
@@ -50,7 +51,8 @@ def test_encroaching_oncoming_car(case, world):
     world.ego(road.lane(0), s=JUNCTION_X - case.d_ego, speed=case.ego_speed,
               target_speed=case.ego_speed)
     # backward lanes run from x = ROAD_LENGTH westwards: s is measured from the east end
-    oncoming_encroacher(world, road.lane(0, "backward"), s=ROAD_LENGTH - JUNCTION_X - case.d_adv,
+    oncoming_encroacher(world, road.lane(0, "backward"),
+                        s=ROAD_LENGTH - JUNCTION_X - case.d_adv,
                         throttle=case.throttle, offset=case.encroach, max_speed=12.0,
                         at=case.encroach_at, duration=case.encroach_for)
     world.run(seconds=12)
