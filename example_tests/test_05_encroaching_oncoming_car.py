@@ -1,14 +1,13 @@
 """Scenario 5 (NHTSA, the paper's Table 1): the AV responds to an oncoming car encroaching.
 
-Situation: a two-way road, one 5.5 m lane each way (so that an oncoming car keeping its
-lane passes the ego's centre at 5.5 m, outside the paper's 5-m distance bound), approaching
-a junction 200 m from the road's start (the paper's "intersection"; here only a reference
-point, the road carries on). The
-ego drives east at ``ego_speed`` starting ``d_ego`` m before the junction. An oncoming car
-waits ``d_adv`` m beyond the junction in the westbound lane, pulls away with ``throttle``
-(fraction of 3 m/s^2) up to 12 m/s and, from ``encroach_at`` s for ``encroach_for`` s,
-drifts ``encroach`` m left of its lane centre — over the centre line into the ego's lane —
-then back (a driver cutting a bend or overtaking a cyclist).
+Situation: a two-way road, one 5.5 m lane each way (so that an oncoming car keeping its lane
+passes the ego's centre at 5.5 m, outside the paper's 5-m distance bound), approaching a
+junction 200 m from the road's start (the paper's "intersection"; here only a reference point,
+the road carries on). The ego drives east at ``ego_speed`` starting ``d_ego`` m before the
+junction. An oncoming car waits ``d_adv`` m beyond the junction in the westbound lane, pulls
+away with ``throttle`` (fraction of 3 m/s^2) up to 12 m/s and, from ``encroach_at`` s for
+``encroach_for`` s, drifts ``encroach`` m left of its lane centre — over the centre line into
+the ego's lane — then back (a driver cutting a bend or overtaking a cyclist).
 
 Parameters (the paper's three first): ``d_adv`` [m] U(20, 70) — the adversary's distance
 from the junction; ``throttle`` [-] U(0.2, 1.0) — its throttle; ``d_ego`` [m] U(20, 70) —
@@ -19,9 +18,10 @@ the ego's left edge is); ``encroach_at`` [s] U(0, 8); ``encroach_for`` [s] U(1, 
 
 A failure means the AV came within 5 m (centres) of the oncoming car, was on course to within
 5 m in under 2 s, stopped for good (progress < 11 m), left its lane centre, or touched it.
-The autopilot cannot swerve (it keeps its lane and yields by braking), so a car crossing far
+The autopilot does not leave its lane (it shifts within it and brakes), so a car crossing far
 enough over the line is a collision it can only mitigate; the distance and TTC metrics count
-every oncoming car passed at under 5 m, i.e. any drift of more than 0.5 m toward the ego.
+every oncoming car passed at under 5 m, i.e. any drift of more than 0.5 m toward the ego at
+the moment they meet.
 """
 
 from pytest_avscenario import Uniform, scenario

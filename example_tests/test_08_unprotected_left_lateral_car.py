@@ -3,11 +3,12 @@ cuts across the intersection.
 
 Situation: a four-way, one-lane-per-approach intersection. The ego comes from the south
 ``d_ego`` m before its stop line and turns left (to the west). An oncoming car from the north
-goes straight through after its stop (ordinary traffic the ego must let pass), and a lateral
-car on the ``lateral_from`` approach, ``d_lateral`` m before its line, starts ``lateral_delay``
-s into the run and crosses straight at ``lateral_speed`` without stopping (a red-light /
-stop-sign runner; its acceleration wobbles by N(0, 0.3) m/s^2 drawn every second from
-``case.rng``) — across the ego's turn.
+goes straight through after its stop, yielding to the ego when the ego is nearer the centre
+(ordinary all-way-stop traffic: the autopilot itself does not negotiate right of way), and a
+lateral car on the ``lateral_from`` approach, ``d_lateral`` m before its line, starts
+``lateral_delay`` s into the run and crosses straight at ``lateral_speed`` without stopping (a
+red-light / stop-sign runner; its acceleration wobbles by N(0, 0.3) m/s^2 drawn every second
+from ``case.rng``) — across the ego's turn.
 
 Parameters: ``d_ego`` [m] U(5, 40); ``lateral_from`` in {"west", "east"}; ``d_lateral`` [m]
 U(10, 80); ``lateral_speed`` [m/s] U(6, 14); ``lateral_delay`` [s] U(0, 4); ``d_oncoming`` [m]

@@ -5,8 +5,9 @@ Situation: a four-way, one-lane-per-approach intersection. The ego comes from th
 ``d_ego`` m before its stop line and turns left into the west arm. A pedestrian on the
 crosswalk across the west arm, starting from the ``ped_from`` kerb, waits ``ped_wait`` s,
 walks at ``ped_speed`` (+-10 % drawn every second from ``case.rng``), stands
-``ped_wait_in_road`` s in the first lane it enters and walks on.
-An oncoming car from the north goes straight after its stop.
+``ped_wait_in_road`` s in the first lane it enters and walks on. An oncoming car from the
+north goes straight after its stop, yielding to the ego when the ego is nearer the centre
+(ordinary all-way-stop traffic).
 
 Parameters: ``d_ego`` [m] U(5, 40); ``ped_from`` in {"south", "north"}; ``ped_wait`` [s]
 U(0, 14); ``ped_speed`` [m/s] U(1.0, 2.2); ``ped_wait_in_road`` [s] U(0, 3); ``d_oncoming``
