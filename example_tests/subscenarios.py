@@ -3,8 +3,8 @@
 A sub-scenario is a plain function that adds its agents and their behaviours to a world and
 returns them: ``crossing_traffic(world, inter, ...)``, ``pedestrian_crossing(world,
 crosswalk, ...)``, ``parked_car_pulling_out(world, road, ...)``, ``oncoming_encroacher(world,
-road, ...)``, ``school_bus_stop(world, road, ...)``. The ten scenario modules use them one at
-a time; ``test_11_composed_route.py`` composes three along one route.
+lane, ...)``, ``school_bus_stop(world, road, ...)``. The scenario modules use them one at a
+time (1, 4, 5, 6, 8, 9, 10); ``test_11_composed_route.py`` composes three along one route.
 
 Opportunistic composition: ``trigger=(place, within_m)`` makes a sub-scenario's agents
 appear (``appear=world.ego_within(place, within_m)``) when the ego comes within ``within_m``
@@ -312,8 +312,8 @@ def passes_stopped_school_bus(bus: str = "bus", margin: float = 2.0, decel: floa
 
 def parks(spot_xy: tuple[float, float], heading: float = 0.0, tol_m: float = 0.5,
           tol_rad: float = 0.15):
-    """The ego ends the run parked in the slot: rho = min(tol_m - final centre distance to the
-    slot centre [m], (tol_rad - |final heading error|) x 10)."""
+    """The ego ends the run parked in the slot: rho [m] = min(``tol_m`` - final distance of
+    its centre from the slot centre, 10 m/rad x (``tol_rad`` - |final heading error|))."""
 
     def parked(tr) -> float:
         e = tr.names.index("ego")
