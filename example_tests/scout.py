@@ -8,6 +8,7 @@ It is what the example scenarios were tuned with (and how ``frames/`` was made):
     python example_tests/scout.py test_05_encroaching_oncoming_car --png frames/05.png
     python example_tests/scout.py test_07_oncoming_left_turn --params '{"d_ego": 20}' \
         --png /tmp/x.png
+    python example_tests/scout.py --frames          # re-render frames/ (nominal cases)
 
 Cases are built the way the plugin builds them (``Case`` + ``World`` with the case's seed and
 rng), so a row here replays under pytest with ``--avs-params``.
@@ -25,6 +26,12 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
+#: fixed views [m] (centre x, centre y, width) for frames/ where following the ego hides the action
+FRAME_VIEWS = {
+    "test_03_parallel_parking": "122,-2,50",
+    "test_06_pedestrian_crossing": "112,0,60",
+}
+
 
 def scenario_tests(module):
     """``(name, function, spec)`` of every @scenario test of a module."""
@@ -39,7 +46,7 @@ def scenario_tests(module):
     return out
 
 
-def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=960, view=None):
+def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=1280, view=None):
     from pytest_avscenario import Case
     from pytest_avscenario.monitors import MonitorSet
     from pytest_avscenario.sim import World
@@ -64,7 +71,7 @@ def run_one(fn, spec, params, seed, driver, png=None, gif=None, width=960, view=
     return verdict, wall, error, world
 
 
-def _shrink(path, width=960):
+def _shrink(path, width=1280):
     """Downscale and quantize a PNG so the kept frames stay a few tens of KB."""
     from PIL import Image
 
@@ -77,7 +84,9 @@ def _shrink(path, width=960):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("module")
+    ap.add_argument("module", nargs="?")
+    ap.add_argument("--frames", action="store_true",
+                    help="render the nominal case of every module into frames/")
     ap.add_argument("-n", type=int, default=0, help="Halton samples after the nominal case")
     ap.add_argument("--sampler", default="halton")
     ap.add_argument("--driver", default="autopilot")
@@ -85,12 +94,21 @@ def main(argv=None):
     ap.add_argument("--params", default=None, help="JSON overriding nominal values")
     ap.add_argument("--png", default=None, help="render the (first) case to this PNG")
     ap.add_argument("--gif", default=None)
-    ap.add_argument("--width", type=int, default=960, help="downscale PNGs to this width [px]")
+    ap.add_argument("--width", type=int, default=1280, help="downscale PNGs to this width [px]")
     ap.add_argument("--view", default=None,
                     help="fixed view 'x,y,width' [m] for the PNG (default: follow the ego)")
     ap.add_argument("--render-failures", default=None, help="directory: PNG of each failure")
     ap.add_argument("--quiet", action="store_true")
     args = ap.parse_args(argv)
+    if args.frames:
+        for name in sorted(f[:-3] for f in os.listdir(HERE)
+                           if f.startswith("test_") and f[5:7].isdigit()):
+            out = os.path.join(HERE, "frames", name.removeprefix("test_") + ".png")
+            extra = ["--view", FRAME_VIEWS[name]] if name in FRAME_VIEWS else []
+            main([name, "--png", out, "--quiet", "--driver", args.driver, *extra])
+        return
+    if not args.module:
+        ap.error("give a module (e.g. test_02_vehicle_following) or --frames")
 
     sys.path.insert(0, HERE)
     from pytest_avscenario import samplers
