@@ -1,7 +1,9 @@
 """Scenario 7 (NHTSA, the paper's Table 1): the AV crosses an intersection while an oncoming car
 turns left across its path.
 
-Situation: a four-way, one-lane-per-approach intersection with stop lines on every arm. The
+Situation: a four-way, one-lane-per-approach intersection with stop lines on every arm and
+5.5 m lanes (so that opposing cars passing each other are 5.5 m apart, outside the paper's 5-m
+distance bound; with 3.5 m lanes every oncoming car that merely passed counted). The
 ego comes from the south, ``d_ego`` m before its stop line at ``ego_speed``, and goes
 straight on. An oncoming car comes from the north ``d_adv`` m before its stop line at
 ``adv_speed``; it creeps up to its line and, once the ego is within ``adv_go_within`` m of
@@ -33,7 +35,7 @@ from pytest_avscenario.sim import behaviors as b
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_oncoming_left_turn(case, world):
-    inter = world.intersection(lanes=1)
+    inter = world.intersection(lanes=1, lane_width=5.5)
     world.ego(inter.stop_line("south").before(case.d_ego), speed=case.ego_speed,
               target_speed=case.ego_speed, route=inter.route("south", "straight"))
     world.car(inter.stop_line("north").before(case.d_adv), speed=case.adv_speed,

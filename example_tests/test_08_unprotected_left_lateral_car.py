@@ -1,7 +1,8 @@
 """Scenario 8 (NHTSA, the paper's Table 1): the AV turns left, unprotected, while a lateral car
 cuts across the intersection.
 
-Situation: a four-way, one-lane-per-approach intersection. The ego comes from the south
+Situation: a four-way, one-lane-per-approach intersection with 5.5 m lanes (opposing cars
+pass 5.5 m apart, outside the paper's 5-m distance bound). The ego comes from the south
 ``d_ego`` m before its stop line and turns left (to the west). An oncoming car from the north
 goes straight through after its stop, yielding to the ego when the ego is nearer the centre
 (ordinary all-way-stop traffic: the autopilot itself does not negotiate right of way), and a
@@ -38,7 +39,7 @@ from subscenarios import crossing_traffic
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_unprotected_left_lateral_car(case, world):
-    inter = world.intersection(lanes=1)
+    inter = world.intersection(lanes=1, lane_width=5.5)
     world.ego(inter.stop_line("south").before(case.d_ego), speed=6.0, target_speed=9.0,
               route=inter.route("south", "left"))
     world.car(inter.stop_line("north").before(case.d_oncoming), speed=8.0,

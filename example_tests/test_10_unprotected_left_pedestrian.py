@@ -1,7 +1,8 @@
 """Scenario 10 (NHTSA, the paper's Table 1): the AV turns left, unprotected, while a pedestrian
 crosses the road it turns into.
 
-Situation: a four-way, one-lane-per-approach intersection. The ego comes from the south
+Situation: a four-way, one-lane-per-approach intersection with 5.5 m lanes (opposing cars
+pass 5.5 m apart, outside the paper's 5-m distance bound). The ego comes from the south
 ``d_ego`` m before its stop line and turns left into the west arm. A pedestrian on the
 crosswalk across the west arm, starting from the ``ped_from`` kerb, waits ``ped_wait`` s,
 walks at ``ped_speed`` (+-10 % drawn every second from ``case.rng``), stands
@@ -38,7 +39,7 @@ from subscenarios import pedestrian_crossing
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_unprotected_left_pedestrian(case, world):
-    inter = world.intersection(lanes=1)
+    inter = world.intersection(lanes=1, lane_width=5.5)
     world.ego(inter.stop_line("south").before(case.d_ego), speed=6.0, target_speed=9.0,
               route=inter.route("south", "left"))
     world.car(inter.stop_line("north").before(case.d_oncoming), speed=8.0,
