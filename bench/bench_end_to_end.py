@@ -62,8 +62,13 @@ FLAGS = ["-q", "-p", "no:cacheprovider", "--avs-seed=0", "--avs-db=none",
          "--avs-shrink-budget=0", "--avs-gifs=0"]
 
 
-def run_pytest(directory: Path, n: int) -> tuple[float, float, list[dict]]:
-    """(wall time to exit, wall time to the first case done, the error-table rows)."""
+def child_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_pytest(directory: Path, n: int) -> tuple[float, float, float, list[dict]]:
+    """(wall time to exit, wall time to the first case done, CPU time, the error-table rows)."""
     (directory / "test_follow.py").write_text(SCENARIO.format(n=n))
     report = directory / "avs-report"
     stamp = directory / "first-case.txt"
@@ -71,14 +76,15 @@ def run_pytest(directory: Path, n: int) -> tuple[float, float, list[dict]]:
     stamp.unlink(missing_ok=True)
     env = dict(os.environ, AVS_BENCH_STAMP=str(stamp))
     launched = time.time()
-    t0 = time.perf_counter()
+    c0, t0 = child_cpu(), time.perf_counter()
     subprocess.run([sys.executable, "-m", "pytest", *FLAGS, "test_follow.py"], cwd=directory,
                    capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t0
+    cpu = child_cpu() - c0
     first = float(stamp.read_text()) - launched
     rows = [json.loads(l) for l in (report / "errors.jsonl").read_text().splitlines()]
     assert len(rows) == n, f"expected {n} rows, got {len(rows)}"
-    return wall, first, rows
+    return wall, first, cpu, rows
 
 
 def anchor(venv: Path, script: str, *args: str) -> dict:
@@ -108,19 +114,23 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
-        one, first, many, body = [], [], [], []
+        one, first, many, body, cpu_one, cpu_many = [], [], [], [], [], []
         for _ in range(args.repeats):
-            w1, f1, _rows = run_pytest(d, 1)
-            wn, _f, rows = run_pytest(d, args.cases)
+            w1, f1, c1, _rows = run_pytest(d, 1)
+            wn, _f, cn, rows = run_pytest(d, args.cases)
             one.append(w1)
             first.append(f1)
             many.append(wn)
+            cpu_one.append(c1)
+            cpu_many.append(cn)
             body.append(statistics.median(r["sim_time_s"] for r in rows))
         exit_one = statistics.median(one)
         cold = statistics.median(first)
         per_case = (statistics.median(many) - exit_one) / (args.cases - 1)
+        per_case_cpu = (statistics.median(cpu_many) - statistics.median(cpu_one)) / (args.cases - 1)
         per_body = statistics.median(body)
-    print(f"ours  per case through pytest (marginal, {args.cases} cases): {per_case * 1e3:.1f} ms")
+    print(f"ours  per case through pytest (marginal, {args.cases} cases): {per_case * 1e3:.1f} ms wall, "
+          f"{per_case_cpu * 1e3:.1f} ms CPU")
     print(f"ours  per case, test body (build + simulate + record), median: {per_body * 1e3:.1f} ms")
     print(f"ours  cold start, fresh pytest process to its first case done: {cold:.2f} s "
           f"(to exit, report written: {exit_one:.2f} s)")

@@ -23,7 +23,7 @@ from .keys import db_key, executor_key, pictures_key, row_key, session_key, shri
 from .messages import failure_message
 from .reporting import versions
 from .runner import CaseOutcome
-from .settings import default_driver, executor_name
+from .settings import dask_address, default_driver, executor_name
 
 
 @dataclass
@@ -202,7 +202,14 @@ def executor_of(config: pytest.Config) -> Any:
         name = executor_name(config)
         options = {}
         if name == "dask":
-            options["address"] = config.getoption("avs_dask_address") or config.getini("avs_dask_address") or None
+            options["address"] = dask_address(config)
+            for key, option in (("n_workers", "avs_dask_workers"), ("connect_timeout_s", "avs_dask_timeout"),
+                                ("max_retries", "avs_dask_retries")):
+                value = config.getoption(option)
+                if value is None and config.getini(option) not in (None, ""):
+                    value = config.getini(option)
+                if value is not None:
+                    options[key] = int(value) if key != "connect_timeout_s" else float(value)
         try:
             executor = make_executor(name, **options)
         except ValueError as exc:
@@ -225,7 +232,8 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
     if prefetch:
         fixtures: Mapping[str, Any] = {}
         defs = item._fixtureinfo.name2fixturedefs.get("avs_driver", ())
-        overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != __name__
+        # the plugin's own avs_driver fixture lives in plugin.py; any other is a user's
+        overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != "pytest_avscenario.plugin"
         driver = None if overridden else default_driver(item.config)
     else:
         fixtures = item.funcargs

@@ -117,8 +117,10 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[Scena
             )
     space = FeatureSpace(spec.parameters)
     if executor_name(config) != "inprocess":
-        others = sorted(set(metafunc.fixturenames) - {"case", "world", "avs_driver", "request"}
-                        - set(autouse_names(metafunc)))
+        own = set(metafunc.definition._fixtureinfo.argnames)
+        # `request` is in every closure (our fixtures use it); refused only when the test asks
+        others = sorted((set(metafunc.fixturenames) - {"case", "world", "avs_driver", "request"}
+                         - set(autouse_names(metafunc))) | (own & {"request"}))
         if others:
             raise DeclarationError(
                 f"under --avs-executor={executor_name(config)} a scenario test gets only "

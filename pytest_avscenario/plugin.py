@@ -32,7 +32,14 @@ from .keys import (
     shrink_rows_key,
 )
 from .reporting import RunState
-from .settings import DeclarationError, default_driver, executor_name, open_db, session_seed
+from .settings import (
+    DeclarationError,
+    check_executor,
+    default_driver,
+    executor_name,
+    open_db,
+    session_seed,
+)
 from .space import SpaceError
 
 
@@ -76,6 +83,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     add("executor", "where scenario cases are simulated: inprocess (default) or dask",
         metavar="NAME", default=None,
         help="where scenario cases are simulated: 'inprocess' (default) or 'dask'")
+    add("dask-workers", "worker processes of the LocalCluster started for --avs-executor=dask",
+        metavar="N", default=None, type=int,
+        help="worker processes of the LocalCluster the plugin starts (default: one per core)")
+    add("dask-timeout", "seconds to wait for the Dask scheduler",
+        metavar="SECONDS", default=None, type=float,
+        help="seconds to wait for the Dask scheduler before giving up (default 10)")
+    add("dask-retries", "resubmissions of a case whose Dask worker died",
+        metavar="N", default=None, type=int,
+        help="how often a case whose worker died is resubmitted (default 2)")
     add("dask-address", "Dask scheduler address for --avs-executor=dask (default: a LocalCluster)",
         metavar="ADDRESS", default=None,
         help="scheduler of an existing Dask cluster, e.g. tcp://host:8786 (default: start a "
@@ -105,6 +121,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[plans_key] = {}
     config.stash[seed_key] = session_seed(config)
     _terminate_like_ctrl_c()
+    check_executor(config)
     config.stash[db_key] = open_db(config)
     config.stash[session_key] = state = RunState(config)
     config.pluginmanager.register(state, "avscenario-run")
@@ -242,10 +259,13 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     config = session.config
     if executor_name(config) == "inprocess" or hasattr(config, "workerinput"):
         return
+    scenario_items = [item for item in session.items if isinstance(item, pytest.Function)
+                      and item.get_closest_marker("scenario") is not None]
+    if not scenario_items:
+        return
+    executor = executor_of(config)  # connect now: an unreachable cluster stops the run once
     jobs = []
-    for item in session.items:
-        if not isinstance(item, pytest.Function) or item.get_closest_marker("scenario") is None:
-            continue
+    for item in scenario_items:
         slot = item.callspec.params.get("case") if hasattr(item, "callspec") else None
         if not isinstance(slot, CaseSlot) or slot.params is None:
             continue
@@ -253,7 +273,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
                         origin=slot.origin, test=item.nodeid)
         jobs.append(make_job(item, plan_of(item), case_obj, fresh_world=True, prefetch=True))
     if jobs:
-        executor_of(config).prefetch(jobs)
+        executor.prefetch(jobs)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

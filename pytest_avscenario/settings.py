@@ -201,5 +201,21 @@ def executor_name(config: pytest.Config) -> str:
     return config.getoption("avs_executor") or config.getini("avs_executor") or "inprocess"
 
 
+def dask_address(config: pytest.Config) -> str | None:
+    return config.getoption("avs_dask_address") or config.getini("avs_dask_address") or None
+
+
+def check_executor(config: pytest.Config) -> None:
+    """Refuse, before anything runs, executor settings that cannot work together."""
+    name = executor_name(config)
+    if name not in ("inprocess", "dask"):
+        raise pytest.UsageError(f"--avs-executor: unknown executor {name!r}; available: inprocess, dask")
+    if name == "dask" and dask_address(config) is None and getattr(config.option, "numprocesses", None) \
+            and not hasattr(config, "workerinput"):
+        raise pytest.UsageError(
+            "--avs-executor=dask with pytest-xdist (-n) needs --avs-dask-address: otherwise "
+            "every xdist worker would start a Dask cluster of its own")
+
+
 def default_driver(config: pytest.Config) -> str:
     return config.getoption("avs_driver") or config.getini("avs_driver") or "autopilot"

@@ -236,3 +236,13 @@ def test_nothing_in_the_database_is_executed_or_escapes_it(pytester):
     result = pytester.runpytest()
     result.assert_outcomes(passed=1)
     assert "INTERNALERROR" not in result.stdout.str()
+
+
+def test_unknown_executor_and_dask_under_xdist_without_address_are_usage_errors(pytester):
+    pytester.makepyfile("def test_x(): pass")
+    result = pytester.runpytest("--avs-executor=ray")
+    result.stderr.fnmatch_lines(["*--avs-executor: unknown executor 'ray'*"])
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    pytest.importorskip("xdist")
+    result = pytester.runpytest_subprocess("--avs-executor=dask", "-n", "2")
+    result.stderr.fnmatch_lines(["*needs --avs-dask-address*"])
