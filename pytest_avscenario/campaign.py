@@ -23,7 +23,7 @@ from .keys import db_key, executor_key, pictures_key, row_key, session_key, shri
 from .messages import failure_message
 from .reporting import versions
 from .runner import CaseOutcome
-from .settings import dask_address, default_driver, executor_name
+from .settings import dask_address, default_driver, executor_name, gif_cap
 
 
 @dataclass
@@ -162,9 +162,7 @@ def render_case(item: pytest.Function, plan: ScenarioPlan, outcome: CaseOutcome,
         return {}
     from .report.table import file_slug
 
-    folder = state.directory / "cases"
-    folder.mkdir(parents=True, exist_ok=True)
-    base = folder / f"{file_slug(item.nodeid)}"
+    base = state.directory / "cases" / f"{file_slug(item.nodeid)}"
     pictures: dict[str, str] = {}
     traj = world.trajectory
     step = traj.n_steps - 1
@@ -175,13 +173,11 @@ def render_case(item: pytest.Function, plan: ScenarioPlan, outcome: CaseOutcome,
         step = int(np.argmin(np.abs(traj.t - worst.t)))
     what = "minimized" if shown is not outcome else "as found"
     try:
+        base.parent.mkdir(parents=True, exist_ok=True)
         pictures[f"{item.name}: worst moment ({what})"] = world.render_png(f"{base}.png", step=step)
-        cap = item.config.getoption("avs_gifs")
-        cap = 3 if cap is None else cap
-        done = plan.gifs
-        if done < cap:
+        if plan.gifs < gif_cap(item.config):
             pictures[f"{item.name}: the run ({what})"] = world.render_gif(f"{base}.gif", every=2)
-            plan.gifs = done + 1
+            plan.gifs += 1
     except Exception as exc:  # a picture is a convenience: never fail the case over it
         warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not render the case: {exc}"))
     return pictures

@@ -23,6 +23,7 @@ DEFAULT_SAMPLES = 20
 DEFAULT_SAMPLER = "halton"
 DEFAULT_SHRINK_BUDGET = 20
 MAX_SAMPLES = 100_000
+DEFAULT_GIFS = 3
 
 
 class DeclarationError(Exception):
@@ -215,6 +216,17 @@ def check_executor(config: pytest.Config) -> None:
         raise pytest.UsageError(
             "--avs-executor=dask with pytest-xdist (-n) needs --avs-dask-address: otherwise "
             "every xdist worker would start a Dask cluster of its own")
+
+
+def gif_cap(config: pytest.Config) -> int:
+    """GIFs to render per scenario test (``--avs-gifs`` / ini ``avs_gifs``, default 3)."""
+    value = config.getoption("avs_gifs")
+    if value is None and config.getini("avs_gifs") not in (None, ""):
+        value = config.getini("avs_gifs")
+    try:
+        return max(0, int(value)) if value is not None else DEFAULT_GIFS
+    except (TypeError, ValueError):
+        raise pytest.UsageError(f"avs_gifs must be an integer, got {value!r}") from None
 
 
 def default_driver(config: pytest.Config) -> str:
