@@ -55,6 +55,8 @@ def run_item(item: pytest.Function) -> ItemResult:
     plan = plan_of(item)
     case_obj: Case = item.funcargs["case"]
     slot: CaseSlot = item.callspec.params["case"]
+    if slot.params is None and case_obj.origin == "sampled":
+        ask_ahead(item, plan, slot)
     outcome = executor_of(item.config).run(make_job(item, plan, case_obj, fresh_world=False))
     if slot.params is None and case_obj.origin == "sampled":
         active_sampler(plan, slot.sampler).tell(
@@ -82,6 +84,33 @@ def run_item(item: pytest.Function) -> ItemResult:
     # the body's own exception keeps its traceback; monitor errors are our message alone
     reraise = outcome.exc is not None and not isinstance(outcome.exc, monitor_error_type())
     return ItemResult(outcome, message, reraise)
+
+
+def ask_ahead(item: pytest.Function, plan: ScenarioPlan, slot: CaseSlot) -> None:
+    """Keep a cluster busy with an active sampler: while case k runs, cases k+1 .. k+B-1 (B the
+    cluster's capacity) are asked and started too, so the sampler learns of each case up to B-1
+    cases late — as a parallel falsifier does. Nothing happens in-process or on an xdist
+    worker (whose items are not consecutive), nor with a conftest driver, which cannot be sent
+    before its item's fixtures exist."""
+    executor = executor_of(item.config)
+    submit = getattr(executor, "submit", None)
+    if submit is None or hasattr(item.config, "workerinput") or driver_ahead(item) is None:
+        return
+    sampler = active_sampler(plan, slot.sampler)
+    start = max(slot.index, plan.asked_upto.get(slot.sampler, -1)) + 1
+    jobs = []
+    for j in range(start, slot.index + executor.capacity):
+        ahead = plan.items.get((slot.sampler, j))
+        if ahead is None:
+            break
+        params = sampler.ask()
+        plan.asked[(slot.sampler, j)] = params
+        plan.asked_upto[slot.sampler] = j
+        case_j = Case(params, index=j, seed=ahead.callspec.params["case"].seed,
+                      sampler=slot.sampler, origin="sampled", test=ahead.nodeid)
+        jobs.append(make_job(ahead, plan, case_j, fresh_world=True, prefetch=True))
+    if jobs:
+        submit(jobs)
 
 
 def monitor_error_type() -> type:
@@ -214,6 +243,15 @@ def executor_of(config: pytest.Config) -> Any:
     return executor
 
 
+def driver_ahead(item: pytest.Function) -> Any:
+    """The ego's driver of ``item`` before its fixtures exist: the built-in one named by the
+    options when ``avs_driver`` is the plugin's own fixture, else None (a user's fixture)."""
+    defs = item._fixtureinfo.name2fixturedefs.get("avs_driver", ())
+    # the plugin's own avs_driver fixture lives in plugin.py; any other is a user's
+    overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != "pytest_avscenario.plugin"
+    return None if overridden else default_driver(item.config)
+
+
 def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: bool,
          prefetch: bool = False) -> Any:
     """The executor's description of one case of ``item``'s test.
@@ -227,10 +265,7 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
     argnames = tuple(item._fixtureinfo.argnames)
     if prefetch:
         fixtures: Mapping[str, Any] = {}
-        defs = item._fixtureinfo.name2fixturedefs.get("avs_driver", ())
-        # the plugin's own avs_driver fixture lives in plugin.py; any other is a user's
-        overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != "pytest_avscenario.plugin"
-        driver = None if overridden else default_driver(item.config)
+        driver = driver_ahead(item)
     else:
         fixtures = item.funcargs
         driver = item.funcargs.get("avs_driver")

@@ -66,6 +66,10 @@ class ScenarioPlan:
     active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
+    # asking ahead on a cluster: (sampler, index) -> the item, values asked, last index asked
+    items: dict[tuple[str, int], Any] = field(default_factory=dict)
+    asked: dict[tuple[str, int], dict[str, Any]] = field(default_factory=dict)
+    asked_upto: dict[str, int] = field(default_factory=dict)
 
     @property
     def metrics(self) -> tuple[str, ...]:

@@ -202,6 +202,8 @@ def case(request: pytest.FixtureRequest) -> Case:
             )
     params = slot.params
     if params is None:
+        params = plan.asked.pop((slot.sampler, slot.index), None)  # asked ahead for a cluster
+    if params is None:
         params = active_sampler(plan, slot.sampler).ask()
     return Case(params, index=slot.index, seed=slot.seed, sampler=slot.sampler,
                 origin=slot.origin if request.config.getoption("avs_params") is None else "pinned",
@@ -267,7 +269,10 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     jobs = []
     for item in scenario_items:
         slot = item.callspec.params.get("case") if hasattr(item, "callspec") else None
-        if not isinstance(slot, CaseSlot) or slot.params is None:
+        if not isinstance(slot, CaseSlot):
+            continue
+        if slot.params is None:  # an active sampler's case: asked ahead once items run
+            plan_of(item).items[(slot.sampler, slot.index)] = item
             continue
         case_obj = Case(slot.params, index=slot.index, seed=slot.seed, sampler=slot.sampler,
                         origin=slot.origin, test=item.nodeid)

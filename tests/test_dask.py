@@ -92,7 +92,12 @@ def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, c
     # every item's parameters, seed, robustness, verdict and error text (asserts rewritten on
     # the worker too), and what shrinking found with its candidates simulated on the cluster
     local_props = _junit_props(pytester.path / "local.xml")
-    assert _junit_props(pytester.path / "dask.xml") == local_props
+    remote_props = _junit_props(pytester.path / "dask.xml")
+    assert [name for name, _ in remote_props] == [name for name, _ in local_props]
+    # passive cases are identical; the bandit asks ahead on a cluster (feedback arrives late),
+    # so only its first case — asked before any feedback — is the same as in-process
+    same = [n for n, _ in local_props if "halton" in n or n.endswith("[mab-000]")]
+    assert [p for p in remote_props if p[0] in same] == [p for p in local_props if p[0] in same]
     assert any(("avs.minimized" in dict(props)) for _, props in local_props)
     # the three passive (halton) cases started at collection and were matched by their
     # items; the active (mab) cases and the shrink candidates were run on demand
@@ -375,3 +380,38 @@ class BrakeHard:
         del sys.modules["conftest"]
     driver = cloudpickle.loads(data).driver  # no module called conftest exists here now
     assert driver.act(None) == (-6.0, 0.0)
+
+
+ACTIVE = """
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+
+@scenario(gap=Uniform(8.0, 40.0), lead_speed=Uniform(2.0, 12.0), samples=8, sampler="mab",
+          monitors=[distance(5.0)])
+def test_search(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=12.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=case.lead_speed)
+    world.run(seconds=4)
+"""
+
+
+def test_active_sampler_asks_ahead_on_the_cluster_reproducibly(pytester, cluster_address,
+                                                               monkeypatch):
+    pytester.makepyfile(test_search=ACTIVE)
+    runs = []
+    for k in range(2):
+        stats = pytester.path / f"stats-{k}.json"
+        monkeypatch.setenv("AVS_DASK_STATS", str(stats))
+        pytester.runpytest_subprocess(
+            "-p", "no:cacheprovider", "--avs-seed=3", "--avs-db=none", "--avs-shrink-budget=0",
+            "--avs-executor=dask", f"--avs-dask-address={cluster_address}", f"--junitxml=run{k}.xml",
+            "--avs-report=none")
+        counters = json.loads(stats.read_text())
+        # while case k ran, the next one was asked and already running on the other worker
+        assert counters.get("submitted_ahead", 0) >= 6, counters
+        runs.append(_junit_props(pytester.path / f"run{k}.xml"))
+    assert len(runs[0]) == 8
+    # asks and tells happen at the same points of the run: the same seed, the same cases
+    strip = lambda props: [(n, tuple(p for p in ps if p[0] in ("avs.params", "avs.verdict"))) for n, ps in props]
+    assert strip(runs[0]) == strip(runs[1])
