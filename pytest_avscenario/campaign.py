@@ -66,8 +66,13 @@ def run_item(item: pytest.Function) -> ItemResult:
     plan.ran[slot.sampler] = plan.ran.get(slot.sampler, 0) + 1
 
     shrink = None
+    capped = False
     if outcome.failed and case_obj.origin == "sampled" and plan.shrink_budget > 0:
-        shrink = shrink_case(item, plan, case_obj, outcome)
+        done = plan.shrunk.get(slot.sampler, 0)
+        capped = plan.shrink_max is not None and done >= plan.shrink_max
+        if not capped:
+            plan.shrunk[slot.sampler] = done + 1
+            shrink = shrink_case(item, plan, case_obj, outcome)
     row = make_row(item, case_obj, outcome)
     if shrink is not None and shrink.minimized is not None:
         row["minimized"] = shrink.minimized
@@ -75,7 +80,11 @@ def run_item(item: pytest.Function) -> ItemResult:
     item.stash[row_key] = row
     item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
     record_properties(item, row, shrink)
-    note = update_db(item, plan, slot, case_obj, outcome, shrink)
+    if capped:
+        note = (f"not minimized nor stored: {plan.shrink_max} failures of this test's "
+                f"{slot.sampler} campaign were already (--avs-shrink-max)")
+    else:
+        note = update_db(item, plan, slot, case_obj, outcome, shrink)
     if outcome.failed:
         item.stash[pictures_key] = render_case(item, plan, outcome, shrink)
     if outcome.verdict == "pass":

@@ -27,6 +27,7 @@ from .settings import (
     resolve_samplers,
     resolve_samples,
     resolve_shrink_budget,
+    resolve_shrink_max,
     resolve_time_budget,
 )
 from .space import FeatureSpace, SpaceError
@@ -60,6 +61,8 @@ class ScenarioPlan:
     sampler_options: dict[str, Any]
     time_budget_s: float | None = None
     shrink_budget: int = 20
+    shrink_max: int | None = None  # failures per sampler minimized and stored (None: all)
+    shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
     replays: dict[int, Any] = field(default_factory=dict)  # replay index -> db entry
     gifs: int = 0  # GIFs rendered so far for this test
     case_timeout_s: float | None = None
@@ -160,6 +163,7 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark) -> tuple[Scena
                         seed=seed, monitor_set=monitor_set, sampler_options=dict(opts),
                         time_budget_s=resolve_time_budget(config, spec),
                         shrink_budget=resolve_shrink_budget(config, spec),
+                        shrink_max=resolve_shrink_max(config, spec),
                         case_timeout_s=resolve_case_timeout(config, spec))
 
     pinned = pinned_params(config, space)

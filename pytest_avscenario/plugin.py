@@ -100,6 +100,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         metavar="N", default=None, type=int,
         help="render a GIF of at most N minimized counterexamples per test (default 3; every "
              "one gets a PNG of its worst moment)")
+    add("shrink-max", "failures per test and sampler that are minimized and stored (default: all)",
+        metavar="N", default=None, type=int,
+        help="minimize (and store for replay) only the first N failures of each scenario test "
+             "and sampler; the rest are reported as found (default: every failure)")
     add("case-timeout", "seconds one scenario case may run before it is ended as an error",
         metavar="SECONDS", default=None,
         help="end a scenario case that runs longer than SECONDS (reported as an error with "

@@ -164,6 +164,11 @@ def resolve_shrink_budget(config: pytest.Config, spec: ScenarioSpec) -> int:
     return setting_int(config, spec, "shrink_budget", DEFAULT_SHRINK_BUDGET, minimum=0)
 
 
+def resolve_shrink_max(config: pytest.Config, spec: ScenarioSpec) -> int | None:
+    found = lookup(config, spec, "shrink_max")
+    return None if found is None else setting_int(config, spec, "shrink_max", 0, minimum=0)
+
+
 def resolve_samplers(config: pytest.Config, spec: ScenarioSpec) -> list[str]:
     from .samplers import base
 

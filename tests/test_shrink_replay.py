@@ -193,3 +193,14 @@ def test_hang(case):
     result = pytester.runpytest_subprocess("-n", "2", "--avs-db=none", "-p", "no:cacheprovider")
     result.assert_outcomes(failed=2)
     result.stdout.fnmatch_lines(["*CaseTimeout*0.5 s*"])
+
+
+def test_shrink_max_minimizes_and_stores_only_the_first_failures(pytester):
+    pytester.makepyfile(test_gap=_src())
+    result = pytester.runpytest("--avs-seed=1", "--avs-shrink-max=1")
+    failed = result.parseoutcomes()["failed"]
+    assert failed >= 2
+    out = result.stdout.str()
+    assert out.count("pin it as a regression above the test") == 1
+    assert out.count("not minimized nor stored: 1 failures of this test's halton campaign") == failed - 1
+    assert len(list((pytester.path / ".avscenario").glob("*.json"))) == 1

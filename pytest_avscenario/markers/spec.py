@@ -16,6 +16,7 @@ SPEC_KEYWORDS = (
     "priority",
     "sampler_options",
     "shrink_budget",
+    "shrink_max",
     "time_budget",
     "case_timeout",
 )
@@ -35,6 +36,7 @@ class ScenarioSpec:
     priority: Any = None
     sampler_options: Any = None
     shrink_budget: Any = None
+    shrink_max: Any = None
     time_budget: Any = None
     case_timeout: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
@@ -49,6 +51,7 @@ def scenario(
     priority: Sequence[Any] | None = _UNSET,
     sampler_options: Mapping[str, Any] | None = _UNSET,
     shrink_budget: int | None = _UNSET,
+    shrink_max: int | None = _UNSET,
     time_budget: str | float | None = _UNSET,
     case_timeout: float | None = _UNSET,
     **parameters: Any,
@@ -68,6 +71,8 @@ def scenario(
         ``(higher, lower)`` edges), used by multi-objective samplers.
     :param sampler_options: keyword options for the sampler.
     :param shrink_budget: simulations allowed to minimize each failure (0 disables).
+    :param shrink_max: minimize (and store) only the first N failures per sampler; the rest
+        are reported as found (default: every failure).
     :param time_budget: wall-time cap for this test's campaign (``"30m"``, ``"90s"``, seconds).
     :param case_timeout: seconds one case may run before it is ended as an error.
     """
@@ -75,7 +80,7 @@ def scenario(
         k
         for k, v in dict(
             samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
-            sampler_options=sampler_options, shrink_budget=shrink_budget,
+            sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout,
         ).items()
         if v is not _UNSET
@@ -84,7 +89,7 @@ def scenario(
         k: (None if v is _UNSET else v)
         for k, v in dict(
             samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
-            sampler_options=sampler_options, shrink_budget=shrink_budget,
+            sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout,
         ).items()
     }
