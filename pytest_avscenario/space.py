@@ -45,6 +45,14 @@ def _finite_number(value: Any, what: str) -> float:
     return value
 
 
+def _within(value: Any, lo: float, hi: float) -> bool:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return False
+    return lo <= v <= hi
+
+
 def _plain_signature(fn: Any) -> str:
     return ", ".join(
         p.name if p.default is inspect.Parameter.empty else f"{p.name}={p.default!r}"
@@ -153,11 +161,7 @@ class Uniform(Distribution):
         return float((float(value) - self.lo) / (self.hi - self.lo))
 
     def contains(self, value: Any) -> bool:
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            return False
-        return self.lo <= v <= self.hi
+        return _within(value, self.lo, self.hi)
 
     def describe(self) -> dict[str, Any]:
         return {"type": "Uniform", "lo": self.lo, "hi": self.hi, "nominal": self._nominal}
@@ -198,11 +202,7 @@ class Normal(Distribution):
         return float((self._dist.cdf(float(value)) - self._clo) / (self._chi - self._clo))
 
     def contains(self, value: Any) -> bool:
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            return False
-        return self.lo <= v <= self.hi
+        return _within(value, self.lo, self.hi)
 
     def describe(self) -> dict[str, Any]:
         return {"type": "Normal", "mean": self.mean, "sd": self.sd, "lo": self.lo, "hi": self.hi}

@@ -26,12 +26,12 @@ properties are valid under the strict schema. Nothing here imports pytest.
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 import xml.etree.ElementTree as ET
 from typing import Any, Iterable, Mapping
 
+from ..monitors.serialize import rho_to_str
 from .table import atomic_write_bytes, normalize_row, _jsonable
 
 __all__ = [
@@ -53,14 +53,7 @@ def xml_safe(value: Any) -> str:
 
 
 def _num(value: float | None) -> str:
-    if value is None:
-        return ""
-    x = float(value)
-    if math.isnan(x):
-        return "nan"
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return repr(x)
+    return "" if value is None else rho_to_str(value)
 
 
 def case_properties(
