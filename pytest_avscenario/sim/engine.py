@@ -256,8 +256,12 @@ class _Agent:
         ``place`` is a spot or stop line (a lane and ``s``) or any object with a
         ``position``; positive when it lies ahead.
         """
+        from .places import Lane
+
+        # a place's lane (a spot, a stop line); an agent's ``lane`` is highway-env's own and
+        # goes by its position like anything else
         lane = getattr(place, "lane", None)
-        if lane is not None:
+        if isinstance(lane, Lane):
             idx = lane.index
             for j in range(self.route_index, len(self.plan)):
                 if self.plan[j].index == idx:
