@@ -89,15 +89,10 @@ def throttle_encroach(throttle: float, offset: float, max_speed: float = 15.0,
 
 
 @dataclass(frozen=True)
-class Wobble(Behavior):
-    """``inner`` with human imprecision drawn *during the run* from the world's rng (the case's
-    ``case.rng``): every ``every`` seconds a new offset ~ N(0, ``sd``) is drawn and added to the
-    commanded acceleration [m/s^2] of a vehicle, or to a pedestrian's walking speed as a
-    fraction (0.1: +-10 %). Same case, same draws, in any process."""
+class _Wrapping(Behavior):
+    """A behaviour that changes what another one (``inner``) does: binds and starts it too."""
 
     inner: Any = None
-    sd: float = 0.3
-    every: float = 1.0
 
     kinds = b.VEHICLES + b.PEDESTRIANS
 
@@ -107,6 +102,17 @@ class Wobble(Behavior):
 
     def start(self, agent, world):
         self.inner.start(agent, world)
+
+
+@dataclass(frozen=True)
+class Wobble(_Wrapping):
+    """``inner`` with human imprecision drawn *during the run* from the world's rng (the case's
+    ``case.rng``): every ``every`` seconds a new offset ~ N(0, ``sd``) is drawn and added to the
+    commanded acceleration [m/s^2] of a vehicle, or to a pedestrian's walking speed as a
+    fraction (0.1: +-10 %). Same case, same draws, in any process."""
+
+    sd: float = 0.3
+    every: float = 1.0
 
     def control(self, agent, world):
         st = self.state
@@ -144,21 +150,10 @@ class _Shifted:
 
 
 @dataclass(frozen=True)
-class SinceAppearance(Behavior):
+class SinceAppearance(_Wrapping):
     """Run ``inner`` with its clock starting when the agent appears (its first step), so that
     ``brake_at(t=2)`` or ``cross(wait=3)`` count from the moment a sub-scenario is activated
     rather than from the start of the run."""
-
-    inner: Any = None
-
-    kinds = b.VEHICLES + b.PEDESTRIANS
-
-    def bind(self, rng):
-        out = super().bind(rng)
-        return dataclasses.replace(out, inner=self.inner.bind(rng), state={})
-
-    def start(self, agent, world):
-        self.inner.start(agent, world)
 
     def control(self, agent, world):
         t0 = self.state.setdefault("t0", world.t)

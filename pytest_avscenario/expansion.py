@@ -20,6 +20,7 @@ from .case import RESERVED, stable_seed
 from .keys import db_key, plans_key, seed_key
 from .markers.spec import ScenarioSpec
 from .settings import (
+    DEFAULT_SHRINK_BUDGET,
     DeclarationError,
     executor_name,
     pinned_params,
@@ -60,7 +61,7 @@ class ScenarioPlan:
     monitor_set: Any
     sampler_options: dict[str, Any]
     time_budget_s: float | None = None
-    shrink_budget: int = 20
+    shrink_budget: int = DEFAULT_SHRINK_BUDGET
     shrink_max: int | None = None  # failures per sampler minimized and stored (None: all)
     shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
     replays: dict[int, Any] = field(default_factory=dict)  # replay index -> db entry
