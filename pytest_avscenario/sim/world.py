@@ -559,6 +559,7 @@ class World:
         for a in agents:
             a.active = a.appear is None
             a.gone = False
+            a.appeared_at = 0.0 if a.active else None  # [s] simulation time it appeared
         self._agents_in_order = agents
         self._sync_active()
         self._route_geoms = tuple(l.geometry for l in ego.plan)
@@ -613,6 +614,7 @@ class World:
         for a in late:
             if self._due(a.appear) and self._overlapping(a, self._movers) is None:
                 a.active = True
+                a.appeared_at = self.t
                 self._sync_active()
                 changed = True
         return changed
