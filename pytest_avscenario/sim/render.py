@@ -60,9 +60,9 @@ def _view(world: Any, step: int, centre: Any = None,
           width: float | None = None) -> tuple[tuple[int, int], float, np.ndarray]:
     """(size [px], scale [px/m], world point at the top-left corner [m]) for a frame.
 
-    Default: the whole intersection, or a 133 m window following the ego on other roads.
-    ``centre`` (an (x, y) [m], a place, or an agent name) fixes the window's centre and
-    ``width`` [m] its width.
+    Default: the whole intersection; on a road network a 110 m square following the ego; a
+    133 m window following the ego on other roads. ``centre`` (an (x, y) [m], a place, or an
+    agent name) fixes the window's centre and ``width`` [m] its width.
     """
     tr = world.trajectory
     road = world.road
@@ -72,6 +72,15 @@ def _view(world: Any, step: int, centre: Any = None,
         half = road.half + min(road.approach_length, 28.0)
         cx, cy = 0.0, 0.0
         scale = size[0] / (2 * half)
+    elif road.kind == "network":
+        size = (640, 640)
+        scale = size[0] / 110.0
+        x0, y0 = float(tr.x[0, step]), float(tr.y[0, step])
+        if math.isfinite(x0) and math.isfinite(y0):
+            cx, cy = x0, y0
+        else:
+            cx, cy = float(box[:, 0].min() + box[:, 2].max()) / 2, \
+                float(box[:, 1].min() + box[:, 3].max()) / 2
     else:
         size = (800, 320)
         scale = 6.0

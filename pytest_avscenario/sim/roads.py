@@ -34,6 +34,16 @@ _OPPOSITE = {"north": "south", "south": "north", "east": "west", "west": "east"}
 SIDEWALK = 2.0  # [m] how far beyond the kerb crosswalk paths start
 
 
+def _check_median(median: Any, what: str, test: str) -> float:
+    try:
+        m = float(median)
+    except (TypeError, ValueError):
+        m = math.nan
+    if not (math.isfinite(m) and m >= 0):
+        raise SimError(f"{what}(median={median!r}): need a width >= 0 [m]", test=test)
+    return m
+
+
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
@@ -231,7 +241,7 @@ class LaneIndex:
         return d
 
     # -- re-planning -------------------------------------------------------------------------------
-    def continue_route(self, lane: Lane, limit: int = 4) -> list[Lane]:
+    def continue_route(self, lane: Lane, limit: int = 32) -> list[Lane]:
         """``lane`` and the lanes that carry straight on from it (through intersections)."""
         route = [lane]
         while len(route) < limit:
@@ -376,7 +386,8 @@ class TwoWayRoad(_Road):
     kind = "two_way"
 
     def __init__(self, world: Any, net: Any, lanes: int, length: float, parking: bool,
-                 lane_width: float, parking_width: float, speed_limit: float) -> None:
+                 lane_width: float, parking_width: float, speed_limit: float,
+                 median: float = 0.0) -> None:
         from .engine import LineType, Straight
 
         super().__init__(world)
@@ -384,7 +395,10 @@ class TwoWayRoad(_Road):
             raise SimError(f"two_way_road(lanes={lanes!r}): need a whole number >= 1", test=world.name)
         if not length > 0:
             raise SimError(f"two_way_road(length={length!r}): need > 0 m", test=world.name)
+        median = _check_median(median, "two_way_road", world.name)
         n = int(lanes)
+        m2 = median / 2
+        self.median = median
         self.length = float(length)
         self.lane_width = float(lane_width)
         self.forward: list[Lane] = []
@@ -392,17 +406,19 @@ class TwoWayRoad(_Road):
         self._parking: dict[str, Lane] = {}
         N, S, C = LineType.NONE, LineType.STRIPED, LineType.CONTINUOUS_LINE
         for i in range(n):
-            off = (i + 0.5) * lane_width
+            off = m2 + (i + 0.5) * lane_width
             outer = (S if parking else C) if i == n - 1 else S
             g = Straight((0.0, -off), (length, -off), width=lane_width,
                          line_types=(outer, C if i == 0 else N), speed_limit=speed_limit)
             self.forward.append(self._lane(net, "west", "east", g, f"forward[{i}]", "travel",
                                            "forward", "forward", i))
+            # With a median each direction draws its own continuous centre line.
             g = Straight((length, off), (0.0, off), width=lane_width,
-                         line_types=(outer, N), speed_limit=speed_limit)
+                         line_types=(outer, C if (i == 0 and median > 0) else N),
+                         speed_limit=speed_limit)
             self.backward.append(self._lane(net, "east", "west", g, f"backward[{i}]", "travel",
                                             "backward", "backward", i))
-        edge = n * lane_width
+        edge = m2 + n * lane_width
         if parking:
             off = edge + parking_width / 2
             g = Straight((0.0, -off), (length, -off), width=parking_width,
@@ -473,21 +489,36 @@ class Intersection(_Road):
     kind = "intersection"
 
     def __init__(self, world: Any, net: Any, lanes: int, approach_length: float, lane_width: float,
-                 speed_limit: float, crosswalk_width: float, corner: float) -> None:
+                 speed_limit: float, crosswalk_width: float, corner: float, median: float = 0.0,
+                 at: Any = (0.0, 0.0), name: str = "") -> None:
         from .engine import Arc, LineType, Straight
 
         super().__init__(world)
+        what = f"intersection({name!r})" if name else "intersection"
         if lanes not in (1, 2):
-            raise SimError(f"intersection(lanes={lanes!r}): one or two lanes per approach",
+            raise SimError(f"{what}(lanes={lanes!r}): one or two lanes per approach",
                            test=world.name)
         if not approach_length > crosswalk_width + 2:
-            raise SimError(f"intersection(approach_length={approach_length!r}): too short",
+            raise SimError(f"{what}(approach_length={approach_length!r}): too short",
                            test=world.name)
+        median = _check_median(median, what, world.name)
+        try:
+            o = np.asarray(at, dtype=float).reshape(2)
+        except (TypeError, ValueError):
+            o = np.array([math.nan, math.nan])
+        if not np.all(np.isfinite(o)):
+            raise SimError(f"{what}(at={at!r}): give the centre as (x, y) [m]", test=world.name)
         n, w, L = int(lanes), float(lane_width), float(approach_length)
+        self.name = str(name)
+        self.prefix = p_ = f"{name}." if name else ""
         self.n_lanes, self.lane_width, self.approach_length = n, w, L
-        self.half = H = n * w + float(corner)
+        self.median = m2 = median / 2
+        self.half = H = n * w + m2 + float(corner)
         self.crosswalk_width = float(crosswalk_width)
+        self.origin = o
         N, S, C = LineType.NONE, LineType.STRIPED, LineType.CONTINUOUS_LINE
+        # With a median both directions draw their own continuous centre line.
+        inner_out = C if median > 0 else N
         self._in: dict[str, list[Lane]] = {}
         self._out: dict[str, list[Lane]] = {}
         self._conn: dict[tuple[str, str, int], Lane] = {}
@@ -496,16 +527,17 @@ class Intersection(_Road):
             right_in = np.array([-u[1], u[0]])  # right of travel toward the centre (-u)
             self._in[d], self._out[d] = [], []
             for i in range(n):
-                off = (i + 0.5) * w
+                off = m2 + (i + 0.5) * w
                 outer = C if i == n - 1 else S
-                g = Straight(u * (H + L) + right_in * off, u * H + right_in * off, width=w,
+                g = Straight(o + u * (H + L) + right_in * off, o + u * H + right_in * off, width=w,
                              line_types=(outer, C if i == 0 else N), speed_limit=speed_limit)
-                self._in[d].append(self._lane(net, f"{d}.start", f"{d}.stop", g, f"{d}.in[{i}]",
-                                              "travel", d, f"{d}.in", i))
-                g = Straight(u * H - right_in * off, u * (H + L) - right_in * off, width=w,
-                             line_types=(outer, N), speed_limit=speed_limit)
-                self._out[d].append(self._lane(net, f"{d}.exit", f"{d}.end", g, f"{d}.out[{i}]",
-                                               "travel", d, f"{d}.out", i))
+                self._in[d].append(self._lane(net, f"{p_}{d}.start", f"{p_}{d}.stop", g,
+                                              f"{p_}{d}.in[{i}]", "travel", d, f"{p_}{d}.in", i))
+                g = Straight(o + u * H - right_in * off, o + u * (H + L) - right_in * off, width=w,
+                             line_types=(outer, inner_out if i == 0 else N),
+                             speed_limit=speed_limit)
+                self._out[d].append(self._lane(net, f"{p_}{d}.exit", f"{p_}{d}.end", g,
+                                               f"{p_}{d}.out[{i}]", "travel", d, f"{p_}{d}.out", i))
         for d in DIRECTIONS:
             u = np.array(_UNIT[d])
             right_in = np.array([-u[1], u[0]])
@@ -513,28 +545,28 @@ class Intersection(_Road):
                 d2 = {"straight": _OPPOSITE[d], "left": _LEFT_OF[d], "right": _RIGHT_OF[d]}[turn]
                 u2 = np.array(_UNIT[d2])
                 for i in i_list:
-                    off = (i + 0.5) * w
-                    p = u * H + right_in * off
+                    off = m2 + (i + 0.5) * w
+                    p = o + u * H + right_in * off
                     if turn == "straight":
-                        g = Straight(p, u2 * H + right_in * off, width=w, line_types=(N, N),
+                        g = Straight(p, o + u2 * H + right_in * off, width=w, line_types=(N, N),
                                      speed_limit=speed_limit)
                     else:
-                        c = u * H + u2 * H
+                        c = o + u * H + u2 * H
                         radius = H - off if turn == "right" else H + off
                         phase = math.atan2(p[1] - c[1], p[0] - c[0])
                         sweep = math.pi / 2 if turn == "left" else -math.pi / 2
                         g = Arc(c, radius, phase, phase + sweep, clockwise=(turn == "left"),
                                 width=w, line_types=(N, N), speed_limit=speed_limit)
                     self._conn[(d, turn, i)] = self._lane(
-                        net, f"{d}.stop", f"{d2}.exit", g, f"{d}>{d2}[{i}]", "connector", d,
-                        f"{d}>{d2}", i)
-        self.centre = Point(0.0, 0.0)
+                        net, f"{p_}{d}.stop", f"{p_}{d2}.exit", g, f"{p_}{d}>{d2}[{i}]",
+                        "connector", d, f"{p_}{d}>{d2}", i)
+        self.centre = Point(float(o[0]), float(o[1]))
 
     def _after_index(self) -> None:
         """Register stop lines and crosswalks once the lane index exists."""
         idx = self.world._index
         L, cw = self.approach_length, self.crosswalk_width
-        span = self.n_lanes * self.lane_width + SIDEWALK
+        span = self.n_lanes * self.lane_width + self.median + SIDEWALK
         for d in DIRECTIONS:
             u = np.array(_UNIT[d])
             right_in = np.array([-u[1], u[0]])
@@ -544,19 +576,21 @@ class Intersection(_Road):
                 self.stop_lines.append(StopLine(lane, L - cw - 1.0, d))
             for lane in self._out[d]:
                 idx.add_stop(lane, 0.0, "crosswalk")
-            mid = u * (self.half + cw / 2)
+            mid = self.origin + u * (self.half + cw / 2)
             sides = {"north": ("west", "east"), "south": ("west", "east"),
                      "east": ("south", "north"), "west": ("south", "north")}[d]
             # Walk from the first named side to the second.
             a_dir = np.array(_UNIT[sides[0]])
             s_of = {l.index: L - cw / 2 for l in self._in[d]}
             s_of.update({l.index: cw / 2 for l in self._out[d]})
-            self._crosswalk_across(d, self._in[d] + self._out[d], s_of,
+            self._crosswalk_across(self.prefix + d, self._in[d] + self._out[d], s_of,
                                    mid + a_dir * span, mid - a_dir * span, cw, sides)
 
     def _arm(self, d: str) -> str:
         if d not in _UNIT:
-            raise SimError(f"unknown arm {d!r}: use one of {list(DIRECTIONS)}", test=self.world.name)
+            where = f" of intersection {self.name!r}" if self.name else ""
+            raise SimError(f"unknown arm {d!r}{where}: use one of {list(DIRECTIONS)}",
+                           test=self.world.name)
         return d
 
     def _pick(self, lanes: list[Lane], i: int, what: str) -> Lane:
@@ -582,7 +616,7 @@ class Intersection(_Road):
     def crosswalk(self, d: str) -> Crosswalk:
         """The crosswalk across arm ``d`` (sides named by compass, e.g. "west"/"east")."""
         self._arm(d)
-        return next(c for c in self.crosswalks if c.name == d)
+        return next(c for c in self.crosswalks if c.name == self.prefix + d)
 
     def turn_target(self, d: str, turn: str) -> str:
         """The arm a vehicle coming from ``d`` leaves by when it turns ``turn``."""
@@ -613,7 +647,18 @@ class Intersection(_Road):
         return Route((self._in[d][i], conn, exit_lane), turn=turn)
 
     def arm_of(self, lane: Lane) -> str | None:
+        """The arm whose approach ``lane`` is, or None."""
         for d in DIRECTIONS:
             if lane in self._in[d]:
                 return d
         return None
+
+    def owns(self, lane: Lane) -> bool:
+        """Whether ``lane`` (an approach, connector or exit) belongs to this intersection."""
+        return any(lane is l for l in self.all_lanes)
+
+    def __repr__(self) -> str:
+        c = self.centre
+        return f"Intersection({self.name!r}, at=({c.x:g}, {c.y:g}))" if self.name else \
+            "Intersection()"
+

@@ -104,35 +104,54 @@ class World:
 
     def two_way_road(self, lanes: int = 1, length: float = 300.0, parking: bool = True, *,
                      lane_width: float = 3.5, parking_width: float = 2.5,
-                     speed_limit: float = 13.9) -> Any:
+                     speed_limit: float = 13.9, median: float = 0.0) -> Any:
         """A two-way road along x: ``lanes`` lanes each way and, with ``parking``, a parking
-        lane along each kerb. Forward traffic drives east."""
+        lane along each kerb. Forward traffic drives east. ``median`` [m] separates the two
+        directions (0: one centre line)."""
         from .roads import TwoWayRoad
 
         net = self._new_network("two_way_road")
         return self._finish_road(TwoWayRoad(self, net, lanes, float(length), parking, lane_width,
-                                            parking_width, speed_limit), net)
+                                            parking_width, speed_limit, median), net)
 
     def intersection(self, lanes: int = 1, approach_length: float = 100.0, *,
                      lane_width: float = 3.5, speed_limit: float = 13.9,
-                     crosswalk_width: float = 3.0, corner: float = 6.0) -> Any:
+                     crosswalk_width: float = 3.0, corner: float = 6.0,
+                     median: float = 0.0) -> Any:
         """A four-way intersection at the origin, ``lanes`` (1 or 2) lanes per approach.
 
         ``approach_length`` [m] per arm; ``corner`` [m] is the clearance between the outermost
-        lane and the box edge (sets the turn radii).
+        lane and the box edge (sets the turn radii); ``median`` [m] separates the two
+        directions of every arm. For several intersections use :meth:`road_network`.
         """
         from .roads import Intersection
 
         net = self._new_network("intersection")
         return self._finish_road(Intersection(self, net, lanes, float(approach_length),
                                               lane_width, speed_limit, crosswalk_width,
-                                              corner), net)
+                                              corner, median), net)
+
+    def road_network(self) -> Any:
+        """An empty :class:`~.network.Network`: place intersections anywhere
+        (``net.intersection("A", at=(0, 0))``), connect facing arms
+        (``net.connect(a, "north", b, "south")``) and route across them
+        (``net.route(a.route("south"), b.route("south", "left"))``). Build it whole before
+        placing agents."""
+        from .engine import SimRoad
+        from .network import Network
+
+        net = self._new_network("road_network")
+        self._road = SimRoad(network=net, vehicles=[], np_random=np.random.default_rng(self.seed),
+                             record_history=False)
+        self.road = Network(self, net)
+        return self.road
 
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
-        if self.road is None:
+        if self.road is None or self._index is None:
             raise SimError(f"{what}: build a road first (world.straight_road(), "
-                           "world.two_way_road() or world.intersection())", test=self.name)
+                           "world.two_way_road(), world.intersection() or an intersection "
+                           "on world.road_network())", test=self.name)
         if self.trajectory is not None:
             raise SimError(f"{what}: the world has already run; a world runs once",
                            test=self.name)
@@ -458,36 +477,60 @@ class World:
         b = self.agent(b) if isinstance(b, str) else b
         return _distance(a, b)
 
-    def _turn_route(self, agent: Any, direction: str) -> Route:
+    def _junction(self, agent: Any) -> Any:
+        """The intersection ``agent`` is at or driving toward, or None (no intersection)."""
         road = self.road
-        if getattr(road, "kind", "") != "intersection":
+        kind = getattr(road, "kind", "")
+        if kind == "intersection":
+            return road
+        if kind == "network" and agent is not None:
+            return road.junction_ahead(agent)
+        return None
+
+    def _turn_route(self, agent: Any, direction: str) -> Route:
+        """The agent's route from its current lane through the next intersection's turn."""
+        road = self.road
+        kind = getattr(road, "kind", "")
+        if kind not in ("intersection", "network"):
             raise SimError(f"turn {direction!r} needs an intersection road, this is a "
-                           f"{getattr(road, 'kind', None)} road", test=self.name, agent=agent.name)
-        lane = agent.plan[agent.route_index]
-        arm = road.arm_of(lane)
+                           f"{kind or None} road", test=self.name, agent=agent.name)
+        ahead = agent.plan[agent.route_index:]
+        # The next approach lane on the route (the current lane on a single intersection).
+        k, inter, arm = 0, None, None
+        for k, lane in enumerate(ahead if kind == "network" else ahead[:1]):
+            inter = road.junction_of(lane) if kind == "network" else road
+            arm = inter.arm_of(lane) if inter is not None else None
+            if arm is not None:
+                break
         if arm is None:
+            lane = ahead[0]
             raise SimError(f"turn {direction!r}: place the agent on an approach lane "
                            f"(it is on {lane.id!r})", test=self.name, agent=agent.name)
+        lane = ahead[k]
         try:
-            return road.route(arm, direction, lane.number)
+            turn = inter.route(arm, direction, lane.number)
         except SimError:
-            return road.route(arm, direction)
+            turn = inter.route(arm, direction)
+        return Route(tuple(ahead[:k]) + turn.lanes, turn=turn.turn)
 
     def ego_distance_to_centre(self, agent: Any = None) -> float:
-        """Distance [m] from the ego to the intersection centre (or to ``agent`` elsewhere)."""
+        """Distance [m] from the ego to the centre of the intersection ``agent`` is at or
+        driving toward (or to ``agent`` itself where there is none)."""
         if self._ego is None:
             return math.inf
-        centre = getattr(self.road, "centre", None)
-        return _distance(self._ego, centre if centre is not None else agent)
+        inter = self._junction(agent)
+        return _distance(self._ego, inter.centre if inter is not None else agent)
 
     def ego_in_conflict(self, agent: Any) -> bool:
-        """Whether the ego is inside the intersection or approaching it within 30 m."""
-        centre = getattr(self.road, "centre", None)
-        if centre is None or self._ego is None:
+        """Whether the ego is inside the intersection ``agent`` is at (or driving toward), or
+        approaching it within 30 m."""
+        inter = self._junction(agent)
+        if inter is None or self._ego is None:
             return False
+        centre = inter.centre
         e = self._ego
         d = _distance(e, centre)
-        if d < self.road.half + 3.0:
+        if d < inter.half + 3.0:
             return True
         dx, dy = centre.x - float(e.position[0]), centre.y - float(e.position[1])
         approaching = math.cos(e.heading) * dx + math.sin(e.heading) * dy > 0 and e.speed > 0.1
@@ -731,6 +774,7 @@ class _Recorder:
             "stopped_early": stopped,
             "crashed": [a.name for a in self.agents if a.crashed],
             "crosswalks": [c.name for c in getattr(w.road, "crosswalks", [])],
+            **({"intersections": list(w.road.intersections)} if w.road.kind == "network" else {}),
         }
         return Trajectory(
             t=t, names=tuple(a.name for a in self.agents), kinds=tuple(a.kind for a in self.agents),
