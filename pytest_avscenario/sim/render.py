@@ -126,14 +126,22 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None)
     surface.origin = origin
     surface.fill(GRASS)
     lanes = world._index.order
-    # Asphalt first, then markings, so lane lines stay visible over neighbouring lanes.
+    # Asphalt first, then markings, so lane lines stay visible over neighbouring lanes. The
+    # box of an intersection is paved whole (its lanes alone leave the middle between the
+    # turns and any median unpaved).
+    road = world.road
+    boxes = ([road] if road.kind == "intersection" else
+             list(road.intersections.values()) if road.kind == "network" else [])
+    for inter in boxes:
+        cx, cy, h = inter.centre.x, inter.centre.y, inter.half
+        pygame.draw.polygon(surface, ASPHALT, [surface.vec2pix(p) for p in (
+            (cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h))])
     for lane in lanes:
         w = lane.width
         colour = PARKING if lane.kind == "parking" else ASPHALT
         pygame.draw.polygon(surface, colour, _poly(surface, lane, -w / 2, w / 2, 0.0, lane.length))
     for lane in lanes:
         LaneGraphics.display(lane.geometry, surface)
-    road = world.road
     for cw in getattr(road, "crosswalks", []):
         _draw_crosswalk(pygame, surface, cw)
     for sl in getattr(road, "stop_lines", []):
