@@ -9,8 +9,8 @@ time (1, 4, 5, 6, 8, 9, 10); ``test_11_composed_route.py`` composes three along 
 Opportunistic composition: ``trigger=(place, within_m)`` makes a sub-scenario's agents
 appear (``appear=world.ego_within(place, within_m)``) when the ego comes within ``within_m``
 metres of ``place`` and disappear once the ego is 15 m past each of them
-(:func:`ego_passed`); the clocks of their behaviours start at their appearance
-(:func:`since_appearance`). While absent they are recorded with ``present`` False, so the
+(:func:`ego_passed`); the times of their behaviours count from their appearance (as every
+behaviour's do: ``agent.age``). While absent they are recorded with ``present`` False, so the
 monitors judge each sub-scenario only while it applies.
 """
 
@@ -28,7 +28,7 @@ from pytest_avscenario.sim import behaviors as b
 from pytest_avscenario.sim.behaviors import Behavior
 
 __all__ = [
-    "slow_down", "throttle_encroach", "wobble", "since_appearance", "ego_passed",
+    "slow_down", "throttle_encroach", "wobble", "ego_passed",
     "crossing_traffic", "pedestrian_crossing", "parked_car_pulling_out",
     "oncoming_encroacher", "school_bus_stop",
     "passes_stopped_school_bus", "parks",
@@ -40,21 +40,24 @@ __all__ = [
 
 @dataclass(frozen=True)
 class SlowDown(Behavior):
-    """Cruise at the initial speed, brake at ``decel`` from time ``t`` down to ``to_speed``."""
+    """Cruise at the initial speed, brake at ``decel`` from ``t`` [s] after the agent appeared
+    down to ``to_speed``."""
 
     t: float = 0.0
     decel: float = 4.0
     to_speed: float = 0.0
 
     def control(self, agent, world):
-        if world.t >= self.t - 1e-9 and agent.speed > self.to_speed + 0.05:
+        due = agent.age >= self.t - 1e-9
+        if due and agent.speed > self.to_speed + 0.05:
             return -float(self.decel), agent.follow()
-        v = self.to_speed if world.t >= self.t - 1e-9 else agent.initial_speed
+        v = self.to_speed if due else agent.initial_speed
         return agent.idm(v), agent.follow()
 
 
 def slow_down(t: float, decel: float, to_speed: float) -> SlowDown:
-    """Brake at ``decel`` [m/s^2] from time ``t`` [s] until ``to_speed`` [m/s], then hold it."""
+    """Brake at ``decel`` [m/s^2] from ``t`` [s] after the agent appeared until ``to_speed``
+    [m/s], then hold it."""
     return SlowDown(t=t, decel=decel, to_speed=to_speed)
 
 
@@ -73,8 +76,8 @@ class ThrottleEncroach(Behavior):
         lead = agent.leader()
         if lead is not None and lead[0] < 8.0:
             accel = min(accel, agent.idm(self.max_speed))
-        active = world.t >= self.at - 1e-9 and (
-            self.duration is None or world.t < self.at + self.duration)
+        age = agent.age
+        active = age >= self.at - 1e-9 and (self.duration is None or age < self.at + self.duration)
         r = float(self.offset) if active else 0.0
         return accel, agent.follow(r=r, settle=2.0)
 
@@ -82,8 +85,8 @@ class ThrottleEncroach(Behavior):
 def throttle_encroach(throttle: float, offset: float, max_speed: float = 15.0,
                       at: float = 0.0, duration: float | None = None) -> ThrottleEncroach:
     """An adversary that pulls away with ``throttle`` (0..1 of 3 m/s^2) up to ``max_speed``
-    [m/s] and drives ``offset`` [m] left of its lane centre from time ``at`` [s] for
-    ``duration`` [s] (None: to the end)."""
+    [m/s] and drives ``offset`` [m] left of its lane centre from ``at`` [s] after it appeared
+    for ``duration`` [s] (None: to the end)."""
     return ThrottleEncroach(throttle=throttle, offset=offset, max_speed=max_speed, at=at,
                             duration=duration)
 
@@ -116,9 +119,10 @@ class Wobble(_Wrapping):
 
     def control(self, agent, world):
         st = self.state
-        if world.t >= st.get("next", 0.0) - 1e-9:
+        age = agent.age
+        if age >= st.get("next", 0.0) - 1e-9:
             st["offset"] = float(world.rng.normal(0.0, self.sd))
-            st["next"] = world.t + self.every
+            st["next"] = age + self.every
         out = self.inner.control(agent, world)
         if agent.kind == "pedestrian":
             return max(0.0, float(out) * (1.0 + st["offset"]))
@@ -131,38 +135,6 @@ class Wobble(_Wrapping):
 def wobble(inner: Behavior, sd: float = 0.3, every: float = 1.0) -> Wobble:
     """``inner`` with noise N(0, ``sd``) redrawn every ``every`` [s] from ``case.rng``."""
     return Wobble(inner=inner, sd=sd, every=every)
-
-
-class _Shifted:
-    """The world as a behaviour sees it once its agent appeared: the same world, its clock
-    shifted so that t = 0 at the appearance."""
-
-    def __init__(self, world: Any, t0: float) -> None:
-        self._world = world
-        self._t0 = t0
-
-    @property
-    def t(self) -> float:
-        return self._world.t - self._t0
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._world, name)
-
-
-@dataclass(frozen=True)
-class SinceAppearance(_Wrapping):
-    """Run ``inner`` with its clock starting when the agent appears (its first step), so that
-    ``brake_at(t=2)`` or ``cross(wait=3)`` count from the moment a sub-scenario is activated
-    rather than from the start of the run."""
-
-    def control(self, agent, world):
-        t0 = self.state.setdefault("t0", world.t)
-        return self.inner.control(agent, _Shifted(world, t0))
-
-
-def since_appearance(inner: Behavior) -> SinceAppearance:
-    """``inner`` with its clock starting at the agent's appearance."""
-    return SinceAppearance(inner=inner)
 
 
 def ego_passed(name: str, by: float = 15.0):
@@ -185,7 +157,7 @@ def _spawn(world: Any, behavior: Behavior, trigger: Any, name: str) -> dict[str,
     if trigger is None:
         return {"behavior": behavior, "name": name}
     place, within = trigger
-    return {"behavior": since_appearance(behavior), "name": name,
+    return {"behavior": behavior, "name": name,
             "appear": world.ego_within(place, within), "disappear": ego_passed(name)}
 
 

@@ -11,6 +11,13 @@ A behaviour of your own subclasses :class:`Behavior` the same way; it may also d
 ``world.rng`` inside ``control`` (agents act in a fixed order each step, so such draws replay
 exactly too).
 
+Times in behaviours (``brake_at(t)``, ``change_lane(at)``, ``encroach(at)``, ``pull_out(at)``,
+``bus_stop(t)``, ``cut_across(start_at=)``, ``cross(wait=)``...) are seconds after the agent
+appeared (``agent.age``): the simulation time for an agent present from the start, so a
+sub-scenario whose agents appear late (``appear=world.ego_within(place, 40)``) keeps its
+timing wherever it is composed. A behaviour of your own should measure time with
+``agent.age`` too.
+
 Every step the engine calls ``control(agent, world)``; vehicle behaviours return
 ``(acceleration [m/s^2], steering [rad])``, pedestrian behaviours a walking speed [m/s]. They
 drive with the laws in :mod:`.control` through a few agent helpers (``agent.follow()``,
@@ -111,7 +118,8 @@ def stopped() -> Stopped:
 
 @dataclass(frozen=True)
 class BrakeAt(Behavior):
-    """Cruise like ``keep_lane(speed)``, then brake at ``decel`` from time ``t`` or place ``at``."""
+    """Cruise like ``keep_lane(speed)``, then brake at ``decel`` from ``t`` [s] after the agent
+    appeared or at place ``at``."""
 
     t: float | None = None
     decel: float = 6.0
@@ -127,7 +135,7 @@ class BrakeAt(Behavior):
     def control(self, agent, world):
         st = self.state
         if not st.get("braking"):
-            if self.t is not None and world.t >= self.t - 1e-9:
+            if self.t is not None and agent.age >= self.t - 1e-9:
                 st["braking"] = True
             elif self.at is not None and agent.distance_along_route(self.at) <= 0.0:
                 st["braking"] = True
@@ -141,15 +149,16 @@ def brake_at(t: float | None = None, decel: float = 6.0, *, at: Any = None,
              speed: float | None = None) -> BrakeAt:
     """Drive at ``speed`` [m/s] (default initial), then brake at ``decel`` [m/s^2] to a stop.
 
-    Braking starts at time ``t`` [s] or when the agent reaches the place ``at`` (a spot or
-    stop line on its route), whichever is given.
+    Braking starts ``t`` [s] after the agent appeared or when it reaches the place ``at`` (a
+    spot or stop line on its route), whichever is given.
     """
     return BrakeAt(t=t, decel=decel, at=at, speed=speed)
 
 
 @dataclass(frozen=True)
 class ChangeLane(Behavior):
-    """Keep lane, then at time ``at`` move to lane ``to`` over about ``duration`` seconds."""
+    """Keep lane, then ``at`` [s] after the agent appeared move to lane ``to`` over about
+    ``duration`` seconds."""
 
     to: Any = "left"
     at: float = 0.0
@@ -158,7 +167,7 @@ class ChangeLane(Behavior):
 
     def control(self, agent, world):
         st = self.state
-        if not st.get("done") and world.t >= self.at - 1e-9:
+        if not st.get("done") and agent.age >= self.at - 1e-9:
             agent.change_lane(self.to)
             st["done"] = True
         v = self.speed if self.speed is not None else agent.initial_speed
@@ -167,7 +176,8 @@ class ChangeLane(Behavior):
 
 def change_lane(to: Any = "left", at: float = 0.0, duration: float = 3.0,
                 speed: float | None = None) -> ChangeLane:
-    """Change to lane ``to`` ("left", "right", a lane number or a Lane) at time ``at`` [s].
+    """Change to lane ``to`` ("left", "right", a lane number or a Lane) ``at`` [s] after the
+    agent appeared.
 
     The manoeuvre takes roughly ``duration`` [s]; the agent keeps ``speed`` [m/s] (default
     initial) with IDM car following in its new lane.
@@ -255,7 +265,7 @@ class CutAcross(Behavior):
         agent.take_turn(self.direction)
 
     def control(self, agent, world):
-        if world.t < self.start_at - 1e-9:
+        if agent.age < self.start_at - 1e-9:
             return control.track_speed(agent.speed, 0.0), agent.follow()
         v = self.speed if self.speed is not None else agent.cruise_speed
         v = min(v, agent.curve_speed_cap()) if self.direction != "straight" else v
@@ -266,7 +276,8 @@ def cut_across(speed: float | None = None, *, direction: str = "straight",
                start_at: float = 0.0) -> CutAcross:
     """Cross the intersection at ``speed`` [m/s] without stopping or yielding (a red-light runner).
 
-    The agent stands still until ``start_at`` [s]; ``direction`` may also be "left"/"right".
+    The agent stands still until ``start_at`` [s] after it appeared; ``direction`` may also be
+    "left"/"right".
     ``speed`` defaults to the initial speed (the speed limit for a car placed standing).
     """
     return CutAcross(speed=speed, direction=direction, start_at=start_at)
@@ -274,7 +285,8 @@ def cut_across(speed: float | None = None, *, direction: str = "straight",
 
 @dataclass(frozen=True)
 class Encroach(Behavior):
-    """Drift ``offset`` metres to the left (into the oncoming lane) from ``at`` for ``duration``."""
+    """Drift ``offset`` metres to the left (into the oncoming lane) from ``at`` [s] after the agent
+    appeared, for ``duration`` [s]."""
 
     offset: float = 1.5
     at: float = 0.0
@@ -282,15 +294,16 @@ class Encroach(Behavior):
     speed: float | None = None
 
     def control(self, agent, world):
-        active = world.t >= self.at - 1e-9 and (
-            self.duration is None or world.t < self.at + self.duration)
+        age = agent.age
+        active = age >= self.at - 1e-9 and (self.duration is None or age < self.at + self.duration)
         v = self.speed if self.speed is not None else agent.initial_speed
         return agent.idm(v), agent.follow(r=float(self.offset) if active else 0.0, settle=2.0)
 
 
 def encroach(offset: float, at: float = 0.0, duration: float | None = None,
              speed: float | None = None) -> Encroach:
-    """Drive ``offset`` [m] left of the lane centre (over the centre line) from time ``at`` [s].
+    """Drive ``offset`` [m] left of the lane centre (over the centre line) from ``at`` [s] after
+    the agent appeared.
 
     For ``duration`` [s] (None: to the end), at ``speed`` [m/s] (default initial).
     """
@@ -299,7 +312,8 @@ def encroach(offset: float, at: float = 0.0, duration: float | None = None,
 
 @dataclass(frozen=True)
 class PullOut(Behavior):
-    """Leave a parking spot at time ``at`` into the adjacent travel lane and drive on."""
+    """Leave a parking spot ``at`` [s] after the agent appeared into the adjacent travel lane and
+    drive on."""
 
     at: float = 0.0
     speed: float = 8.0
@@ -307,7 +321,7 @@ class PullOut(Behavior):
 
     def control(self, agent, world):
         st = self.state
-        if world.t < self.at - 1e-9:
+        if agent.age < self.at - 1e-9:
             return (-agent.speed / 0.3 if agent.speed > 0 else 0.0), 0.0
         if not st.get("out"):
             agent.change_lane(self.to if self.to is not None else "out")
@@ -316,7 +330,8 @@ class PullOut(Behavior):
 
 
 def pull_out(at: float = 0.0, speed: float = 8.0, to: Any = None) -> PullOut:
-    """Pull out of the parking lane at time ``at`` [s] and drive on at ``speed`` [m/s].
+    """Pull out of the parking lane ``at`` [s] after the agent appeared and drive on at ``speed``
+    [m/s].
 
     ``to`` is the lane to join (default: the travel lane next to the parking lane).
     """
@@ -325,7 +340,8 @@ def pull_out(at: float = 0.0, speed: float = 8.0, to: Any = None) -> PullOut:
 
 @dataclass(frozen=True)
 class BusStop(Behavior):
-    """Drive, stop at time ``t`` or place ``at``, show the stop arm for ``duration``, drive on."""
+    """Drive, stop from ``t`` [s] after the agent appeared or at place ``at``, show the stop arm
+    for ``duration`` [s], drive on."""
 
     t: float | None = None
     duration: float = 10.0
@@ -338,7 +354,7 @@ class BusStop(Behavior):
         v = self.speed if self.speed is not None else agent.initial_speed
         phase = st.get("phase", "drive")
         if phase == "drive":
-            trig = (self.t is not None and world.t >= self.t - 1e-9) or (
+            trig = (self.t is not None and agent.age >= self.t - 1e-9) or (
                 self.at is not None and agent.distance_along_route(self.at) <= 0.5)
             if self.at is not None and self.t is None and not trig:
                 d = agent.distance_along_route(self.at)
@@ -350,13 +366,13 @@ class BusStop(Behavior):
         if phase == "stopping":
             if agent.speed < 0.05:
                 phase = "arm"
-                st["since"] = world.t
+                st["since"] = agent.age
                 agent.stop_arm = True
             else:
                 st["phase"] = phase
                 return -float(self.decel), agent.follow()
         if phase == "arm":
-            if world.t - st["since"] >= self.duration:
+            if agent.age - st["since"] >= self.duration:
                 agent.stop_arm = False
                 phase = "leave"
             else:
@@ -368,7 +384,8 @@ class BusStop(Behavior):
 
 def bus_stop(t: float | None = None, duration: float = 10.0, *, at: Any = None,
              decel: float = 2.5, speed: float | None = None) -> BusStop:
-    """School-bus stop: stop at time ``t`` [s] or place ``at``, stop arm out for ``duration`` [s].
+    """School-bus stop: brake ``t`` [s] after the bus appeared or for place ``at``, then stand
+    with the stop arm out for ``duration`` [s].
 
     The bus brakes at ``decel`` [m/s^2], shows its stop arm (recorded as the signal
     ``"<bus name>.stop_arm"``) while standing, then drives on at ``speed`` [m/s].
@@ -381,7 +398,8 @@ def bus_stop(t: float | None = None, duration: float = 10.0, *, at: Any = None,
 
 @dataclass(frozen=True)
 class Cross(Behavior):
-    """Wait ``wait`` s on the kerb, walk, wait ``wait_in_road`` s once in the road, walk on."""
+    """Wait until ``wait`` [s] after the pedestrian appeared on the kerb, walk, wait
+    ``wait_in_road`` [s] once in the road, walk on."""
 
     kinds = PEDESTRIANS
     wait: float = 0.0
@@ -392,13 +410,13 @@ class Cross(Behavior):
     def control(self, agent, world):
         st = self.state
         v = self.speed if self.speed is not None else agent.initial_speed
-        if world.t < self.wait - 1e-9:
+        if agent.age < self.wait - 1e-9:
             return 0.0
         if self.wait_in_road > 0 and not st.get("paused_done"):
             pause = self.pause_at if self.pause_at is not None else agent.road_pause_at()
             if pause is not None and agent.walked >= pause:
-                st.setdefault("since", world.t)
-                if world.t - st["since"] < self.wait_in_road - 1e-9:
+                st.setdefault("since", agent.age)
+                if agent.age - st["since"] < self.wait_in_road - 1e-9:
                     return 0.0
                 st["paused_done"] = True
             elif pause is not None and agent.walked + v * world.dt > pause:
@@ -409,7 +427,8 @@ class Cross(Behavior):
 
 def cross(wait: float = 0.0, wait_in_road: float = 0.0, speed: float | None = None,
           pause_at: float | None = None) -> Cross:
-    """Cross the road on foot: wait ``wait`` [s] on the kerb, then walk at ``speed`` [m/s].
+    """Cross the road on foot: wait on the kerb until ``wait`` [s] after the pedestrian
+    appeared, then walk at ``speed`` [m/s].
 
     Once in the road (by default the middle of the first lane crossed; or ``pause_at`` metres
     along the path) it stands for ``wait_in_road`` [s], then walks on to the far kerb.

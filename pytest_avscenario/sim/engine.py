@@ -7,8 +7,9 @@ relies on itself, so code elsewhere in the process that rewrites highway-env's c
 outcome. Each agent keeps its lane by tracking (see :mod:`.roads`) rather than
 highway-env's scan of every lane per step.
 
-Agents expose the few helpers behaviours drive with: ``follow()``, ``idm()``,
-``distance_along_route()``, ``change_lane()``, ``take_turn()``, ``curve_speed_cap()``.
+Agents expose the few helpers behaviours drive with: ``age`` (seconds since the agent
+appeared), ``follow()``, ``idm()``, ``distance_along_route()``, ``change_lane()``,
+``take_turn()``, ``curve_speed_cap()``.
 """
 
 from __future__ import annotations
@@ -168,6 +169,14 @@ class _Agent:
             self.speed = 0.0
 
     # -- helpers for behaviours -----------------------------------------------------------------
+    @property
+    def age(self) -> float:
+        """[s] time since the agent appeared: ``world.t - appeared_at`` (the simulation time for
+        an agent present from t = 0). Behaviours measure their times with it, so ``brake_at(t=2)``
+        of an agent that appears late brakes 2 s after it appeared. 0 before a run starts."""
+        t0 = getattr(self, "appeared_at", None)
+        return float(self.world.t) - (t0 if t0 is not None else float(self.world.t))
+
     @property
     def cruise_speed(self) -> float:
         """[m/s] the initial speed, or the lane's speed limit for an agent placed standing."""
