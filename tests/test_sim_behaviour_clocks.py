@@ -71,3 +71,27 @@ def test_age_is_time_since_appearance():
     by_t = {round(t, 6): (a, e) for t, a, e in ages}
     assert by_t[1.0] == (0.0, 1.0)  # not there yet: age 0
     assert abs(by_t[3.5][0] - 1.5) < 1e-9 and abs(by_t[3.5][1] - 3.5) < 1e-9
+
+
+# -- the school bus stands still while its stop arm is out ----------------------------------------
+
+
+def test_school_bus_stands_still_with_its_arm_out():
+    w = World(seed=1, driver="idm", name="t_bus_still")
+    road = w.two_way_road()
+    w.ego(road.lane(0), s=0.0, speed=0.0)
+    # 8.04 m/s at 2.5 m/s^2 in 0.1 s steps leaves 0.04 m/s, under the 0.05 m/s "stopped" bar
+    w.bus(road.lane(0, "backward"), s=20.0, speed=8.04, behavior=b.bus_stop(t=1.0, duration=3.0),
+          name="bus", appear=0.5)
+    tr = w.run(12.0)
+    bus = tr.agent("bus")
+    arm = tr.signals["bus.stop_arm"] > 0.5
+    start, n = first(arm), int(arm.sum())
+    assert n == 30 and arm[start:start + n].all()
+    # braking starts 1 s after the bus appeared (t = 1.5 s), 8 m/s at 2.5 m/s^2
+    assert abs(tr.t[start] - (1.5 + 8.0 / 2.5)) < 0.25
+    assert 0.0 < bus.speed[start - 1] < 0.05
+    assert (bus.speed[start:start + n] == 0.0).all()
+    assert (bus.x[start:start + n] == bus.x[start]).all()
+    assert (bus.y[start:start + n] == bus.y[start]).all()
+    assert bus.speed[-1] > 3.0

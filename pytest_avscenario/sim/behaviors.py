@@ -341,7 +341,7 @@ def pull_out(at: float = 0.0, speed: float = 8.0, to: Any = None) -> PullOut:
 @dataclass(frozen=True)
 class BusStop(Behavior):
     """Drive, stop from ``t`` [s] after the agent appeared or at place ``at``, show the stop arm
-    for ``duration`` [s], drive on."""
+    for ``duration`` [s] standing still, drive on."""
 
     t: float | None = None
     duration: float = 10.0
@@ -377,7 +377,8 @@ class BusStop(Behavior):
                 phase = "leave"
             else:
                 st["phase"] = phase
-                return 0.0, agent.follow()
+                # Stand still: cancel what is left of the speed (< 0.05 m/s) in one step.
+                return -min(agent.speed / world.dt, float(self.decel)), agent.follow()
         st["phase"] = phase
         return agent.idm(v), agent.follow()
 
@@ -387,8 +388,9 @@ def bus_stop(t: float | None = None, duration: float = 10.0, *, at: Any = None,
     """School-bus stop: brake ``t`` [s] after the bus appeared or for place ``at``, then stand
     with the stop arm out for ``duration`` [s].
 
-    The bus brakes at ``decel`` [m/s^2], shows its stop arm (recorded as the signal
-    ``"<bus name>.stop_arm"``) while standing, then drives on at ``speed`` [m/s].
+    The bus brakes at ``decel`` [m/s^2]; below 0.05 m/s it stops dead and shows its stop arm
+    (recorded as the signal ``"<bus name>.stop_arm"``) while standing at exactly 0 m/s, then
+    drives on at ``speed`` [m/s].
     """
     return BusStop(t=t, duration=duration, at=at, decel=decel, speed=speed)
 
