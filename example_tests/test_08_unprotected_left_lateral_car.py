@@ -4,12 +4,12 @@ cuts across the intersection.
 Situation: a four-way, one-lane-per-approach intersection with 5.5 m lanes (opposing cars
 pass 5.5 m apart, outside the paper's 5-m distance bound). The ego comes from the south
 ``d_ego`` m before its stop line and turns left (to the west). An oncoming car from the north
-goes straight through after its stop, yielding to the ego when the ego is nearer the centre
-(ordinary all-way-stop traffic: the autopilot itself does not negotiate right of way), and a
-lateral car on the ``lateral_from`` approach, ``d_lateral`` m before its line, starts
-``lateral_delay`` s into the run and crosses straight at ``lateral_speed`` without stopping (a
-red-light / stop-sign runner; its acceleration wobbles by N(0, 0.3) m/s^2 drawn every second
-from ``case.rng``) — across the ego's turn.
+goes straight through after its stop: ordinary all-way-stop traffic, first to stop first to go
+(the autopilot infers the arrival order from what it sees). A lateral car on the
+``lateral_from`` approach, ``d_lateral`` m before its line, starts ``lateral_delay`` s into the
+run and crosses straight at ``lateral_speed`` without stopping (a red-light / stop-sign runner;
+its acceleration wobbles by N(0, 0.3) m/s^2 drawn every second from ``case.rng``) — across
+the ego's turn.
 
 Parameters: ``d_ego`` [m] U(5, 40); ``lateral_from`` in {"west", "east"}; ``d_lateral`` [m]
 U(10, 80); ``lateral_speed`` [m/s] U(6, 14); ``lateral_delay`` [s] U(0, 4); ``d_oncoming`` [m]
@@ -43,7 +43,7 @@ def test_unprotected_left_lateral_car(case, world):
     world.ego(inter.stop_line("south").before(case.d_ego), speed=6.0, target_speed=9.0,
               route=inter.route("south", "left"))
     world.car(inter.stop_line("north").before(case.d_oncoming), speed=8.0,
-              behavior=b.turn("straight", speed=8.0, yield_to_ego=True))
+              behavior=b.turn("straight", speed=8.0))
     stop_s = inter.stop_line(case.lateral_from).s
     crossing_traffic(world, inter, case.lateral_from, first_s=stop_s - case.d_lateral,
                      speed=case.lateral_speed, start_at=case.lateral_delay, jitter=0.3)

@@ -7,8 +7,8 @@ pass 5.5 m apart, outside the paper's 5-m distance bound). The ego comes from th
 crosswalk across the west arm, starting from the ``ped_from`` kerb, waits ``ped_wait`` s,
 walks at ``ped_speed`` (+-10 % drawn every second from ``case.rng``), stands
 ``ped_wait_in_road`` s in the first lane it enters and walks on. An oncoming car from the
-north goes straight after its stop, yielding to the ego when the ego is nearer the centre
-(ordinary all-way-stop traffic).
+north goes straight after its stop (ordinary all-way-stop traffic: first to stop, first to
+go).
 
 Parameters: ``d_ego`` [m] U(5, 40); ``ped_from`` in {"south", "north"}; ``ped_wait`` [s]
 U(0, 14); ``ped_speed`` [m/s] U(1.0, 2.2); ``ped_wait_in_road`` [s] U(0, 3); ``d_oncoming``
@@ -43,7 +43,7 @@ def test_unprotected_left_pedestrian(case, world):
     world.ego(inter.stop_line("south").before(case.d_ego), speed=6.0, target_speed=9.0,
               route=inter.route("south", "left"))
     world.car(inter.stop_line("north").before(case.d_oncoming), speed=8.0,
-              behavior=b.turn("straight", speed=8.0, yield_to_ego=True))
+              behavior=b.turn("straight", speed=8.0))
     pedestrian_crossing(world, inter.crosswalk("west"), side=case.ped_from, wait=case.ped_wait,
                         wait_in_road=case.ped_wait_in_road, speed=case.ped_speed, jitter=0.1)
     world.run(seconds=18)

@@ -285,13 +285,20 @@ class _Agent:
 
     def distance_to_stop_line(self) -> float | None:
         """Distance [m] along the route to the next stop line (negative once passed), or None."""
+        found = self.stop_line_ahead()
+        return found[0] if found is not None else None
+
+    def stop_line_ahead(self) -> tuple[float, int] | None:
+        """``(distance [m] from the centre, index in plan of its lane)`` of the next stop line
+        on the route (the distance is negative once passed, until the agent leaves that
+        lane), or None."""
         marks = self.world._index.stop_marks
         ahead = -self.route_s
         for j in range(self.route_index, len(self.plan)):
             lane = self.plan[j]
             for s, kind in marks.get(lane.index, ()):
                 if kind == "stop":
-                    return ahead + s
+                    return ahead + s, j
             ahead += lane.length
         return None
 

@@ -5,15 +5,18 @@ would start from, so that falsification finds real corners rather than a strawma
 oracle's. Per step it (1) follows its route with pure pursuit on the route's centre line,
 (2) controls speed with the Intelligent Driver Model toward the cruise speed, capped on
 curves by a lateral-acceleration limit, behind the nearest agent found on its path, (3) stops
-at stop lines (full stop, then goes once no conflict is predicted) and for a school bus with
-its stop arm out, (4) predicts every other agent at constant velocity over a finite horizon
+at stop lines (full stop, then at an all-way stop goes in arrival order, first to stop first
+to go, the one on the right first on a tie, once nothing moves in the box and no conflict
+is predicted) and for a school bus with its stop arm out, (4) predicts every other agent at constant velocity over a finite horizon
 against its own path and yields when it could not clear a predicted conflict zone with a time
 margin, and (5) parallel parks (two reverse arcs, or several moves in a tight slot) when its
 observation carries a parking goal. Its weaknesses are deliberate and realistic: perception
 reports agents with a latency (and a new agent only once that latency has passed), braking
 builds up at a finite jerk, prediction is constant-velocity and blind beyond its horizon and
-sensor range, a conflict it can no longer stop for is driven through, and there is no
-right-of-way negotiation.
+sensor range, a conflict it can no longer stop for is driven through, and the arrival order
+at a stop is inferred from what it sees (other arms' stop lines are assumed as far from the
+box as its own; a vehicle standing there that never goes is waited for ``allway_patience``
+seconds).
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ class AutopilotOptions:
     pedestrian_margin: float = 1.0  # [m] clearance to pedestrians in conflict prediction
     stop_margin: float = 1.0  # [m] front bumper stops this far before a line or conflict zone
     stop_dwell: float = 0.5  # [s] standstill at a stop line before it may go
+    allway_patience: float = 8.0  # [s] waiting at a stop line after which arrival order is ignored
     bus_distance: float = 6.0  # [m] stop this far from a school bus with its stop arm out
     bus_caution_speed: float = 4.0  # [m/s] speed to be down to when reaching a slow school bus
     evasive_offset: float = 1.0  # [m] how far it shifts right in its lane for an oncoming car
@@ -122,6 +126,97 @@ class _Perceived:
 _EMPTY = _Perceived(())
 
 
+class _Junction:
+    """The all-way stop behind one stop line of the route, as the autopilot infers it.
+
+    From its own route alone: the box centre and half size from the connector after the line
+    (straight: half its length; a turn: its radius -+ half a lane) and the distance from the
+    line to the centre, assumed the same on every arm. From what it sees: when each other
+    vehicle came to rest (< 0.5 m/s) facing the box with its front bumper between 1 m past
+    and 4 m before where that arm's stop line would be (perception time, i.e. observation
+    time minus latency), and when it entered (front more than 1 m past the line).
+    """
+
+    SPEED = 0.5  # [m/s] standing
+    BEFORE, PAST = 4.0, 1.0  # [m] front bumper before / past a stop line that counts as "at" it
+    TIE = 0.2  # [s] arrivals this close are simultaneous: the one on the right goes first
+
+    def __init__(self, route: tuple, line: Any) -> None:
+        j = line.route_index
+        lane, conn = route[j], route[j + 1]
+        x0, y0 = (float(v) for v in lane.position(lane.length, 0.0))
+        h = float(lane.heading_at(lane.length))
+        self.ca, self.sa = math.cos(h), math.sin(h)
+        self.heading = h
+        w = float(lane.width_at(0.0))
+        x1, y1 = (float(v) for v in conn.position(conn.length, 0.0))
+        turn = _wrap(float(conn.heading_at(conn.length)) - float(conn.heading_at(0.0)))
+        radius = float(getattr(conn, "radius", math.inf))
+        if abs(turn) < 0.5 or not math.isfinite(radius):
+            half = 0.5 * math.hypot(x1 - x0, y1 - y0)
+        elif turn > 0.0:
+            half = radius - 0.5 * w  # a left turn from the lane next to the centre line
+        else:
+            half = radius + 0.5 * w  # a right turn from the kerb lane
+        self.half = half
+        # Centre: half ahead of the box edge, half a lane left of our lane's centre line.
+        self.cx = x0 + self.ca * half - self.sa * 0.5 * w
+        self.cy = y0 + self.sa * half + self.ca * 0.5 * w
+        self.d_line = float(lane.length - line.s) + half  # from a stop line to the centre [m]
+        self.arrived: dict[str, tuple[float, float]] = {}  # name -> (came to rest [s], heading)
+        self.entered: set[str] = set()
+        self.t_me: float | None = None  # when we came to rest at our line [s]
+        self.waited = 0.0  # [s] waiting for the right of way
+
+    def observe(self, seen: "_Perceived", t_seen: float) -> None:
+        """Note who came to rest at, or entered from, a stop line of this intersection."""
+        present = set()
+        for a in seen.agents:
+            if a.ped:
+                continue
+            present.add(a.name)
+            if a.name in self.entered:
+                continue
+            fx, fy = a.x + a.hl * a.c, a.y + a.hl * a.s
+            dx, dy = self.cx - fx, self.cy - fy
+            along = dx * a.c + dy * a.s
+            if a.name in self.arrived:
+                if along < self.d_line - self.PAST:
+                    del self.arrived[a.name]
+                    self.entered.add(a.name)
+                continue
+            if a.c * self.ca + a.s * self.sa > 0.7:
+                continue  # our own approach: a queue, not a rival
+            if math.hypot(a.vx, a.vy) >= self.SPEED or abs(dx * a.s - dy * a.c) > self.half:
+                continue
+            if self.d_line - self.PAST <= along <= self.d_line + self.BEFORE:
+                self.arrived[a.name] = (t_seen, math.atan2(a.s, a.c))
+        for name in [n for n in self.arrived if n not in present]:
+            del self.arrived[name]  # out of sight
+
+    def first_to_go(self, seen: "_Perceived", patient: bool) -> bool:
+        """Whether it is our turn: (a) nobody who came to rest before us (or at the same
+        time on our right) is still waiting, unless ``patient`` is False; (b) nothing moves
+        inside the box."""
+        if patient and self.t_me is not None:
+            for t_o, h_o in self.arrived.values():
+                if t_o < self.t_me - self.TIE - 1e-9:
+                    return False
+                if t_o <= self.t_me + self.TIE + 1e-9 and math.sin(h_o - self.heading) > 0.5:
+                    return False
+        for a in seen.agents:
+            if a.ped or math.hypot(a.vx, a.vy) < 0.3:
+                continue
+            # Its footprint in the box, or past its stop line on the way in.
+            reach = self.half + 0.5 + a.hl
+            if a.name in self.entered and (self.cx - a.x) * a.c + (self.cy - a.y) * a.s > 0.0:
+                reach = max(reach, self.d_line + a.hl)
+            dx, dy = a.x - self.cx, a.y - self.cy
+            if abs(dx * self.ca + dy * self.sa) < reach and abs(dy * self.ca - dx * self.sa) < reach:
+                return False
+        return True
+
+
 class Autopilot:
     """Route-following, IDM-based driver with conflict prediction and parallel parking.
 
@@ -134,7 +229,9 @@ class Autopilot:
     path; a route that steps to a parallel lane is driven as a lane change), ``agents``
     (``kind`` "pedestrian" gets a wider margin, "bus" with ``flags["stop_arm"]`` is stopped
     for, in either direction), ``stop_lines`` (kind "stop": full stop for ``stop_dwell``, then
-    go when no conflict is predicted; kind "crosswalk": where it waits for pedestrians),
+    go when no conflict is predicted and, with a connector after the line, when vehicles that
+    came to rest at the intersection's other stop lines before it have gone and nothing
+    moves in the box; kind "crosswalk": where it waits for pedestrians),
     ``target_speed`` (else ``speed_limit``), ``dt``, and ``goal``. A parking goal is
     ``{"kind": "park", "x": [m], "y": [m], "heading": [rad], "length": [m] (optional)}``:
     the pose of the car's centre once parked and, optionally, the free kerb length of the
@@ -142,7 +239,8 @@ class Autopilot:
     drives its route until near the slot, reverses in (the world must let it reverse), and
     gives the slot up and drives on if no plan keeps 0.2 m from the parked cars (about
     L + 1.3 m of kerb is the least it manages). ``last_reason`` names what decided the last
-    command ("cruise", "follow", "stop line", "yield", "school bus", "park:reverse", ...).
+    command ("cruise", "follow", "stop line", "right of way", "yield", "school bus",
+    "park:reverse", ...).
     """
 
     def __init__(self, **options: Any) -> None:
@@ -265,7 +363,7 @@ class Autopilot:
         if self._parker is not None:
             want += self._parker.approach_offset(path, s_ego, W)
         self._offset += max(-0.5 * dt, min(0.5 * dt, want - self._offset))
-        stops.extend(self._stop_lines(obs, path, s_ego, L, v, dt, clear))
+        stops.extend(self._stop_lines(obs, path, s_ego, L, v, dt, clear, seen))
         if self._parker is not None:  # approaching the parking start point
             d = self._parker.approach_distance(ego)
             if d is not None:
@@ -339,10 +437,12 @@ class Autopilot:
             return (-v + math.sqrt(v * v + 2.0 * a * d)) / a
         return (vmax - v) / a + (d - d_acc) / vmax
 
-    def _stop_lines(self, obs, path, s_ego, L, v, dt, clear) -> list[tuple[float, str]]:
-        """Stop targets from the route's stop lines: full stop, then go when ``clear``."""
+    def _stop_lines(self, obs, path, s_ego, L, v, dt, clear, seen) -> list[tuple[float, str]]:
+        """Stop targets from the route's stop lines: full stop, then go when ``clear`` and it
+        has the right of way (first to stop, first to go; see :class:`_Junction`)."""
         o = self.options
         out = []
+        nearest = True
         for line in obs.stop_lines:
             if line.kind == "crosswalk" or not 0 <= line.route_index < len(path.offsets):
                 continue
@@ -350,9 +450,22 @@ class Autopilot:
             if d < -L:
                 continue  # passed
             key = (line.route_index, round(line.s, 2))
-            state = self._stop_state.setdefault(key, ["approach", 0.0])
+            state = self._stop_state.get(key)
+            if state is None:
+                # A connector after the line: an intersection whose arrival order counts.
+                junction = (_Junction(obs.route, line)
+                            if line.route_index + 1 < len(obs.route) else None)
+                state = self._stop_state[key] = ["approach", 0.0, junction]
             if state[0] == "go":
                 continue
+            junction = state[2]
+            if junction is not None and nearest:
+                delay = int(round(o.latency / dt)) * dt if dt > 0 else 0.0
+                junction.observe(seen, obs.t - delay)
+                if junction.t_me is None and v < _Junction.SPEED and \
+                        -_Junction.PAST <= d <= _Junction.BEFORE:
+                    junction.t_me = obs.t
+            nearest = False
             target = d - o.stop_margin
             if state[0] == "approach":
                 if v < 0.1 and target < 1.5:
@@ -361,10 +474,18 @@ class Autopilot:
                         state[0] = "waiting"
                 else:
                     state[1] = 0.0
+            why = "stop line"
+            if state[0] == "waiting" and junction is not None:
+                junction.waited += dt
             if state[0] == "waiting" and clear:
-                state[0] = "go"
-                continue
-            out.append((target, "stop line"))
+                if junction is None:
+                    state[0] = "go"
+                    continue
+                if junction.first_to_go(seen, junction.waited < o.allway_patience):
+                    state[0] = "go"
+                    continue
+                why = "right of way"
+            out.append((target, why))
         return out
 
     # -- other agents -------------------------------------------------------------------------
