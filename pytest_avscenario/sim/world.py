@@ -421,7 +421,7 @@ class World:
         ``path`` is a crosswalk (walked from ``side``, default its first side), a
         :class:`~.places.Path` or a list of (x, y) points [m]. Without a behaviour it walks
         straight away; ``b.cross(wait=..., wait_in_road=...)`` adds the waits (times in
-        behaviours are simulation times, also for agents that appear later).
+        behaviours count from the agent's appearance: ``agent.age``).
         ``appear``/``disappear`` as for :meth:`car`.
         """
         from .behaviors import walk
