@@ -43,6 +43,8 @@ def test_network_geometry_link_fills_the_gap_between_facing_arms():
     # Names carry the intersection, so a recorded lane says where the car was.
     assert c.approach("south").id == "B.south.in[0]" and c.crosswalk("west").name == "B.west"
     assert fwd.id == "A.north~B.south[0]"
+    with pytest.raises(SimError, match="'forward' or 'backward' \\(forward drives from 'A' to 'B'\\)"):
+        link.lane(0, "up")
     assert net["B"] is c and [x.name for x in net.crosswalks[:4]] == [
         "A.north", "A.east", "A.south", "A.west"]
     assert len(net.stop_lines) == 8

@@ -72,16 +72,8 @@ class Link(_Road):
 
     def lane(self, i: int = 0, direction: str = "forward") -> Lane:
         """Lane ``i`` (0 next to the centre line) of ``direction`` ("forward": from a to b)."""
-        lanes = {"forward": self.forward, "backward": self.backward}.get(direction)
-        if lanes is None:
-            raise SimError(f"link.lane(direction={direction!r}): use 'forward' (from "
-                           f"{self.a.name!r} to {self.b.name!r}) or 'backward'",
-                           test=self.world.name)
-        try:
-            return lanes[i]
-        except (IndexError, TypeError):
-            raise SimError(f"link.lane({i!r}): each direction has lanes 0..{len(lanes) - 1}",
-                           test=self.world.name) from None
+        return self._lane_of(i, direction, "link",
+                             f"forward drives from {self.a.name!r} to {self.b.name!r}")
 
     def __repr__(self) -> str:
         return f"Link({self.name!r}, {self.length:g} m)"

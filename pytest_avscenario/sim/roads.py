@@ -314,6 +314,20 @@ class _Road:
         self.all_lanes.append(lane)
         return lane
 
+    def _lane_of(self, i: int, direction: str, what: str, hint: str) -> Lane:
+        """Lane ``i`` of the ``forward``/``backward`` lanes of a two-way road (``hint`` says
+        which way forward is)."""
+        lanes = {"forward": getattr(self, "forward", None),
+                 "backward": getattr(self, "backward", None)}.get(direction)
+        if lanes is None:
+            raise SimError(f"{what}.lane(direction={direction!r}): use 'forward' or 'backward' "
+                           f"({hint})", test=self.world.name)
+        try:
+            return lanes[i]
+        except (IndexError, TypeError):
+            raise SimError(f"{what}.lane({i!r}): each direction has lanes 0..{len(lanes) - 1}",
+                           test=self.world.name) from None
+
     def default_route(self, lane: Lane) -> Route:
         """The route an agent placed on ``lane`` follows unless told otherwise (straight on)."""
         return Route(tuple(self.world._index.continue_route(lane)))
@@ -436,15 +450,7 @@ class TwoWayRoad(_Road):
 
     def lane(self, i: int = 0, direction: str = "forward") -> Lane:
         """Lane ``i`` (0 next to the centre line) of ``direction`` ("forward" east, "backward" west)."""
-        lanes = {"forward": self.forward, "backward": self.backward}.get(direction)
-        if lanes is None:
-            raise SimError(f"road.lane(direction={direction!r}): use 'forward' or 'backward'",
-                           test=self.world.name)
-        try:
-            return lanes[i]
-        except (IndexError, TypeError):
-            raise SimError(f"road.lane({i!r}): each direction has lanes 0..{len(lanes) - 1}",
-                           test=self.world.name) from None
+        return self._lane_of(i, direction, "road", "forward drives east")
 
     @property
     def parking_lane(self) -> Lane:
