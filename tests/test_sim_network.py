@@ -98,6 +98,7 @@ def test_yield_queries_refer_to_the_agents_own_intersection():
     # The ego stands near B's stop line: in B's conflict zone, 200 m from A's centre.
     assert w.ego_in_conflict(at_b) and not w.ego_in_conflict(at_a)
     assert w.ego_distance_to_centre(at_b) < 30 < 150 < w.ego_distance_to_centre(at_a)
+    assert w.ego_distance_to_centre() == w.ego_distance_to_centre(at_b)  # the ego's own
 
 
 def test_same_seed_same_bits_on_a_network():

@@ -478,13 +478,14 @@ class World:
         return _distance(a, b)
 
     def _junction(self, agent: Any) -> Any:
-        """The intersection ``agent`` is at or driving toward, or None (no intersection)."""
+        """The intersection ``agent`` (default the ego) is at or driving toward, or None."""
         road = self.road
         kind = getattr(road, "kind", "")
         if kind == "intersection":
             return road
-        if kind == "network" and agent is not None:
-            return road.junction_ahead(agent)
+        who = agent if agent is not None else self._ego
+        if kind == "network" and who is not None:
+            return road.junction_ahead(who)
         return None
 
     def _turn_route(self, agent: Any, direction: str) -> Route:
