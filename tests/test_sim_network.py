@@ -196,3 +196,28 @@ def test_network_frame_follows_the_ego(tmp_path):
     mid = im[300:340, 300:340].reshape(-1, 3)
     assert any(tuple(p) == (60, 200, 80) for p in mid)
     assert not math.isnan(w.trajectory.x[0, 0])
+
+
+@pytest.mark.parametrize("driver", ["autopilot", "idm"])
+def test_ego_placed_beside_its_route_merges_onto_it(driver):
+    w = World(seed=0, driver=driver, name="test_merge")
+    inter = w.intersection(lanes=2, approach_length=100)
+    w.ego(inter.approach("south", 1), s=40, speed=3, route=inter.route("south", "left"))
+    w.car(inter.approach("south", 0), s=70, speed=0, behavior=b.turn("left"))
+    tr = w.run(25)
+    driven = lanes_driven(tr)
+    assert driven[:2] == ["south.in[1]", "south.in[0]"] and "south>west[0]" in driven
+    assert not tr.meta["crashed"]
+    # It is in its new lane well before the stop line, not at the box.
+    k = first(tr.lane[0] == "south.in[0]")
+    assert tr.y[0, k] < -50
+    w2 = World(seed=0)
+    inter2 = w2.intersection(lanes=2)
+    with pytest.raises(SimError, match="not on its route .* nor beside its first lane"):
+        w2.ego(inter2.approach("south", 1), route=inter2.route("north"))
+
+
+def first(mask) -> int:
+    mask = np.asarray(mask)
+    assert mask.any(), "condition never held"
+    return int(np.argmax(mask))

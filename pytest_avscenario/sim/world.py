@@ -283,15 +283,21 @@ class World:
             if not lanes or not all(isinstance(l, Lane) for l in lanes):
                 raise SimError(f"route={route!r}: give inter.route(...), a Lane or a list of "
                                "Lanes", test=self.name, agent=agent)
-        if spot.lane not in lanes:
+        if spot.lane not in lanes and not self._beside(spot.lane, lanes[0]):
             raise SimError(f"placed on {spot.lane.id!r}, which is not on its route "
-                           f"{[l.id for l in lanes]}", test=self.name, agent=agent)
+                           f"{[l.id for l in lanes]} nor beside its first lane",
+                           test=self.name, agent=agent)
         for a, b in zip(lanes, lanes[1:]):
             gap = float(np.hypot(*(a.end.position - b.start.position)))
             if gap > 1.0:
                 raise SimError(f"route is broken: {b.id!r} starts {gap:.1f} m from the end of "
                                f"{a.id!r}", test=self.name, agent=agent)
-        return lanes, lanes.index(spot.lane)
+        return lanes, lanes.index(spot.lane) if spot.lane in lanes else 0
+
+    @staticmethod
+    def _beside(lane: Lane, other: Lane) -> bool:
+        """Whether ``lane`` runs beside ``other`` in the same carriageway (a lane change away)."""
+        return bool(lane.group) and lane.group == other.group and lane is not other
 
     def _register(self, agent: Any, spot: Spot | None, lanes: list[Lane], k: int, kind: str,
                   name: str, behavior: Any, initial: float, appear: Any = None,
@@ -315,7 +321,9 @@ class World:
         line (``s`` [m] further along its lane, e.g. ``inter.stop_line("south").before(20)``).
 
         ``driver`` overrides the world's default driver; ``route`` (e.g.
-        ``inter.route("south", "left")``) defaults to straight on. ``target_speed`` [m/s] is
+        ``inter.route("south", "left")``) defaults to straight on. Placed on a lane beside the
+        route's first lane (``inter.approach("south", 1)`` with a route from lane 0), the ego
+        starts with a lane change onto its route: its driver merges. ``target_speed`` [m/s] is
         handed to the driver (and is the "idm" driver's desired speed; default ``speed`` or
         the speed limit); ``goal`` is passed through to the observation. Braking stops the
         ego at 0 m/s unless ``allow_reverse`` (default: only for a parking goal,
@@ -339,7 +347,7 @@ class World:
             v0 = target_speed if target_speed is not None else (v if v > 0 else None)
             if v0 is None:
                 v0 = float(spot.lane.geometry.speed_limit)
-            agent = IDMEgo(self._road, pos, heading, v, target_lane_index=spot.lane.index,
+            agent = IDMEgo(self._road, pos, heading, v, target_lane_index=lanes[k].index,
                            target_speed=float(v0), route=[l.index for l in lanes[k:]])
         else:
             agent = DriverEgo(pos, heading, v)
