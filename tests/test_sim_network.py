@@ -142,6 +142,8 @@ def test_network_building_errors():
     with pytest.raises(SimError, match="name is taken"):
         net.intersection("A", at=(0, 500))
     c = net.intersection("B", at=(0, a.half * 2 + 120.2), approach_length=60)
+    # The refused "B" left nothing behind: one lane per node pair in highway-env's network.
+    assert len(w._road.network.graph["B.south.start"]["B.south.stop"]) == 1
     with pytest.raises(SimError, match="0.20 m apart; need at least 0.5 m"):
         net.connect(a, "north", c, "south")
     d = net.intersection("C", at=(3.0, -300), approach_length=60)

@@ -110,14 +110,21 @@ class Network(_Road):
         if not name or any(c in name for c in ".~[]>") or name in self.intersections:
             why = "is taken" if name in self.intersections else "must be non-empty without . ~ [ ] >"
             raise SimError(f"intersection(name={name!r}): the name {why}", test=self.world.name)
-        inter = Intersection(self.world, self._net, lanes, float(approach_length), lane_width,
-                             speed_limit, crosswalk_width, corner, median, at=at, name=name)
+        from highway_env.road.road import RoadNetwork
+
+        # Built on a scratch network first, so that a refused intersection leaves no lanes
+        # behind in the world's network.
+        inter = Intersection(self.world, RoadNetwork(), lanes, float(approach_length),
+                             lane_width, speed_limit, crosswalk_width, corner, median, at=at,
+                             name=name)
         for other in self.intersections.values():
             clash = self._overlap(inter, other)
             if clash:
                 raise SimError(f"intersection({name!r}) at {_fmt(inter.origin)} overlaps "
                                f"{other.name!r} at {_fmt(other.origin)} ({clash}); move it or "
                                "shorten approach_length", test=self.world.name)
+        for lane in inter.all_lanes:  # fresh node names: the same (from, to, i) indices
+            self._net.add_lane(lane.index[0], lane.index[1], lane.geometry)
         self.intersections[name] = inter
         self._adopt(inter)
         return inter
