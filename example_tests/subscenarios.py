@@ -139,16 +139,9 @@ def wobble(inner: Behavior, sd: float = 0.3, every: float = 1.0) -> Wobble:
 
 def ego_passed(name: str, by: float = 15.0):
     """A ``disappear=`` condition: the ego's rear is ``by`` [m] past the agent ``name``
-    (measured along the ego's heading)."""
-
-    def cond(world: Any) -> bool:
-        # world.ego_past(agent) would read the agent's highway-env ``lane`` as a place's lane
-        ego, other = world.agent("ego"), world.agent(name)
-        d = other.position - ego.position
-        ahead = d[0] * math.cos(ego.heading) + d[1] * math.sin(ego.heading)
-        return ahead + ego.LENGTH / 2 < -by
-
-    return cond
+    (measured along the ego's heading); :meth:`World.ego_past` on the agent, looked up by
+    name because the condition is made before the agent exists."""
+    return lambda world: world.ego_past(world.agent(name), by)(world)
 
 
 def _spawn(world: Any, behavior: Behavior, trigger: Any, name: str) -> dict[str, Any]:

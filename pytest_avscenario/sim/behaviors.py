@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import weakref
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -210,13 +209,12 @@ class _AllWayStop:
     TIE = 0.2  # [s]
     CONFLICT = 3.0  # [m] centre lines closer than this conflict
 
-    _worlds: "weakref.WeakKeyDictionary[Any, _AllWayStop]" = weakref.WeakKeyDictionary()
-
     @classmethod
     def of(cls, world: Any) -> "_AllWayStop":
-        aw = cls._worlds.get(world)
+        """The world's own instance (kept on the world, made on first use)."""
+        aw = getattr(world, "_allway", None)
         if aw is None or aw.index is not world._index:
-            aw = cls._worlds[world] = cls(world)
+            aw = world._allway = cls(world)
         return aw
 
     def __init__(self, world: Any) -> None:

@@ -61,6 +61,7 @@ class World:
         self._counts: dict[str, int] = {}
         self._route_geoms: tuple = ()
         self._stop_cache: dict[int, tuple] = {}
+        self._allway: Any = None  # arrival order at all-way stops (behaviors._AllWayStop)
         self.sensor_range = 80.0  # [m]
 
     def __repr__(self) -> str:
