@@ -33,7 +33,7 @@ from pytest_avscenario.monitors import (
     ttc,
     until,
 )
-from pytest_avscenario.sim.trajectory import Trajectory
+from pytest_avscenario.trajectory import Trajectory
 
 
 def scene(steps: int, agents: int, seed: int = 0) -> Trajectory:

@@ -110,7 +110,7 @@ def run_case(
     fresh one (``None`` means: use ``fixtures["world"]`` as it is). ``timeout_s`` bounds the
     body (see :func:`time_limit`); a case that runs past it is an error saying how long it ran.
     """
-    from .sim.trajectory import Trajectory
+    from .trajectory import Trajectory
 
     args = dict(fixtures)
     args["case"] = case

@@ -87,7 +87,7 @@ def margin(traj):
 
 @scenario(gap=Uniform(10, 40), road=Choice(["dry", "wet"]), samples=10, monitors=[margin])
 def test_margin(case):
-    from pytest_avscenario.sim.trajectory import Trajectory
+    from pytest_avscenario.trajectory import Trajectory
     return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0, 1], "y": [0, 0]}},
                                   meta={"margin": case.gap - 30})
 """

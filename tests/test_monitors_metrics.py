@@ -18,7 +18,7 @@ from pytest_avscenario.monitors import (
     time_headway,
     ttc,
 )
-from pytest_avscenario.sim.trajectory import Trajectory
+from pytest_avscenario.trajectory import Trajectory
 
 
 def one_step(ego, other, **kw):

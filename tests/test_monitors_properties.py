@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from pytest_avscenario.monitors import always, collision, distance, gap, ttc, ttc_to
-from pytest_avscenario.sim.trajectory import Trajectory
+from pytest_avscenario.trajectory import Trajectory
 
 coord = st.floats(-60, 60, allow_nan=False, allow_infinity=False)
 # speeds below 1 µm/s are zero: with subnormal closing speeds the textbook quadratic's

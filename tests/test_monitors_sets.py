@@ -27,7 +27,7 @@ from pytest_avscenario.monitors import (
     rho_to_str,
     ttc,
 )
-from pytest_avscenario.sim.trajectory import Trajectory
+from pytest_avscenario.trajectory import Trajectory
 
 
 def following(gap0=30.0):

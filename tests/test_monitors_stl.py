@@ -28,7 +28,7 @@ from pytest_avscenario.monitors import (
     ttc_to,
     until,
 )
-from pytest_avscenario.sim.trajectory import Trajectory
+from pytest_avscenario.trajectory import Trajectory
 
 
 def sig_traj(a, b, t=None):

@@ -9,7 +9,7 @@ import pytest
 
 SYNTHETIC = """
 from pytest_avscenario import scenario, Uniform, Choice, example
-from pytest_avscenario.sim.trajectory import Trajectory
+from pytest_avscenario.trajectory import Trajectory
 
 def margin(traj):
     return float(traj.meta["margin"])

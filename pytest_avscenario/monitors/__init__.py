@@ -3,7 +3,7 @@
 Every monitor returns a robustness value ``rho`` (``rho >= 0`` holds, ``rho < 0`` violated,
 ``|rho|`` by how much, in the metric's unit) plus where and when the worst value happened and
 against which agent (:class:`MonitorResult`). Monitors read only
-:class:`~pytest_avscenario.sim.trajectory.Trajectory` (build one from plain numpy arrays with
+:class:`~pytest_avscenario.trajectory.Trajectory` (build one from plain numpy arrays with
 ``Trajectory.from_arrays(t, agents={"ego": {"x": ..., "y": ...}, "lead": {...}})``), never
 the simulator, and are vectorized over steps and agents.
 
@@ -22,7 +22,7 @@ Without a simulator (positions [m], velocities [m/s]; NaN and ``present=False`` 
 agent is not in the scene)::
 
     import numpy as np
-    from pytest_avscenario.sim.trajectory import Trajectory
+    from pytest_avscenario.trajectory import Trajectory
     from pytest_avscenario.monitors import MonitorSet, distance, ttc, always, gap
 
     t = np.arange(0, 10, 0.1)

@@ -1,6 +1,6 @@
 """The monitor contract: what every monitor returns, the base class, and plain functions.
 
-A monitor turns one recorded :class:`~pytest_avscenario.sim.trajectory.Trajectory` into a
+A monitor turns one recorded :class:`~pytest_avscenario.trajectory.Trajectory` into a
 robustness value ``rho`` (``rho >= 0`` the requirement holds, ``rho < 0`` it is violated,
 ``|rho|`` says by how much, in the unit of the metric) plus where and when the worst value
 happened. This module holds the result type, the :class:`Monitor` base class (which refuses
@@ -20,7 +20,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..sim.trajectory import Trajectory
+from ..trajectory import Trajectory
 
 __all__ = ["MonitorError", "MonitorResult", "Monitor", "FunctionMonitor", "as_monitor"]
 

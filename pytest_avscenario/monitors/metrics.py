@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..sim.trajectory import Trajectory
+from ..trajectory import Trajectory
 from .base import (
     Monitor,
     MonitorError,

@@ -15,7 +15,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..sim.trajectory import Trajectory
+from ..trajectory import Trajectory
 from .base import Monitor, MonitorError, MonitorResult, as_monitor
 
 __all__ = ["MonitorSet", "Verdict"]

@@ -27,7 +27,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..sim.trajectory import Trajectory
+from ..trajectory import Trajectory
 from .base import Monitor, MonitorError, MonitorResult, check_positive, check_threshold, factory
 from .metrics import headway, pairwise_distance, pairwise_ttc, footprint_gap
 

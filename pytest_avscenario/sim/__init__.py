@@ -18,9 +18,9 @@ __all__ = ["World", "SimError", "DriverError", "Trajectory", "Observation", "beh
            "drivers", "places"]
 
 _LAZY = {
-    "World": ("world", "World"),
-    "Trajectory": ("trajectory", "Trajectory"),
-    "Observation": ("observation", "Observation"),
+    "World": (".world", "World"),
+    "Trajectory": ("..trajectory", "Trajectory"),  # the sim -> monitors contract lives apart
+    "Observation": (".observation", "Observation"),
 }
 
 
@@ -29,7 +29,7 @@ def __getattr__(name: str) -> Any:
         import importlib
 
         mod, attr = _LAZY[name]
-        value = getattr(importlib.import_module(f"{__name__}.{mod}"), attr)
+        value = getattr(importlib.import_module(mod, __name__), attr)
         globals()[name] = value
         return value
     if name in ("behaviors", "drivers", "places"):

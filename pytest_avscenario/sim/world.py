@@ -2,7 +2,7 @@
 
 A test gets a fresh :class:`World` seeded from its case, builds one road on it, places the ego
 (driven by the AV under test) and other agents, and calls :meth:`World.run`, which steps
-highway-env and records a :class:`~pytest_avscenario.sim.trajectory.Trajectory` into
+highway-env and records a :class:`~pytest_avscenario.trajectory.Trajectory` into
 preallocated arrays. All randomness comes from the case: the world's ``rng`` (the case's
 ``case.rng``) feeds behaviours, and highway-env's ``Road`` gets its own
 ``default_rng(seed)``. Same case, same bits, in any process and any test order.
@@ -21,7 +21,7 @@ from .drivers import IDMDriver, resolve
 from .errors import SimError
 from .observation import AgentState, Observation, StopLine as ObsStopLine
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
-from .trajectory import Trajectory
+from ..trajectory import Trajectory
 
 __all__ = ["World"]
 

@@ -1,4 +1,6 @@
-"""The recorded trajectory of one simulated case: what monitors read, nothing else.
+"""The recorded trajectory of one simulated case: the contract between the simulator and
+the monitors. The simulator (:mod:`pytest_avscenario.sim`) writes it; monitors read it and
+nothing else, so neither knows the other.
 
 Plain numpy arrays stacked as ``(agents, steps)`` so monitors vectorize over both. Agent 0
 is always the ego. An agent that is not in the scene at a step (spawned later, removed after
