@@ -28,7 +28,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from .monitors.serialize import rho_from_json, rho_to_json
+from .codec import rho_from_json, rho_to_json
 from .space import FeatureSpace
 
 __all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "space_changes"]

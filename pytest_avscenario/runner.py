@@ -3,62 +3,21 @@
 The plugin calls :func:`run_case` for every scenario item (and again for each candidate
 while shrinking): it calls the test function with the case's ``case`` and ``world``,
 takes the trajectory the test recorded (``world.trajectory``, or one the test returned),
-evaluates the declared monitors and returns a :class:`CaseOutcome` — plain data, no pytest
-report objects. A test body that raises ``AssertionError`` is a failure like a violated
+evaluates the declared monitors and returns a :class:`~.outcome.CaseOutcome` — plain data,
+no pytest report objects. A test body that raises ``AssertionError`` is a failure like a violated
 monitor; any other exception (a driver that raised, a bad scene) makes the case an error.
 """
 
 from __future__ import annotations
 
-import math
 import signal
 import threading
 import time
-import traceback
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
 
 from .case import Case
-
-
-@dataclass
-class CaseOutcome:
-    """What one run of a case produced.
-
-    ``verdict`` is ``"pass"``, ``"fail"`` (a monitor violated or the body's assertion failed)
-    or ``"error"`` (the case could not be judged: an exception, no trajectory, NaN).
-    ``signature`` identifies *which* failure it is, so shrinking keeps to the same bug: the
-    sorted violated metrics, or the exception type and the line it came from.
-    """
-
-    params: dict[str, Any]
-    verdict: str
-    rho: dict[str, float] = field(default_factory=dict)
-    results: dict[str, Any] = field(default_factory=dict)
-    violated: list[str] = field(default_factory=list)
-    exc: BaseException | None = None
-    error: str | None = None
-    sim_time_s: float = 0.0
-    trajectory: Any = None
-    world: Any = None  # the World that ran (in-process only), for rendering pictures
-
-    @property
-    def signature(self) -> tuple[Any, ...]:
-        if self.exc is not None:
-            tb = traceback.extract_tb(self.exc.__traceback__)
-            where = (tb[-1].filename, tb[-1].lineno) if tb else ("?", 0)
-            return ("exception", type(self.exc).__name__, *where)
-        return ("monitors", *sorted(self.violated))
-
-    @property
-    def failed(self) -> bool:
-        return self.verdict == "fail"
-
-    @property
-    def worst_rho(self) -> float | None:
-        vals = [v for v in self.rho.values() if not math.isnan(v)]
-        return min(vals) if vals else None
+from .outcome import CaseOutcome
 
 
 class CaseTimeout(BaseException):

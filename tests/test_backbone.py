@@ -300,4 +300,4 @@ def test_plugin_is_registered_through_the_entry_point():
          "import importlib.metadata as m; print([e.value for e in m.entry_points(group='pytest11') if e.name == 'avscenario'])"],
         capture_output=True, text=True, check=True,
     ).stdout
-    assert "pytest_avscenario.plugin" in out
+    assert "pytest_avscenario.pytest_plugin.hooks" in out

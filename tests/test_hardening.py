@@ -129,15 +129,15 @@ def test_body_raising_before_or_after_the_run_is_an_error_with_the_cause(pyteste
 def test_active_sampler_is_told_errors_as_invalid(pytester):
     pytester.makepyfile("""
 from pytest_avscenario import scenario, Uniform
-import pytest_avscenario.plugin as plugin
+from pytest_avscenario.pytest_plugin import stash
 
 @scenario(x=Uniform(0, 1), samples=3, sampler="mab")
 def test_err(case):
     raise RuntimeError("broken scene")
 
 def test_zz_sampler_state(request):
-    plan = request.config.stash[plugin.plans_key]["test_active_sampler_is_told_errors_as_invalid.py::test_err"]
-    sampler = plan.active["mab"]
+    campaign = request.config.stash[stash.campaigns_key]["test_active_sampler_is_told_errors_as_invalid.py::test_err"]
+    sampler = campaign.active["mab"]
     assert sampler.n_told == 3 and sampler.n_invalid == 3
 """)
     result = pytester.runpytest("-p", "no:randomly", "--avs-db=none")

@@ -25,7 +25,7 @@ import os
 import pytest
 from pytest_avscenario.report.junit import add_suite_properties, add_suite_properties_to_logxml
 from pytest_avscenario.report.summary import TestInfo, suite_properties, summarize
-from pytest_avscenario.report.table import row_from_json, row_to_json
+from pytest_avscenario.outcome import CaseRow
 from pytest_avscenario.space import FeatureSpace, Uniform
 
 ROWS = pytest.StashKey[list]()
@@ -65,14 +65,14 @@ def pytest_runtest_makereport(item, call):
     report = yield
     row = getattr(item, "avs_row", None)
     if row is not None and report.when == "call":
-        report.avs_row = row_to_json(row)  # plain JSON data survives xdist's serialization
+        report.avs_row = CaseRow.coerce(row).to_json()  # plain JSON data survives xdist's serialization
     return report
 
 
 def pytest_runtest_logreport(report):
     row = getattr(report, "avs_row", None)
     if row is not None:
-        pytest.avs_config.stash[ROWS].append(row_from_json(row))
+        pytest.avs_config.stash[ROWS].append(CaseRow.from_json(row))
 
 
 @pytest.hookimpl(trylast=True)

@@ -154,6 +154,7 @@ def test_summary_json_and_pointer(rows, tests_info, tmp_path):
 
 
 def test_rows_in_json_form_count_the_same(rows, tests_info):
-    from pytest_avscenario.report.table import row_to_json
+    from pytest_avscenario.outcome import CaseRow
 
-    assert summarize([row_to_json(r) for r in rows], tests_info) == summarize(rows, tests_info)
+    json_rows = [CaseRow.from_json(r).to_json() for r in rows]
+    assert summarize(json_rows, tests_info) == summarize(rows, tests_info)

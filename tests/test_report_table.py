@@ -15,13 +15,11 @@ from pytest_avscenario.report.table import (
     ErrorTable,
     atomic_write_text,
     file_slug,
-    normalize_row,
     prepare_report_dir,
     read_csv_rows,
     read_rows,
-    row_from_json,
-    row_to_json,
 )
+from pytest_avscenario.outcome import CaseRow
 
 FOLLOW = "tests/test_follow.py::test_vehicle_following"
 PED = "tests/test_ped.py::test_pedestrian"
@@ -49,10 +47,10 @@ def test_a_row_is_readable_while_the_writer_is_still_open(tmp_path):
     table = ErrorTable(tmp_path)
     table.append(make_row(index=0))
     # Read through fresh file handles before close(): only a flushed row is visible here.
-    assert [r["index"] for r in read_rows(tmp_path)] == [0]
+    assert [r.index for r in read_rows(tmp_path)] == [0]
     assert [r["index"] for r in read_csv_rows(table.csv_path(FOLLOW))] == [0]
     table.append(make_row(index=1))
-    assert [r["index"] for r in read_rows(tmp_path)] == [0, 1]
+    assert [r.index for r in read_rows(tmp_path)] == [0, 1]
     table.close()
 
 
@@ -75,8 +73,8 @@ def test_a_killed_process_leaves_every_finished_row(tmp_path):
     proc = subprocess.run([sys.executable, "-c", script], cwd=os.getcwd(), capture_output=True)
     assert proc.returncode == -9, proc.stderr.decode()
     rows = read_rows(tmp_path)
-    assert [r["index"] for r in rows] == [0, 1, 2, 3, 4]
-    assert rows[0]["rho"]["d"] == math.inf and rows[4]["rho"]["d"] == -1.0
+    assert [r.index for r in rows] == [0, 1, 2, 3, 4]
+    assert rows[0].rho["d"] == math.inf and rows[4].rho["d"] == -1.0
     (csv_file,) = (tmp_path / "tables").glob("*.csv")
     assert len(read_csv_rows(csv_file)) == 5
 
@@ -90,9 +88,9 @@ def test_infinities_round_trip_through_jsonl_and_csv(tmp_path):
     json.loads(text)  # strict JSON: no bare Infinity
     assert "Infinity" not in text and '"-inf"' in text
     (back,) = read_rows(tmp_path)
-    assert back["rho"] == {"distance": -math.inf, "ttc": math.inf, "progress": 0.1 + 0.2, "lane": -0.25}
+    assert back.rho == {"distance": -math.inf, "ttc": math.inf, "progress": 0.1 + 0.2, "lane": -0.25}
     (from_csv,) = read_csv_rows(csv_path)
-    assert from_csv["rho"] == back["rho"]  # bit-identical floats, inf included
+    assert from_csv["rho"] == back.rho  # bit-identical floats, inf included
     assert from_csv["params"] == {"gap": 10.0, "weather": "dry"}
 
 
@@ -102,8 +100,8 @@ def test_shrink_candidates_go_to_their_own_table(tmp_path):
             table.append(make_row(index=i))
         table.append(make_row(index=2, origin="shrink", params={"gap": 20.0, "weather": "dry"}))
         assert table.counts == {"main": 3, "shrink": 1}
-    assert [r["origin"] for r in read_rows(tmp_path)] == ["sampled"] * 3
-    assert [r["params"]["gap"] for r in read_rows(tmp_path, shrink=True)] == [20.0]
+    assert [r.origin for r in read_rows(tmp_path)] == ["sampled"] * 3
+    assert [r.params["gap"] for r in read_rows(tmp_path, shrink=True)] == [20.0]
     names = sorted(p.name for p in (tmp_path / "tables").iterdir())
     slug = file_slug(FOLLOW)
     assert names == [f"{slug}.csv", f"{slug}.shrink.csv"]
@@ -121,7 +119,7 @@ def test_each_test_gets_a_csv_with_its_own_columns(tmp_path):
     with open(paths[PED], newline="") as fh:
         assert next(csv.reader(fh))[9:] == ["param.wait_s", "rho.distance"]
     # The combined JSONL holds both tests.
-    assert [r["test"] for r in read_rows(tmp_path)] == [FOLLOW, PED]
+    assert [r.test for r in read_rows(tmp_path)] == [FOLLOW, PED]
 
 
 def test_a_new_column_widens_the_csv_without_losing_rows(tmp_path):
@@ -145,8 +143,8 @@ def test_awkward_values_stay_valid_csv_and_json(tmp_path):
         table.append(make_row(test="t.py::test[<x>,y]", params=params))
         path = table.csv_path("t.py::test[<x>,y]")
     (back,) = read_rows(tmp_path)
-    assert back["params"] == {"label": nasty, "lane": 2, "flag": True, "route": ["a", "b"]}
-    assert back["test"] == "t.py::test[<x>,y]"
+    assert back.params == {"label": nasty, "lane": 2, "flag": True, "route": ["a", "b"]}
+    assert back.test == "t.py::test[<x>,y]"
     (rec,) = read_csv_rows(path)
     assert rec["params"]["label"] == nasty and rec["params"]["route"] == '["a", "b"]'
     assert "<" not in path.name and "," not in path.name
@@ -162,7 +160,7 @@ def test_awkward_values_stay_valid_csv_and_json(tmp_path):
 )
 def test_a_malformed_row_is_refused_naming_the_problem(tmp_path, change, match):
     with pytest.raises(ValueError, match=match):
-        normalize_row(make_row(**change))
+        CaseRow.from_json(make_row(**change))
     bad = make_row()
     del bad["params"]
     with pytest.raises(ValueError, match="params"):
@@ -171,9 +169,10 @@ def test_a_malformed_row_is_refused_naming_the_problem(tmp_path, change, match):
 
 def test_row_json_round_trip_for_transport():
     row = make_row(rho={"ttc": math.inf, "d": -math.inf})
-    data = row_to_json(row)
-    wire = json.dumps(data, allow_nan=False)  # what an xdist worker could send
-    assert row_from_json(json.loads(wire))["rho"] == {"ttc": math.inf, "d": -math.inf}
+    data = CaseRow.from_json(row).to_json()
+    wire = json.dumps(data, allow_nan=False)  # what an xdist worker sends
+    assert CaseRow.from_json(json.loads(wire)).rho == {"ttc": math.inf, "d": -math.inf}
+    assert CaseRow.from_json(json.loads(wire)) == CaseRow.from_json(row)
 
 
 def test_reader_tolerates_only_a_torn_last_line(tmp_path):
@@ -221,7 +220,7 @@ def test_a_new_run_starts_from_empty_tables_and_keeps_user_files(tmp_path):
     assert (tmp_path / "plots" / "figure-1.png").exists()
     with ErrorTable(tmp_path) as table:
         table.append(make_row(index=5))
-    assert [r["index"] for r in read_rows(tmp_path)] == [5]
+    assert [r.index for r in read_rows(tmp_path)] == [5]
 
 
 def test_slugs_are_distinct_for_distinct_tests():
@@ -242,9 +241,9 @@ def test_fsync_is_opt_in_and_covers_both_files(tmp_path, monkeypatch, fsync):
 
 
 def test_rows_already_in_json_form_are_accepted(tmp_path):
-    wire = row_to_json(make_row(rho={"ttc": math.inf, "distance": -2.0}))
+    wire = CaseRow.from_json(make_row(rho={"ttc": math.inf, "distance": -2.0})).to_json()
     assert wire["rho"]["ttc"] == "inf"
     with ErrorTable(tmp_path) as table:
         back = table.append(wire)
-    assert back["rho"] == {"ttc": math.inf, "distance": -2.0}
-    assert read_rows(tmp_path)[0]["rho"]["ttc"] == math.inf
+    assert back.rho == {"ttc": math.inf, "distance": -2.0}
+    assert read_rows(tmp_path)[0].rho["ttc"] == math.inf

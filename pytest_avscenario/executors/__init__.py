@@ -5,6 +5,23 @@ candidate while shrinking — through one small interface (:class:`Executor`). E
 pytest items only as the plain :class:`CaseJob` the plugin hands them.
 """
 
-from .base import CaseJob, Executor, InProcessExecutor, make_executor
+from typing import Any
+
+from .base import CaseJob, Executor, InProcessExecutor
 
 __all__ = ["CaseJob", "Executor", "InProcessExecutor", "make_executor"]
+
+
+def make_executor(name: str, **options: Any) -> Executor:
+    """The executor called ``name`` (``inprocess``, ``dask``); ValueError names the options."""
+    if name in (None, "", "inprocess"):
+        return InProcessExecutor()
+    if name == "dask":
+        try:
+            from .dask import DaskExecutor
+        except ImportError as exc:
+            raise ValueError(
+                f"--avs-executor=dask needs Dask: pip install 'pytest-avscenario[dask]' ({exc})"
+            ) from None
+        return DaskExecutor(**options)
+    raise ValueError(f"unknown executor {name!r}; available: inprocess, dask")

@@ -3,7 +3,7 @@
 A :class:`CaseJob` is everything needed to simulate one case of one scenario test away from
 pytest: the test function (and where it lives, so a remote worker can import it), the values
 of its other fixtures, the case, the monitors and the ego's driver. ``run`` returns the
-:class:`~pytest_avscenario.runner.CaseOutcome`. ``prefetch`` lets an executor start cases
+:class:`~pytest_avscenario.outcome.CaseOutcome`. ``prefetch`` lets an executor start cases
 before pytest reaches their items (a cluster stays busy); the in-process one ignores it.
 """
 
@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 from ..case import Case
-from ..runner import CaseOutcome, run_case
+from ..outcome import CaseOutcome
+from ..runner import run_case
 
 
 @dataclass
@@ -59,18 +60,3 @@ class InProcessExecutor(Executor):
         return run_case(job.func, job.argnames, job.fixtures, job.case, job.monitor_set,
                         make_world=job.make_world if job.fresh_world else None,
                         timeout_s=job.timeout_s)
-
-
-def make_executor(name: str, **options: Any) -> Executor:
-    """The executor called ``name`` (``inprocess``, ``dask``); ValueError names the options."""
-    if name in (None, "", "inprocess"):
-        return InProcessExecutor()
-    if name == "dask":
-        try:
-            from .dask import DaskExecutor
-        except ImportError as exc:
-            raise ValueError(
-                f"--avs-executor=dask needs Dask: pip install 'pytest-avscenario[dask]' ({exc})"
-            ) from None
-        return DaskExecutor(**options)
-    raise ValueError(f"unknown executor {name!r}; available: inprocess, dask")

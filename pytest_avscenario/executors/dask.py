@@ -44,10 +44,9 @@ from typing import Any, Sequence
 import dask
 import distributed
 
-from ..runner import CaseOutcome
+from ..outcome import CaseOutcome
 from .base import CaseJob, Executor
-from .remote import (CaseFields, TestSpec, WireOutcome, pack_spec, run_remote_many,
-                     spec_digest, to_outcome, warm_up)
+from .remote import CaseFields, TestSpec, pack_spec, run_remote_many, spec_digest, warm_up
 
 #: seconds to reach a scheduler (and to find a worker on it) before giving up
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
@@ -105,7 +104,7 @@ class DaskExecutor(Executor):
         self._cluster: Any = None
         self._client: Any = None
         self._ahead: dict[tuple, _Task] = {}  # match key -> its task (submitted, not collected)
-        self._results: dict[tuple, WireOutcome] = {}  # match key -> outcome already pulled here
+        self._results: dict[tuple, CaseOutcome] = {}  # match key -> outcome already pulled here
         self._ready: collections.deque = collections.deque()  # tasks whose future finished
         self._specs: dict[tuple, tuple[bytes, str]] = {}
         self._counter = itertools.count()
@@ -220,8 +219,8 @@ class DaskExecutor(Executor):
             raise DaskExecutorError(self._broken)
         self._harvest()
         key = self._match_key(job)
-        wire = self._results.pop(key, None)
-        if wire is not None:
+        outcome = self._results.pop(key, None)
+        if outcome is not None:
             self.stats["matched"] += 1
         else:
             task = self._ahead.pop(key, None)
@@ -230,8 +229,8 @@ class DaskExecutor(Executor):
             else:
                 self.stats["on_demand"] += 1
                 task = self._submit([job], [key], _URGENT)
-            wire = self._collect(task, key, job)
-        return to_outcome(wire)
+            outcome = self._collect(task, key, job)
+        return outcome
 
     def close(self) -> None:
         """Cancel what is still queued, disconnect, and stop a cluster this executor started.
@@ -363,14 +362,14 @@ class DaskExecutor(Executor):
         for task, outs in zip(done, values):
             self._store(task, outs, skip=None)
 
-    def _store(self, task: "_Task", outs: list[WireOutcome], skip: tuple | None) -> None:
-        for key, wire in zip(task.keys, outs):
+    def _store(self, task: "_Task", outs: list[CaseOutcome], skip: tuple | None) -> None:
+        for key, outcome in zip(task.keys, outs):
             if key != skip and self._ahead.get(key) is task:
-                self._results[key] = wire
+                self._results[key] = outcome
                 del self._ahead[key]
 
     # -- waiting ------------------------------------------------------------------------
-    def _collect(self, task: "_Task", key: tuple, job: CaseJob) -> WireOutcome:
+    def _collect(self, task: "_Task", key: tuple, job: CaseJob) -> CaseOutcome:
         """``job``'s outcome from ``task``; the task's other outcomes are kept for later."""
         outs = self._wait(task)
         if outs is None:
@@ -384,7 +383,7 @@ class DaskExecutor(Executor):
         self._store(task, outs, skip=key)
         return outs[task.keys.index(key)]
 
-    def _wait(self, task: "_Task") -> list[WireOutcome] | None:
+    def _wait(self, task: "_Task") -> list[CaseOutcome] | None:
         """The task's outcomes, in order; errors become error outcomes (never passes).
 
         None means a chunk of several cases lost its worker too often: the caller splits it.
@@ -458,8 +457,8 @@ class DaskExecutor(Executor):
         return lost_since
 
     @staticmethod
-    def _errors(task: "_Task", message: str) -> list[WireOutcome]:
-        return [WireOutcome(params=dict(j.case.params), verdict="error", infra_error=message)
+    def _errors(task: "_Task", message: str) -> list[CaseOutcome]:
+        return [CaseOutcome(params=dict(j.case.params), verdict="error", error=message)
                 for j in task.jobs]
 
 

@@ -8,11 +8,11 @@ the package goes first on ``sys.path``; asserts rewritten so messages read as in
 run), builds the :class:`~pytest_avscenario.case.Case` and a fresh
 :class:`~pytest_avscenario.sim.World`, and calls :func:`~pytest_avscenario.runner.run_case`.
 
-What comes back is a :class:`WireOutcome`: the outcome without its trajectory (the plugin does
-not need it and it is the bulk of the bytes), and the body's exception as pickled bytes plus
-a tblib description of its traceback, so the client re-creates an exception whose type, text
-and last frame (``CaseOutcome.signature``) match the remote one. An exception that does not
-pickle becomes an instance of a stand-in class with the same name and base kind.
+What comes back is the :class:`~pytest_avscenario.outcome.CaseOutcome` itself, the same type
+as in-process: pickled, it leaves its world and trajectory behind (the plugin does not need
+them and they are the bulk of the bytes) and carries the body's exception as data, so the
+client re-creates an exception whose type, text and last frame (``CaseOutcome.signature``)
+match the remote one.
 
 This module imports neither pytest's session machinery nor Dask: any executor that can call
 a function on another process can use it.
@@ -32,7 +32,8 @@ from pathlib import Path
 from typing import Any
 
 from ..case import Case
-from ..runner import CaseOutcome, run_case
+from ..outcome import CaseOutcome
+from ..runner import run_case
 
 #: fixtures a scenario body can receive away from pytest
 REMOTE_FIXTURES = frozenset({"case", "world", "avs_driver"})
@@ -66,30 +67,6 @@ class CaseFields:
     timeout_s: float | None = None  # wall-time limit of the body (the job's timeout_s)
 
 
-@dataclass
-class WireOutcome:
-    """A :class:`CaseOutcome` as it travels back: no trajectory, the exception as data.
-
-    ``infra_error`` is set when the worker could not run the case at all (the module did not
-    import, the spec did not unpickle): the case is then an error, never a pass.
-    """
-
-    params: dict[str, Any]
-    verdict: str
-    rho: dict[str, float] = field(default_factory=dict)
-    results: dict[str, Any] = field(default_factory=dict)
-    violated: list[str] = field(default_factory=list)
-    error: str | None = None
-    sim_time_s: float = 0.0
-    exc_pickle: bytes | None = None
-    exc_type: tuple[str, str] | None = None  # (module, qualname) for the stand-in
-    exc_text: str = ""
-    exc_kind: str = "error"  # "fail": an AssertionError subclass, else a plain Exception
-    exc_tb: dict[str, Any] | None = None
-    infra_error: str | None = None
-    worker_pid: int = 0
-
-
 # --------------------------------------------------------------------------- client side
 def pack_spec(spec: TestSpec) -> bytes:
     """The spec as bytes, pickled with cloudpickle.
@@ -116,41 +93,6 @@ def pack_spec(spec: TestSpec) -> bytes:
             cloudpickle.unregister_pickle_by_value(mod)
 
 
-def to_outcome(wire: WireOutcome) -> CaseOutcome:
-    """The client's :class:`CaseOutcome` for a wire outcome (exception re-created)."""
-    if wire.infra_error is not None:
-        return CaseOutcome(params=dict(wire.params), verdict="error", error=wire.infra_error)
-    return CaseOutcome(params=dict(wire.params), verdict=wire.verdict, rho=dict(wire.rho),
-                       results=dict(wire.results), violated=list(wire.violated),
-                       exc=_revive_exception(wire), error=wire.error, sim_time_s=wire.sim_time_s)
-
-
-def _revive_exception(wire: WireOutcome) -> BaseException | None:
-    if wire.exc_type is None:
-        return None
-    exc: BaseException | None = None
-    if wire.exc_pickle is not None:
-        try:
-            exc = pickle.loads(wire.exc_pickle)
-        except Exception:  # the class is not importable here: fall back to a stand-in
-            exc = None
-    if exc is None:
-        module, name = wire.exc_type
-        base = AssertionError if wire.exc_kind == "fail" else Exception
-        # same __name__ as the remote class, so CaseOutcome.signature matches across retries
-        stand_in = type(name.rpartition(".")[2], (base,), {"__module__": module,
-                                                          "__doc__": "re-created from a worker"})
-        exc = stand_in(wire.exc_text)
-    if wire.exc_tb is not None:
-        try:
-            from tblib import Traceback
-
-            exc = exc.with_traceback(Traceback.from_dict(wire.exc_tb).as_traceback())
-        except Exception:  # a traceback we cannot rebuild must not hide the failure itself
-            pass
-    return exc
-
-
 # --------------------------------------------------------------------------- worker side
 # Per worker process: specs already unpickled (by digest) and the stamp of each test module
 # imported, so a module edited between runs against a long-lived cluster is imported anew.
@@ -163,7 +105,7 @@ def spec_digest(spec_bytes: bytes) -> str:
 
 
 def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
-               fields: CaseFields) -> WireOutcome:
+               fields: CaseFields) -> CaseOutcome:
     """Run one case on this process and return what crosses the wire back.
 
     Never raises for anything the case or the test module does: those come back as the
@@ -173,14 +115,14 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
         module = import_test_module(module_path, rootdir)
         spec, func = _load_spec(spec_bytes, digest, module)
     except BaseException as exc:  # noqa: BLE001 - report anything, even SystemExit, as data
-        return WireOutcome(params=dict(fields.params), verdict="error", worker_pid=os.getpid(),
-                           infra_error=(f"could not load {fields.nodeid} on the worker (pid "
-                                        f"{os.getpid()}): {type(exc).__name__}: {exc}"))
+        return CaseOutcome(params=dict(fields.params), verdict="error", worker_pid=os.getpid(),
+                           error=(f"could not load {fields.nodeid} on the worker (pid "
+                                  f"{os.getpid()}): {type(exc).__name__}: {exc}"))
     unknown = [a for a in spec.argnames if a not in REMOTE_FIXTURES]
     if unknown:
-        return WireOutcome(params=dict(fields.params), verdict="error", worker_pid=os.getpid(),
-                           infra_error=(f"{fields.nodeid} requests {', '.join(unknown)}: only "
-                                        "case, world and avs_driver exist on a remote worker"))
+        return CaseOutcome(params=dict(fields.params), verdict="error", worker_pid=os.getpid(),
+                           error=(f"{fields.nodeid} requests {', '.join(unknown)}: only "
+                                  "case, world and avs_driver exist on a remote worker"))
     case = Case(fields.params, index=fields.index, seed=fields.seed, sampler=fields.sampler,
                 origin=fields.origin, test=fields.test)
     driver, nodeid = spec.driver, fields.nodeid
@@ -193,11 +135,12 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
     fixtures = {"avs_driver": driver} if "avs_driver" in spec.argnames else {}
     body = func if fields.timeout_s is None else _bounded(func, float(fields.timeout_s))
     outcome = run_case(body, spec.argnames, fixtures, case, spec.monitor_set, make_world)
-    return to_wire(outcome)
+    outcome.worker_pid = os.getpid()
+    return outcome  # pickles without its world and trajectory (see CaseOutcome.__getstate__)
 
 
 def run_remote_many(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
-                    fields: list[CaseFields]) -> list[WireOutcome]:
+                    fields: list[CaseFields]) -> list[CaseOutcome]:
     """:func:`run_remote` for several cases of one test, in order (one task, one round trip)."""
     return [run_remote(spec_bytes, digest, module_path, rootdir, f) for f in fields]
 
@@ -242,33 +185,6 @@ def _bounded(func: Any, seconds: float) -> Any:
             ctypes.pythonapi.PyThreadState_SetAsyncExc(target, None)
 
     return call
-
-
-def to_wire(outcome: CaseOutcome) -> WireOutcome:
-    """The outcome as plain, picklable data (see :class:`WireOutcome`)."""
-    wire = WireOutcome(params=dict(outcome.params), verdict=outcome.verdict,
-                       rho=dict(outcome.rho), results=dict(outcome.results),
-                       violated=list(outcome.violated), error=outcome.error,
-                       sim_time_s=outcome.sim_time_s, worker_pid=os.getpid())
-    exc = outcome.exc
-    if exc is not None:
-        cls = type(exc)
-        wire.exc_type = (cls.__module__, cls.__qualname__)
-        wire.exc_text = str(exc)
-        wire.exc_kind = "fail" if isinstance(exc, AssertionError) else "error"
-        try:
-            data = pickle.dumps(exc)
-            pickle.loads(data)  # some exceptions pickle but do not unpickle (required args)
-            wire.exc_pickle = data
-        except Exception:
-            wire.exc_pickle = None
-        try:
-            from tblib import Traceback
-
-            wire.exc_tb = Traceback(exc.__traceback__).to_dict()
-        except Exception:
-            wire.exc_tb = None
-    return wire
 
 
 def warm_up() -> int:

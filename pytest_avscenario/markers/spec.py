@@ -1,11 +1,15 @@
-"""What ``@scenario`` and ``@example`` record on a test function (plain data only)."""
+"""What ``@scenario`` and ``@example`` record on a test function (plain data only).
+
+pytest is imported when ``scenario(...)`` is called, not when this module is.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
-import pytest
+if TYPE_CHECKING:  # pragma: no cover
+    import pytest
 
 #: spec keywords of @scenario; every other keyword is a scenario parameter
 SPEC_KEYWORDS = (
@@ -94,6 +98,8 @@ def scenario(
         ).items()
     }
     spec = ScenarioSpec(parameters=dict(parameters), given=frozenset(given), **values)
+    import pytest  # here, not at module level: importing the library loads no pytest
+
     return pytest.mark.scenario.with_args(spec)
 
 

@@ -64,7 +64,7 @@ from .stl import (
     ttc_to,
     until,
 )
-from .serialize import rho_from_json, rho_from_str, rho_to_json, rho_to_str
+from ..codec import rho_from_json, rho_from_str, rho_to_json, rho_to_str
 from .sets import MonitorSet, Verdict
 
 __all__ = [

@@ -59,7 +59,7 @@ class MonitorResult:
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-safe dict; ``±inf`` become the strings ``"inf"``/``"-inf"``."""
-        from .serialize import rho_to_json
+        from ..codec import rho_to_json
 
         return {
             "name": self.name,
@@ -72,7 +72,7 @@ class MonitorResult:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> "MonitorResult":
-        from .serialize import rho_from_json
+        from ..codec import rho_from_json
 
         thr = data.get("threshold")
         return cls(

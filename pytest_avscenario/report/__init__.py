@@ -1,6 +1,6 @@
 """The run's report: error table, ε-coverage, the paper's summary table, JUnit, plots, HTML.
 
-Everything here takes plain data (row dicts, numpy arrays, summary rows) and produces files
+Everything here takes plain data (:class:`~pytest_avscenario.outcome.CaseRow` s, numpy arrays, summary rows) and produces files
 or strings; nothing imports pytest, and importing this package pulls in neither matplotlib
 nor scipy (they load inside the functions that draw or search). The plugin wires it into
 pytest's hooks: :mod:`.table` writes rows as cases finish, :mod:`.summary` computes the
@@ -16,13 +16,8 @@ from .table import (
     atomic_write_bytes,
     atomic_write_text,
     file_slug,
-    normalize_row,
     prepare_report_dir,
     read_rows,
-    rho_from_json,
-    rho_to_json,
-    row_from_json,
-    row_to_json,
 )
 
 __all__ = [
@@ -33,11 +28,6 @@ __all__ = [
     "fraction_within",
     "ErrorTable",
     "read_rows",
-    "normalize_row",
-    "row_to_json",
-    "row_from_json",
-    "rho_to_json",
-    "rho_from_json",
     "atomic_write_text",
     "atomic_write_bytes",
     "prepare_report_dir",

@@ -54,9 +54,9 @@ def finish_report(
     )
     images: dict[str, Any] = {}
     tables: dict[str, list[Path]] = {"": [p for p in (root / MAIN_JSONL, root / SHRINK_JSONL, root / SUMMARY_JSON) if p.exists()]}
-    by_test: dict[str, list[dict]] = {}
+    by_test: dict[str, list[Any]] = {}
     for r in main:
-        by_test.setdefault(r["test"], []).append(r)
+        by_test.setdefault(r.test, []).append(r)
     for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
         slug = file_slug(test)
         tables[test] = [p for p in (root / TABLES_DIR / f"{slug}.csv", root / TABLES_DIR / f"{slug}.shrink.csv") if p.exists()]

@@ -31,8 +31,9 @@ import re
 import xml.etree.ElementTree as ET
 from typing import Any, Iterable, Mapping
 
-from ..monitors.serialize import rho_to_str
-from .table import atomic_write_bytes, normalize_row, _jsonable
+from ..codec import jsonable, rho_to_str
+from ..outcome import CaseRow
+from .table import atomic_write_bytes
 
 __all__ = [
     "case_properties",
@@ -57,7 +58,7 @@ def _num(value: float | None) -> str:
 
 
 def case_properties(
-    row: Mapping[str, Any],
+    row: CaseRow | Mapping[str, Any],
     *,
     minimized: Mapping[str, Any] | None = None,
     shrink_sims: int | None = None,
@@ -68,24 +69,26 @@ def case_properties(
     keys in declaration order), ``avs.rho.<metric>`` (``repr`` of the float, ``inf`` /
     ``-inf``), ``avs.verdict``, ``avs.sim_time_s``; for a shrunk counterexample also
     ``avs.minimized`` (JSON of the minimal parameters) and ``avs.shrink_sims`` (simulations
-    the shrinking spent); ``avs.error`` when the simulation raised.
+    the shrinking spent), from the row unless given; ``avs.error`` when the simulation raised.
     """
-    r = normalize_row(row)
+    r = CaseRow.coerce(row)
+    minimized = r.minimized if minimized is None else minimized
+    shrink_sims = r.shrink_sims if shrink_sims is None else shrink_sims
     props = [
-        ("avs.sampler", r["sampler"]),
-        ("avs.index", str(r["index"])),
-        ("avs.seed", "" if r["seed"] is None else str(r["seed"])),
-        ("avs.origin", r["origin"]),
-        ("avs.params", json.dumps(_jsonable(r["params"]), ensure_ascii=False)),
+        ("avs.sampler", r.sampler),
+        ("avs.index", str(r.index)),
+        ("avs.seed", "" if r.seed is None else str(r.seed)),
+        ("avs.origin", r.origin),
+        ("avs.params", json.dumps(jsonable(dict(r.params)), ensure_ascii=False)),
     ]
-    props += [(f"avs.rho.{m}", _num(v)) for m, v in r["rho"].items()]
-    props += [("avs.verdict", r["verdict"]), ("avs.sim_time_s", f"{r['sim_time_s']:.4f}")]
+    props += [(f"avs.rho.{m}", _num(v)) for m, v in r.rho.items()]
+    props += [("avs.verdict", r.verdict), ("avs.sim_time_s", f"{r.sim_time_s:.4f}")]
     if minimized is not None:
-        props.append(("avs.minimized", json.dumps(_jsonable(dict(minimized)), ensure_ascii=False)))
+        props.append(("avs.minimized", json.dumps(jsonable(dict(minimized)), ensure_ascii=False)))
     if shrink_sims is not None:
         props.append(("avs.shrink_sims", str(int(shrink_sims))))
-    if r["error"]:
-        props.append(("avs.error", r["error"]))
+    if r.error:
+        props.append(("avs.error", r.error))
     return [(name, xml_safe(value)) for name, value in props]
 
 

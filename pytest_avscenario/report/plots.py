@@ -21,6 +21,8 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+from ..outcome import CaseRow
+
 from .table import atomic_write_bytes, file_slug
 
 __all__ = ["plot_feature_space", "plot_rho_over_index", "plot_test", "PLOTS_DIR"]
@@ -56,7 +58,7 @@ def _is_number(v: Any) -> bool:
 
 def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
     """Numbers to plot for one parameter, and tick labels when it is categorical."""
-    values = [r["params"].get(name) for r in rows]
+    values = [r.params.get(name) for r in rows]
     if all(_is_number(v) for v in values):
         return [float(v) for v in values], None
     # Categorical (or mixed): position by first appearance, label with the value itself.
@@ -71,7 +73,7 @@ def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
 
 def _varying(rows: Sequence[Mapping[str, Any]], names: Sequence[str]) -> list[str]:
     # A parameter that never changes (a constant) is a wasted row and column of panels.
-    return [n for n in names if len({repr(r["params"].get(n)) for r in rows}) > 1]
+    return [n for n in names if len({repr(r.params.get(n)) for r in rows}) > 1]
 
 
 def plot_feature_space(
@@ -87,14 +89,14 @@ def plot_feature_space(
     the rows' order, at most six). One parameter gives a strip plot over the case index.
     Returns None (and writes nothing) when there are no rows or no varying parameter.
     """
-    rows = [r for r in rows if r.get("params") is not None]
+    rows = [CaseRow.coerce(r) for r in rows]
     if not rows:
         return None
-    names = list(params) if params is not None else list(rows[0]["params"])
+    names = list(params) if params is not None else list(rows[0].params)
     names = _varying(rows, names)[:_MAX_PARAMS]
     if not names:
         return None
-    verdicts = [r.get("verdict", "pass") for r in rows]
+    verdicts = [r.verdict for r in rows]
     cols = {n: _axis_values(rows, n) for n in names}
     k = len(names)
     size = 2.6 if k > 2 else 4.2
@@ -121,7 +123,7 @@ def plot_feature_space(
     if k == 1:
         fig.subplots_adjust(left=0.16, right=0.97, bottom=0.12, top=0.9)
         ax = fig.add_subplot(1, 1, 1)
-        xs = [float(r.get("index", i)) for i, r in enumerate(rows)]
+        xs = [float(r.index) for r in rows]
         scatter(ax, xs, cols[names[0]][0])
         ax.set_xlabel("case index")
         label_axis(ax, "y", names[0])
@@ -183,28 +185,28 @@ def plot_rho_over_index(
     drawn at the top or bottom edge of the panel as triangles (a value off the scale, not a
     missing one). Returns None when there is nothing to plot.
     """
-    rows = sorted((r for r in rows if r.get("rho")), key=lambda r: (str(r.get("sampler")), r.get("index", 0)))
+    rows = sorted((r for r in map(CaseRow.coerce, rows) if r.rho), key=lambda r: (r.sampler, r.index))
     if not rows:
         return None
     if metrics is None:
         metrics = []
         for r in rows:
-            metrics += [m for m in r["rho"] if m not in metrics]
+            metrics += [m for m in r.rho if m not in metrics]
     metrics = list(metrics)
-    samplers = list(dict.fromkeys(str(r.get("sampler")) for r in rows))
+    samplers = list(dict.fromkeys(r.sampler for r in rows))
     markers = dict(zip(samplers, "o s D v P X *".split() * 4))
     height = 1.9 * len(metrics) + 1.1
     fig = _figure(7.5, height)
     fig.subplots_adjust(left=0.11, right=0.98, top=1 - 0.4 / height, bottom=0.75 / height, hspace=0.12)
     axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)
     for ax, metric in zip((a[0] for a in axes), metrics):
-        lo, hi = _finite_limits([r["rho"].get(metric) for r in rows])
+        lo, hi = _finite_limits([r.rho.get(metric) for r in rows])
         ax.axhline(0.0, color="black", linewidth=0.8)
         ax.axhspan(lo, 0.0, color=_COLOURS["fail"], alpha=0.06)
         for sampler in samplers:
-            sub = [r for r in rows if str(r.get("sampler")) == sampler and r["rho"].get(metric) is not None]
-            xs = [r.get("index", 0) for r in sub]
-            ys = [r["rho"][metric] for r in sub]
+            sub = [r for r in rows if r.sampler == sampler and r.rho.get(metric) is not None]
+            xs = [r.index for r in sub]
+            ys = [r.rho[metric] for r in sub]
             finite = [(x, y) for x, y in zip(xs, ys) if math.isfinite(y)]
             if finite:
                 ax.plot([x for x, _ in finite], [y for _, y in finite], color="#bbbbbb", linewidth=0.6, zorder=1)
@@ -235,7 +237,7 @@ def _rho_legend(samplers, markers, rows, metrics):
         return Line2D([], [], linestyle="none", marker=marker, markersize=5, color=colour, label=label)
 
     out = [handle("o", _COLOURS["pass"], "ρ ≥ 0 holds"), handle("o", _COLOURS["fail"], "ρ < 0 violated")]
-    values = [r["rho"].get(m) for r in rows for m in metrics]
+    values = [r.rho.get(m) for r in rows for m in metrics]
     if any(v is not None and v == math.inf for v in values):
         out.append(handle("^", _COLOURS["pass"], "+inf"))
     if any(v is not None and v == -math.inf for v in values):

@@ -27,7 +27,8 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from .coverage import DEFAULT_TOL
-from .table import rho_from_json
+from ..codec import rho_to_str
+from ..outcome import CaseRow
 
 __all__ = [
     "TestInfo",
@@ -84,14 +85,14 @@ class SummaryRow:
     failed_items: tuple[str, ...] = field(default=())
 
 
-def _unit_points(rows: Sequence[Mapping[str, Any]], space: Any):
+def _unit_points(rows: Sequence[CaseRow], space: Any):
     import numpy as np
 
     mask = np.asarray(space.continuous_mask(), dtype=bool)
     pts = []
     for r in rows:
         try:
-            u = np.asarray(space.to_unit(r["params"]), dtype=float)[mask]
+            u = np.asarray(space.to_unit(dict(r.params)), dtype=float)[mask]
         except (KeyError, ValueError, TypeError):
             # A row whose parameters do not fit the space (hand-written, or from an older
             # declaration) cannot be placed; it still counts as a sample, just not for ε.
@@ -103,7 +104,7 @@ def _unit_points(rows: Sequence[Mapping[str, Any]], space: Any):
 
 
 def summarize(
-    rows: Iterable[Mapping[str, Any]],
+    rows: Iterable[CaseRow | Mapping[str, Any]],
     tests: Mapping[str, TestInfo] | None = None,
     *,
     tol: float = DEFAULT_TOL,
@@ -121,8 +122,8 @@ def summarize(
 
     tests = dict(tests or {})
     groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
-    for r in rows:
-        groups.setdefault((str(r["test"]), str(r["sampler"])), []).append(r)
+    for r in map(CaseRow.coerce, rows):
+        groups.setdefault((r.test, r.sampler), []).append(r)
     order = {t: i for i, t in enumerate(tests)}
     keys = sorted(groups, key=lambda k: (order.get(k[0], len(order)), 0))
     # sorted() is stable, so within a test the samplers keep their first-appearance order.
@@ -131,21 +132,21 @@ def summarize(
     for test, sampler in keys:
         group = groups[(test, sampler)]
         info = tests.get(test, TestInfo())
-        main = [r for r in group if r.get("origin") != "shrink"]
-        shrink = [r for r in group if r.get("origin") == "shrink"]
-        sampled = [r for r in main if r.get("origin") == "sampled"]
+        main = [r for r in group if r.origin != "shrink"]
+        shrink = [r for r in group if r.origin == "shrink"]
+        sampled = [r for r in main if r.origin == "sampled"]
         metrics = list(info.metrics)
         for r in group:  # metrics seen but not declared still get a column, after the declared
-            for m in r.get("rho", {}):
+            for m in r.rho:
                 if m not in metrics:
                     metrics.append(m)
         violations = {
-            m: sum(1 for r in sampled if _violated(r.get("rho", {}).get(m))) for m in metrics
+            m: sum(1 for r in sampled if _violated(r.rho.get(m))) for m in metrics
         }
-        failing = [r for r in main if r.get("verdict") == "fail"]
-        failing_items = {str(r.get("item") or r["test"]) for r in failing}
-        shrunk = {str(r.get("item")) for r in shrink if r.get("verdict") == "fail"}
-        shrunk |= {str(r.get("item") or r["test"]) for r in failing if r.get("minimized")}
+        failing = [r for r in main if r.verdict == "fail"]
+        failing_items = {r.item for r in failing}
+        shrunk = {r.item for r in shrink if r.verdict == "fail"}
+        shrunk |= {r.item for r in failing if r.minimized}
         space = info.space
         continuous = tuple(getattr(space, "continuous", ()) or ()) if space is not None else ()
         eps = cover = frac = None
@@ -171,10 +172,10 @@ def summarize(
                 continuous=continuous,
                 counterexamples=len(failing),
                 minimized=len(shrunk & failing_items),
-                errors=sum(1 for r in main if r.get("verdict") == "error"),
+                errors=sum(1 for r in main if r.verdict == "error"),
                 cases=len(main),
                 shrink_sims=len(shrink),
-                sim_time_s=float(sum(float(r.get("sim_time_s") or 0.0) for r in group)),
+                sim_time_s=float(sum(r.sim_time_s for r in group)),
                 failed_items=tuple(sorted(failing_items)),
             )
         )
@@ -187,11 +188,9 @@ def _summary_resolution(d: int) -> int:
     return max(2, int(math.floor((1 << 18) ** (1.0 / d) + 1e-9)))
 
 
-def _violated(rho: Any) -> bool:
-    # Rows may carry rho as floats or in JSON form ("inf", "-inf"); NaN is not a violation
-    # verdict we can stand behind, so it does not count.
-    value = rho_from_json(rho)
-    return value is not None and not math.isnan(value) and value < 0
+def _violated(rho: float | None) -> bool:
+    # NaN is not a violation verdict we can stand behind, so it does not count
+    return rho is not None and not math.isnan(rho) and rho < 0
 
 
 def metric_columns(summary: Sequence[SummaryRow]) -> list[str]:
@@ -266,9 +265,7 @@ def _prop_value(value: Any) -> str:
     if value is None:
         return DASH
     if isinstance(value, float):
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return f"{value:.6g}"
+        return f"{value:.6g}" if math.isfinite(value) else rho_to_str(value)
     return str(value)
 
 

@@ -20,16 +20,11 @@ cells; the combined JSONL keeps exact types (±inf, ints, strings) for programs,
 the CSV is rewritten atomically with the wider header (rare: all cases of a test share their
 parameters and metrics).
 
-A row is a plain dict::
-
-    {"test": nodeid of the function, "item": full item id, "sampler": str, "index": int,
-     "seed": int | None, "origin": "sampled" | "replay" | "example" | "pinned" | "shrink",
-     "params": {name: value}, "rho": {metric: float}, "verdict": "pass" | "fail" | "error",
-     "sim_time_s": float, "error": str | None}
-
+A row is a :class:`~pytest_avscenario.outcome.CaseRow` (frozen); a JSONL line is its
+:meth:`~pytest_avscenario.outcome.CaseRow.to_json`, and :func:`read_rows` gives rows back.
 Robustness values may be ±inf (a metric that holds trivially); they are written as the
 strings ``"inf"`` / ``"-inf"`` (and ``"nan"``) in JSON and CSV and read back as floats, with
-the monitors' serializer (:mod:`pytest_avscenario.monitors.serialize`).
+the one codec every file uses (:mod:`pytest_avscenario.codec`).
 """
 
 from __future__ import annotations
@@ -47,17 +42,13 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping
 
-from ..monitors import serialize as _serialize
+from ..codec import jsonable, rho_from_json, rho_to_str
+from ..outcome import CaseRow
 
 __all__ = [
     "ErrorTable",
     "read_rows",
     "read_csv_rows",
-    "normalize_row",
-    "row_to_json",
-    "row_from_json",
-    "rho_to_json",
-    "rho_from_json",
     "atomic_write_text",
     "atomic_write_bytes",
     "prepare_report_dir",
@@ -65,106 +56,14 @@ __all__ = [
     "MAIN_JSONL",
     "SHRINK_JSONL",
     "TABLES_DIR",
-    "ORIGINS",
-    "VERDICTS",
 ]
 
 MAIN_JSONL = "errors.jsonl"
 SHRINK_JSONL = "shrink.jsonl"
 TABLES_DIR = "tables"
-ORIGINS = ("sampled", "replay", "example", "pinned", "shrink")
-VERDICTS = ("pass", "fail", "error")
 
 # Fixed leading CSV columns, in the order an engineer scans them.
 _CSV_FIXED = ("test", "item", "sampler", "index", "seed", "origin", "verdict", "sim_time_s", "error")
-_REQUIRED = ("test", "sampler", "index", "origin", "params", "rho", "verdict")
-
-
-# --------------------------------------------------------------------------- values
-
-
-def rho_to_json(value: Any) -> float | str | None:
-    """A robustness value as JSON-safe data: finite floats stay numbers, ±inf/nan strings.
-
-    Delegates to :mod:`pytest_avscenario.monitors.serialize` (one encoding for every report)
-    and adds ``None`` for a metric that was not evaluated (an errored case).
-    """
-    if value is None:
-        return None
-    return _serialize.rho_to_json(value)
-
-
-def rho_from_json(value: Any) -> float | None:
-    """Inverse of :func:`rho_to_json`; also reads CSV cells (numbers as text, "" = None)."""
-    if value is None or value == "":
-        return None
-    return _serialize.rho_from_json(value)
-
-
-def _jsonable(value: Any) -> Any:
-    """Parameter values as JSON data: numpy scalars unwrapped, non-finite floats as strings."""
-    if isinstance(value, bool) or value is None or isinstance(value, str):
-        return value
-    if isinstance(value, int):
-        return int(value)
-    if isinstance(value, float):
-        return value if math.isfinite(value) else rho_to_json(value)
-    item = getattr(value, "item", None)
-    if callable(item) and getattr(value, "shape", None) == ():  # numpy scalar / 0-d array
-        return _jsonable(item())
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
-        seq = value.tolist() if hasattr(value, "tolist") else value
-        return [_jsonable(v) for v in seq]
-    # Anything else (an enum, a custom object) is shown, not lost.
-    return repr(value)
-
-
-def normalize_row(row: Mapping[str, Any]) -> dict[str, Any]:
-    """Check a row and return a copy with canonical types (rho as floats, defaults filled).
-
-    Raises ValueError naming the missing or bad key, so a wiring mistake surfaces at the first
-    case instead of as an unreadable table.
-    """
-    missing = [k for k in _REQUIRED if k not in row]
-    if missing:
-        raise ValueError(f"error-table row lacks {missing}; got keys {sorted(row)}")
-    if row["origin"] not in ORIGINS:
-        raise ValueError(f"row origin must be one of {ORIGINS}, got {row['origin']!r}")
-    if row["verdict"] not in VERDICTS:
-        raise ValueError(f"row verdict must be one of {VERDICTS}, got {row['verdict']!r}")
-    if not isinstance(row["params"], Mapping) or not isinstance(row["rho"], Mapping):
-        raise ValueError("row 'params' and 'rho' must be mappings {name: value}")
-    out = dict(row)
-    out["test"] = str(row["test"])
-    out["item"] = str(row.get("item") or row["test"])
-    out["sampler"] = str(row["sampler"])
-    out["index"] = int(row["index"])
-    out["seed"] = None if row.get("seed") is None else int(row["seed"])
-    out["params"] = dict(row["params"])
-    # rho_from_json takes floats and JSON-form strings alike, so a row that already went
-    # through row_to_json (as it does on its way from an xdist worker) is accepted as is.
-    out["rho"] = {str(k): rho_from_json(v) for k, v in row["rho"].items()}
-    out["sim_time_s"] = float(row.get("sim_time_s") or 0.0)
-    out["error"] = None if row.get("error") is None else str(row["error"])
-    return out
-
-
-def row_to_json(row: Mapping[str, Any]) -> dict[str, Any]:
-    """A row as JSON-safe data (what goes on one JSONL line, or across an xdist channel)."""
-    r = normalize_row(row)
-    out = {k: _jsonable(v) for k, v in r.items() if k not in ("rho", "params")}
-    out["params"] = _jsonable(r["params"])
-    out["rho"] = {k: rho_to_json(v) for k, v in r["rho"].items()}
-    return out
-
-
-def row_from_json(data: Mapping[str, Any]) -> dict[str, Any]:
-    """Inverse of :func:`row_to_json`: rho values back to floats (±inf included)."""
-    out = dict(data)
-    out["rho"] = {k: rho_from_json(v) for k, v in data.get("rho", {}).items()}
-    return out
 
 
 # --------------------------------------------------------------------------- files
@@ -274,7 +173,7 @@ def _csv_cell(value: Any) -> Any:
         return ""
     if isinstance(value, float):
         # repr keeps every digit, so a CSV value round-trips to the exact simulated float.
-        return repr(value) if math.isfinite(value) else rho_to_json(value)
+        return repr(value) if math.isfinite(value) else rho_to_str(value)
     if isinstance(value, (str, int)):
         return value
     return json.dumps(value, sort_keys=True)
@@ -332,12 +231,12 @@ def _order_columns(columns: Iterable[str]) -> list[str]:
     return fixed + params + rhos + rest
 
 
-def _csv_cells(row: Mapping[str, Any]) -> dict[str, Any]:
-    cells = {k: _csv_cell(row.get(k)) for k in _CSV_FIXED}
-    for name, value in row["params"].items():
-        cells[f"param.{name}"] = _csv_cell(_jsonable(value))
-    for name, value in row["rho"].items():
-        cells[f"rho.{name}"] = _csv_cell(rho_to_json(value))
+def _csv_cells(row: CaseRow) -> dict[str, Any]:
+    cells = {k: _csv_cell(getattr(row, k)) for k in _CSV_FIXED}
+    for name, value in row.params.items():
+        cells[f"param.{name}"] = _csv_cell(jsonable(value))
+    for name, value in row.rho.items():
+        cells[f"rho.{name}"] = _csv_cell(value)
     return cells
 
 
@@ -387,27 +286,27 @@ class ErrorTable:
             out.setdefault(test, []).append(f.path)
         return out
 
-    def append(self, row: Mapping[str, Any]) -> dict[str, Any]:
-        """Write one finished case; returns the normalized row. On disk when this returns."""
-        data = row_to_json(row)
-        line = json.dumps(data, allow_nan=False, ensure_ascii=False) + "\n"
-        shrink = data["origin"] == "shrink"
-        cells = _csv_cells(row_from_json(data))
+    def append(self, row: CaseRow | Mapping[str, Any]) -> CaseRow:
+        """Write one finished case (a row, or its JSON data); on disk when this returns."""
+        row = CaseRow.coerce(row)
+        line = json.dumps(row.to_json(), allow_nan=False, ensure_ascii=False) + "\n"
+        shrink = row.origin == "shrink"
+        cells = _csv_cells(row)
         with self._lock:
             fh = self._jsonl[shrink]
             fh.write(line)
             fh.flush()
             if self.fsync:
                 os.fsync(fh.fileno())
-            key = (data["test"], shrink)
+            key = (row.test, shrink)
             f = self._csv.get(key)
             if f is None:
                 f = self._csv[key] = _CsvFile(
-                    self.csv_path(data["test"], shrink), _order_columns(cells), self.fsync
+                    self.csv_path(row.test, shrink), _order_columns(cells), self.fsync
                 )
             f.write(cells)
             self.counts["shrink" if shrink else "main"] += 1
-        return row_from_json(data)
+        return row
 
     def close(self) -> None:
         with self._lock:
@@ -427,14 +326,14 @@ class ErrorTable:
 # --------------------------------------------------------------------------- reading
 
 
-def _iter_jsonl(path: Path) -> Iterator[dict[str, Any]]:
+def _iter_jsonl(path: Path) -> Iterator[CaseRow]:
     with open(path, encoding="utf-8") as fh:
         lines = fh.readlines()
     for n, line in enumerate(lines, 1):
         if not line.strip():
             continue
         try:
-            yield row_from_json(json.loads(line))
+            yield CaseRow.from_json(json.loads(line))
         except json.JSONDecodeError:
             # Only the very last line can be torn (a process killed mid-write); anything
             # earlier is real corruption and must not be skipped silently.
@@ -444,7 +343,7 @@ def _iter_jsonl(path: Path) -> Iterator[dict[str, Any]]:
             raise ValueError(f"{path}:{n}: not a JSON row: {line[:80]!r}") from None
 
 
-def read_rows(source: str | os.PathLike, *, shrink: bool = False) -> list[dict[str, Any]]:
+def read_rows(source: str | os.PathLike, *, shrink: bool = False) -> list[CaseRow]:
     """Load rows back: from a report directory (its ``errors.jsonl``, or ``shrink.jsonl``
     with ``shrink=True``) or from a ``.jsonl`` file. rho values come back as floats."""
     path = Path(source)

@@ -16,14 +16,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..codec import rho_to_json
 from ..space import FeatureSpace
+from .errors import SamplerError
 
 Rho = float | Mapping[str, float] | None
-
-
-class SamplerError(ValueError):
-    """A sampler was asked for by an unknown name or given options it does not take."""
-
 
 # name -> "module:ClassName" (imported lazily) or the class itself
 _REGISTRY: dict[str, Any] = {
@@ -209,9 +206,8 @@ class Sampler:
         self.rng.bit_generator.state = _rng_from_json(state["rng"])
 
 
-def json_float(x: float) -> float | str:
-    """A float for strict JSON: +-inf become the strings "inf"/"-inf" (float() reads them)."""
-    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+# a float for strict JSON, encoded as everywhere else (±inf and NaN as strings)
+json_float = rho_to_json
 
 
 def _compile(space: FeatureSpace) -> list[tuple[str, int, Any, float, Any]]:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable, Sequence
 
-from .base import SamplerError
+from .errors import SamplerError
 
 Pattern = frozenset  # frozenset[str]: the metrics a case violates
 

@@ -1,15 +1,19 @@
-"""One scenario item's run, from the case to everything the reports need.
+"""One scenario test's campaign while it runs, and one item's run within it.
 
-:func:`run_item` is what the plugin's ``pytest_pyfunc_call`` does for a scenario item: have the
-executor simulate the case, tell an active sampler, and for a failure replay it once (flaky?),
-minimize it with Hypothesis under the simulation budget, store it in the replay database and
-draw its worst moment. The error-table row, the shrink rows and the pictures go into the
-item's stash, from where the plugin hands them to the controller with the report.
+:class:`Campaign` is the running state of a test's campaign — its live active samplers, how
+many failures were minimized, when each sampler's campaign started — kept apart from the
+read-only :class:`~.collect.ScenarioPlan`. :func:`run_item` is what ``pytest_pyfunc_call``
+does for a scenario item: have the executor simulate the case, tell an active sampler, and
+for a failure replay it once (flaky?), minimize it with Hypothesis under the simulation
+budget, store it in the replay database and draw its worst moment. The item's
+:class:`~pytest_avscenario.outcome.CaseRow`, its shrink rows and its pictures go into the
+item's stash, from where the hooks hand them to the controller with the report.
 """
 
 from __future__ import annotations
 
 import json
+import time
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -17,13 +21,72 @@ from typing import Any
 
 import pytest
 
-from .case import Case
-from .expansion import CaseSlot, ScenarioPlan, active_sampler, function_id, plan_of
-from .keys import db_key, executor_key, pictures_key, row_key, session_key, shrink_rows_key
-from .messages import failure_message
-from .reporting import versions
-from .runner import CaseOutcome
-from .settings import dask_address, default_driver, executor_name, gif_cap
+from ..case import Case
+from ..outcome import CaseOutcome, CaseRow
+from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, slot_of
+from .failure import failure_message
+from .stash import (
+    campaigns_key,
+    controller_key,
+    db_key,
+    executor_key,
+    pictures_key,
+    row_key,
+    settings_key,
+    shrink_rows_key,
+)
+
+
+@dataclass
+class Campaign:
+    """The running state of one scenario test's campaign (all its samplers)."""
+
+    plan: ScenarioPlan
+    active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
+    shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
+    gifs: int = 0  # GIFs rendered so far for this test
+    started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
+    ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
+    # asking ahead on a cluster: (sampler, index) -> the item, values asked, last index asked
+    items: dict[tuple[str, int], Any] = field(default_factory=dict)
+    asked: dict[tuple[str, int], dict[str, Any]] = field(default_factory=dict)
+    asked_upto: dict[str, int] = field(default_factory=dict)
+
+    def sampler(self, name: str) -> Any:
+        """The live active sampler ``name`` of this campaign, made on first use."""
+        if name not in self.active:
+            self.active[name] = self.plan.make_sampler(name)
+        return self.active[name]
+
+    def out_of_time(self, sampler: str) -> str | None:
+        """Why the next case of ``sampler`` is skipped (its time budget is spent), or None."""
+        budget = self.plan.time_budget_s
+        if budget is None:
+            return None
+        start = self.started.setdefault(sampler, time.monotonic())
+        if time.monotonic() - start <= budget:
+            return None
+        return f"time budget of {budget:g} s for {sampler} spent after {self.ran.get(sampler, 0)} cases"
+
+
+def campaign_of(item: pytest.Item) -> Campaign:
+    campaigns = item.config.stash[campaigns_key]
+    test = function_id(item)
+    if test not in campaigns:
+        campaigns[test] = Campaign(plan_of(item))
+    return campaigns[test]
+
+
+def case_for(item: pytest.Item, slot: CaseSlot) -> Case:
+    """The case of ``item``: the slot's values, or an active sampler's answer now."""
+    campaign = campaign_of(item)
+    params = slot.params
+    if params is None:
+        params = campaign.asked.pop((slot.sampler, slot.index), None)  # asked ahead for a cluster
+    if params is None:
+        params = campaign.sampler(slot.sampler).ask()
+    pinned = item.config.stash[settings_key].pinned
+    return slot.case(item.nodeid, params, origin="pinned" if pinned else None)
 
 
 @dataclass
@@ -36,7 +99,7 @@ class ShrinkReport:
     minimized: dict[str, Any] | None = None
     outcome: CaseOutcome | None = None  # the minimized case's outcome
     exhausted: bool = False
-    rows: list[dict[str, Any]] = field(default_factory=list)
+    rows: list[CaseRow] = field(default_factory=list)
 
 
 @dataclass
@@ -52,31 +115,33 @@ class ItemResult:
 def run_item(item: pytest.Function) -> ItemResult:
     """Run the item's case; tell an active sampler; shrink, store and draw a failure; record
     its row and properties for the reports."""
-    plan = plan_of(item)
+    campaign = campaign_of(item)
+    plan = campaign.plan
     case_obj: Case = item.funcargs["case"]
-    slot: CaseSlot = item.callspec.params["case"]
-    if slot.params is None and case_obj.origin == "sampled":
-        ask_ahead(item, plan, slot)
+    slot = slot_of(item)
+    asked = slot.params is None and case_obj.origin == "sampled"
+    if asked:
+        ask_ahead(item, campaign, slot)
     outcome = executor_of(item.config).run(make_job(item, plan, case_obj, fresh_world=False))
-    if slot.params is None and case_obj.origin == "sampled":
-        active_sampler(plan, slot.sampler).tell(
+    if asked:
+        campaign.sampler(slot.sampler).tell(
             outcome.params,
             None if outcome.verdict == "error" else (dict(outcome.rho) or body_rho(outcome)),
         )
-    plan.ran[slot.sampler] = plan.ran.get(slot.sampler, 0) + 1
+    campaign.ran[slot.sampler] = campaign.ran.get(slot.sampler, 0) + 1
 
     shrink = None
     capped = False
     if outcome.failed and case_obj.origin == "sampled" and plan.shrink_budget > 0:
-        done = plan.shrunk.get(slot.sampler, 0)
+        done = campaign.shrunk.get(slot.sampler, 0)
         capped = plan.shrink_max is not None and done >= plan.shrink_max
         if not capped:
-            plan.shrunk[slot.sampler] = done + 1
+            campaign.shrunk[slot.sampler] = done + 1
             shrink = shrink_case(item, plan, case_obj, outcome)
-    row = make_row(item, case_obj, outcome)
-    if shrink is not None and shrink.minimized is not None:
-        row["minimized"] = shrink.minimized
-        row["shrink_sims"] = shrink.sims
+    minimized = shrink is not None and shrink.minimized is not None
+    row = make_row(item, case_obj, outcome,
+                   minimized=shrink.minimized if minimized else None,
+                   shrink_sims=shrink.sims if minimized else None)
     item.stash[row_key] = row
     item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
     record_properties(item, row, shrink)
@@ -86,7 +151,7 @@ def run_item(item: pytest.Function) -> ItemResult:
     else:
         note = update_db(item, plan, slot, case_obj, outcome, shrink)
     if outcome.failed:
-        item.stash[pictures_key] = render_case(item, plan, outcome, shrink)
+        item.stash[pictures_key] = render_case(item, campaign, outcome, shrink)
     if outcome.verdict == "pass":
         return ItemResult(outcome)
     message = failure_message(item, case_obj, outcome, shrink, note)
@@ -95,7 +160,7 @@ def run_item(item: pytest.Function) -> ItemResult:
     return ItemResult(outcome, message, reraise)
 
 
-def ask_ahead(item: pytest.Function, plan: ScenarioPlan, slot: CaseSlot) -> None:
+def ask_ahead(item: pytest.Function, campaign: Campaign, slot: CaseSlot) -> None:
     """Keep a cluster busy with an active sampler: while case k runs, cases k+1 .. k+B-1 (B the
     cluster's capacity) are asked and started too, so the sampler learns of each case up to B-1
     cases late — as a parallel falsifier does. Nothing happens in-process or on an xdist
@@ -105,42 +170,58 @@ def ask_ahead(item: pytest.Function, plan: ScenarioPlan, slot: CaseSlot) -> None
     submit = getattr(executor, "submit", None)
     if submit is None or hasattr(item.config, "workerinput") or driver_ahead(item) is None:
         return
-    sampler = active_sampler(plan, slot.sampler)
-    start = max(slot.index, plan.asked_upto.get(slot.sampler, -1)) + 1
+    sampler = campaign.sampler(slot.sampler)
+    start = max(slot.index, campaign.asked_upto.get(slot.sampler, -1)) + 1
     jobs = []
     for j in range(start, slot.index + executor.capacity):
-        ahead = plan.items.get((slot.sampler, j))
+        ahead = campaign.items.get((slot.sampler, j))
         if ahead is None:
             break
         params = sampler.ask()
-        plan.asked[(slot.sampler, j)] = params
-        plan.asked_upto[slot.sampler] = j
-        case_j = Case(params, index=j, seed=ahead.callspec.params["case"].seed,
-                      sampler=slot.sampler, origin="sampled", test=ahead.nodeid)
-        jobs.append(make_job(ahead, plan, case_j, fresh_world=True, prefetch=True))
+        campaign.asked[(slot.sampler, j)] = params
+        campaign.asked_upto[slot.sampler] = j
+        case_j = slot_of(ahead).case(ahead.nodeid, params)
+        jobs.append(make_job(ahead, campaign.plan, case_j, fresh_world=True, prefetch=True))
     if jobs:
         submit(jobs)
 
 
+def prefetch_passive_cases(session: pytest.Session) -> None:
+    """Hand a remote executor the passive cases ahead, so its workers stay busy; remember the
+    items of active samplers, whose cases are asked ahead once items run."""
+    jobs = []
+    for item in session.items:
+        slot = slot_of(item)
+        if slot is None or item.get_closest_marker("scenario") is None:
+            continue
+        campaign = campaign_of(item)
+        if slot.params is None:
+            campaign.items[(slot.sampler, slot.index)] = item
+            continue
+        jobs.append(make_job(item, campaign.plan, slot.case(item.nodeid), fresh_world=True,
+                             prefetch=True))
+    if jobs:
+        executor_of(session.config).prefetch(jobs)
+
+
 def monitor_error_type() -> type:
-    from .monitors import MonitorError
+    from ..monitors import MonitorError
 
     return MonitorError
 
 
 def shrink_case(item: pytest.Function, plan: ScenarioPlan, case: Case, outcome: CaseOutcome) -> ShrinkReport:
     """Replay the failure once (flakiness), then minimize it toward the nominal scenario."""
-    from .shrink import minimize
+    from ..shrink import minimize
 
     report = ShrinkReport(flaky=False, sims=0, budget=plan.shrink_budget)
     outcomes: dict[str, CaseOutcome] = {}
     executor = executor_of(item.config)
-
+    slot = slot_of(item)
     progress = progress_writer(item.config)
 
     def simulate(params: dict[str, Any]) -> CaseOutcome:
-        candidate = Case(params, index=case.index, seed=case.seed, sampler=case.sampler,
-                         origin="shrink", test=item.nodeid)
+        candidate = slot.case(item.nodeid, params, origin="shrink")
         result = executor.run(make_job(item, plan, candidate, fresh_world=True))
         report.rows.append(make_row(item, candidate, result))
         done = len(report.rows) - 1  # the first row is the flakiness replay
@@ -185,22 +266,22 @@ def progress_writer(config: pytest.Config) -> Any:
     return write
 
 
-def render_case(item: pytest.Function, plan: ScenarioPlan, outcome: CaseOutcome,
-                 shrink: ShrinkReport | None) -> dict[str, str]:
+def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
+                shrink: ShrinkReport | None) -> dict[str, str]:
     """PNG of the worst moment (and, within the per-test cap, a GIF) of a failing case.
 
     Drawn from the minimized case when there is one (that is the one an engineer studies),
     else from the case as found. Only in-process outcomes keep their world; nothing to draw
     for tests that return a Trajectory of their own.
     """
-    state = item.config.stash[session_key]
+    directory = item.config.stash[controller_key].directory
     shown = shrink.outcome if shrink is not None and shrink.outcome is not None else outcome
     world = shown.world
-    if state.directory is None or world is None or getattr(world, "trajectory", None) is None:
+    if directory is None or world is None or getattr(world, "trajectory", None) is None:
         return {}
-    from .report.table import file_slug
+    from ..report.table import file_slug
 
-    base = state.directory / "cases" / f"{file_slug(item.nodeid)}"
+    base = directory / "cases" / f"{file_slug(item.nodeid)}"
     pictures: dict[str, str] = {}
     traj = world.trajectory
     step = traj.n_steps - 1
@@ -213,16 +294,16 @@ def render_case(item: pytest.Function, plan: ScenarioPlan, outcome: CaseOutcome,
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
         pictures[f"{item.name}: worst moment ({what})"] = world.render_png(f"{base}.png", step=step)
-        if plan.gifs < gif_cap(item.config):
+        if campaign.gifs < item.config.stash[settings_key].gifs:
             pictures[f"{item.name}: the run ({what})"] = world.render_gif(f"{base}.gif", every=2)
-            plan.gifs += 1
+            campaign.gifs += 1
     except Exception as exc:  # a picture is a convenience: never fail the case over it
         warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not render the case: {exc}"))
     return pictures
 
 
 def build_world(case: Case, driver: Any, name: str) -> Any:
-    from .sim import World
+    from ..sim import World
 
     return World(seed=case.seed, rng=case.rng, driver=driver, name=name)
 
@@ -231,45 +312,46 @@ def executor_of(config: pytest.Config) -> Any:
     """The session's executor, made on first use (a Dask cluster only when a case runs)."""
     executor = config.stash.get(executor_key, None)
     if executor is None:
-        from .executors import make_executor
+        from ..executors import make_executor
 
-        name = executor_name(config)
-        options = {}
-        if name == "dask":
-            options["address"] = dask_address(config)
-            for key, option in (("n_workers", "avs_dask_workers"), ("connect_timeout_s", "avs_dask_timeout"),
-                                ("max_retries", "avs_dask_retries")):
-                value = config.getoption(option)
-                if value is None and config.getini(option) not in (None, ""):
-                    value = config.getini(option)
+        settings = config.stash[settings_key]
+        options: dict[str, Any] = {}
+        if settings.executor == "dask":
+            options["address"] = settings.dask_address
+            for key, value in (("n_workers", settings.dask_workers),
+                               ("connect_timeout_s", settings.dask_timeout_s),
+                               ("max_retries", settings.dask_retries)):
                 if value is not None:
-                    options[key] = int(value) if key != "connect_timeout_s" else float(value)
+                    options[key] = value
         try:
-            executor = make_executor(name, **options)
+            executor = make_executor(settings.executor, **options)
         except ValueError as exc:
             raise pytest.UsageError(str(exc)) from None
         config.stash[executor_key] = executor
     return executor
 
 
+#: the module whose ``avs_driver`` fixture is the plugin's own (any other is a user's)
+_OWN_FIXTURES = f"{__package__}.hooks"
+
+
 def driver_ahead(item: pytest.Function) -> Any:
     """The ego's driver of ``item`` before its fixtures exist: the built-in one named by the
     options when ``avs_driver`` is the plugin's own fixture, else None (a user's fixture)."""
     defs = item._fixtureinfo.name2fixturedefs.get("avs_driver", ())
-    # the plugin's own avs_driver fixture lives in plugin.py; any other is a user's
-    overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != "pytest_avscenario.plugin"
-    return None if overridden else default_driver(item.config)
+    overridden = bool(defs) and getattr(defs[-1].func, "__module__", None) != _OWN_FIXTURES
+    return None if overridden else item.config.stash[settings_key].driver
 
 
 def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: bool,
-         prefetch: bool = False) -> Any:
+             prefetch: bool = False) -> Any:
     """The executor's description of one case of ``item``'s test.
 
     With ``prefetch`` (before the item's fixtures exist) there are no fixture values, and the
     driver is known only when ``avs_driver`` is the plugin's own (then it is the built-in
     name); otherwise ``driver`` is None and the job cannot be started ahead.
     """
-    from .executors import CaseJob
+    from ..executors import CaseJob
 
     argnames = tuple(item._fixtureinfo.argnames)
     if prefetch:
@@ -306,7 +388,7 @@ def attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]
 
 
 def update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
-               outcome: CaseOutcome, shrink: ShrinkReport | None) -> str | None:
+              outcome: CaseOutcome, shrink: ShrinkReport | None) -> str | None:
     """Keep failures for the next run; forget replayed ones that pass now (fix confirmed)."""
     db = item.config.stash[db_key]
     if db is None:
@@ -321,6 +403,8 @@ def update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
     minimized = shrink is not None and shrink.minimized is not None and shrink.minimized != case.params
     params = shrink.minimized if minimized else case.params
     rho = shrink.outcome.rho if minimized and shrink.outcome is not None else outcome.rho
+    from .controller import versions
+
     entry = db.save(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
                     versions=versions())
     return f"stored for replay in {entry.path}"
@@ -331,25 +415,20 @@ def body_rho(outcome: CaseOutcome) -> float:
     return -1.0 if outcome.verdict == "fail" else 0.0
 
 
-def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome) -> dict[str, Any]:
-    """The error-table row of one finished case (plain JSON-able data)."""
-    from .report.table import row_to_json
-
-    return row_to_json({
-        "test": function_id(item), "item": item.nodeid, "sampler": case.sampler,
-        "index": case.index, "seed": case.seed, "origin": case.origin,
-        "params": dict(case.params), "rho": dict(outcome.rho), "verdict": outcome.verdict,
-        "sim_time_s": outcome.sim_time_s, "error": outcome.error,
-    })
+def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
+             minimized: Mapping[str, Any] | None = None, shrink_sims: int | None = None) -> CaseRow:
+    """The error-table row of one finished case."""
+    return CaseRow(
+        test=function_id(item), item=item.nodeid, sampler=case.sampler, index=case.index,
+        seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
+        verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
+        minimized=minimized, shrink_sims=shrink_sims)
 
 
-def record_properties(item: pytest.Item, row: dict[str, Any], shrink: ShrinkReport | None) -> None:
-    from .report.junit import case_properties
-    from .report.table import row_from_json
+def record_properties(item: pytest.Item, row: CaseRow, shrink: ShrinkReport | None) -> None:
+    from ..report.junit import case_properties
 
-    minimized = shrink.minimized if shrink is not None else None
-    sims = shrink.sims if shrink is not None and shrink.minimized is not None else None
     # user_properties (not record_property) gives the same XML without xunit2's warning
-    item.user_properties.extend(case_properties(row_from_json(row), minimized=minimized, shrink_sims=sims))
+    item.user_properties.extend(case_properties(row))
     if shrink is not None and shrink.flaky:
         item.user_properties.append(("avs.flaky", "true"))

@@ -1,8 +1,9 @@
-"""The controller's reporting: the error table as cases finish, and the report at the end.
+"""The controller: the run's error table as cases finish, the xdist merge, the report at the end.
 
 :class:`RunState` is registered as a plugin object of its config. Rows reach it through
 ``pytest_runtest_logreport`` — from this process, or from pytest-xdist's workers, whose
-reports carry them — and are written to the error table at once. At the end of the session
+reports carry them as JSON (:meth:`~pytest_avscenario.outcome.CaseRow.to_json`) — and are
+written to the error table at once. At the end of the session
 it builds the report (summary, plots, index page), adds the suite properties to the JUnit
 file, and prints the paper's table.
 """
@@ -14,8 +15,9 @@ from typing import Any
 
 import pytest
 
-from .keys import seed_key
-from .space import FeatureSpace
+from ..outcome import CaseRow
+from ..space import FeatureSpace
+from .stash import settings_key
 
 
 class RunState:
@@ -24,11 +26,9 @@ class RunState:
     def __init__(self, config: pytest.Config):
         self.config = config
         self.is_worker = hasattr(config, "workerinput")
-        raw = config.getoption("avs_report") or config.getini("avs_report") or "avs-report"
-        self.directory = None if str(raw).lower() == "none" else (
-            config.invocation_params.dir / str(raw))
+        self.directory = config.stash[settings_key].report_dir
         self.table: Any = None
-        self.rows: list[dict[str, Any]] = []
+        self.rows: list[CaseRow] = []
         self.tests: dict[str, dict[str, Any]] = {}
         self.summary_rows: list[Any] | None = None
         self.pictures: dict[str, dict[str, str]] = {}
@@ -36,14 +36,15 @@ class RunState:
 
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        row = getattr(report, "avs_row", None)
-        if row is not None and not self.is_worker:
+        data = getattr(report, "avs_row", None)
+        if data is not None and not self.is_worker:
             for shrink_row in getattr(report, "avs_shrink_rows", ()):
-                self.add(shrink_row, report.avs_test)
+                self.add(CaseRow.from_json(shrink_row), report.avs_test)
+            row = CaseRow.from_json(data)
             self.add(row, report.avs_test)
             pictures = getattr(report, "avs_pictures", None)
             if pictures:
-                self.pictures.setdefault(row["test"], {}).update(pictures)
+                self.pictures.setdefault(row.test, {}).update(pictures)
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
@@ -52,30 +53,30 @@ class RunState:
             return
         from _pytest.junitxml import xml_key
 
-        from .report.junit import add_suite_properties_to_logxml
-        from .report.summary import suite_properties
+        from ..report.junit import add_suite_properties_to_logxml
+        from ..report.summary import suite_properties
 
         self.summary_rows = None
         if self.directory is not None and self.table is not None:
-            from .report.build import finish_report
+            from ..report.build import finish_report
 
             try:
                 self.table.close()  # every row is on disk; the report is built from the files
                 self.summary_rows = finish_report(
-                    self.directory, self.test_infos(), seed=self.config.stash[seed_key],
+                    self.directory, self.test_infos(), seed=self.config.stash[settings_key].seed,
                     versions=versions(), case_images=self.pictures)
             except OSError as exc:
                 self.report_failed(exc)
         if self.summary_rows is None:
             self.summary_rows = self.summary()
-        props = suite_properties(self.summary_rows, seed=self.config.stash[seed_key],
+        props = suite_properties(self.summary_rows, seed=self.config.stash[settings_key].seed,
                                  versions=versions())
         add_suite_properties_to_logxml(self.config.stash.get(xml_key, None), props)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if self.is_worker or not self.rows:
             return
-        from .report.summary import format_pointer, format_table
+        from ..report.summary import format_pointer, format_table
 
         summary = self.summary_rows if self.summary_rows is not None else self.summary()
         terminalreporter.write_sep("=", "avscenario")
@@ -85,14 +86,14 @@ class RunState:
             terminalreporter.write_line(format_pointer(self.directory))
 
     # -- state ----------------------------------------------------------------------------
-    def add(self, row: dict[str, Any], info: dict[str, Any]) -> None:
-        self.tests.setdefault(row["test"], info)
+    def add(self, row: CaseRow, info: dict[str, Any]) -> None:
+        self.tests.setdefault(row.test, info)
         self.rows.append(row)
         if self.directory is None:
             return
         try:
             if self.table is None:
-                from .report.table import ErrorTable, prepare_report_dir
+                from ..report.table import ErrorTable, prepare_report_dir
 
                 prepare_report_dir(self.directory)
                 remove_stale_pictures(self.directory / "cases", self.started)
@@ -120,7 +121,7 @@ class RunState:
             self.table.close()
 
     def test_infos(self) -> dict[str, Any]:
-        from .report.summary import TestInfo
+        from ..report.summary import TestInfo
 
         return {
             test: TestInfo(metrics=tuple(info["metrics"]),
@@ -129,7 +130,7 @@ class RunState:
         }
 
     def summary(self) -> list[Any]:
-        from .report.summary import summarize
+        from ..report.summary import summarize
 
         return summarize(self.rows, self.test_infos())
 

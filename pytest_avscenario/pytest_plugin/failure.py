@@ -1,5 +1,5 @@
-"""What a failing case says: every metric, the parameters as found and minimized, and how to
-re-run just that case or pin it as a regression."""
+"""The failure text of a scenario case: every metric, the parameters as found and minimized,
+and how to re-run just that case or pin it as a regression."""
 
 from __future__ import annotations
 
@@ -9,17 +9,18 @@ from typing import Any
 
 import pytest
 
-from .case import Case
-from .expansion import CaseSlot, call_text, plan_of
-from .keys import seed_key
-from .runner import CaseOutcome
+from ..case import Case
+from ..codec import rho_to_str
+from ..outcome import CaseOutcome
+from .collect import call_text, plan_of, slot_of
+from .stash import settings_key
 
 
 def fmt_rho(v: float | None) -> str:
     if v is None:
         return "—"
-    if math.isinf(v):
-        return "+inf" if v > 0 else "-inf"
+    if not math.isfinite(v):
+        return ("+" if v > 0 else "") + rho_to_str(v)
     return f"{v:+.3f}"
 
 
@@ -73,16 +74,14 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
 
 def rerun_command(item: pytest.Item, case: Case) -> str:
     """A command that re-runs just this case, with the same values."""
-    seed = item.config.stash[seed_key]
-    cmd = f"pytest '{item.nodeid}' --avs-seed={seed}"
+    settings = item.config.stash[settings_key]
+    cmd = f"pytest '{item.nodeid}' --avs-seed={settings.seed}"
     plan = plan_of(item)
-    slot: CaseSlot = item.callspec.params["case"]
-    if slot.params is None or item.config.getoption("avs_params"):
+    if slot_of(item).params is None or settings.pinned:
         # an active sampler's case depends on the cases before it: pin its values instead
         pinned = json.dumps({k: v for k, v in case.params.items() if k in plan.space.parameters})
         cmd += f" --avs-params '{pinned}'"
-    for opt in ("avs_samples", "avs_sampler", "avs_driver"):
-        val = item.config.getoption(opt)
-        if val is not None:
-            cmd += f" --{opt.replace('_', '-')}={val}"
+    for name in ("samples", "sampler", "driver"):  # they change which case an id names
+        if name in settings.command_line:
+            cmd += f" --avs-{name}={settings.command_line[name]}"
     return cmd

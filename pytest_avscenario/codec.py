@@ -1,18 +1,20 @@
-"""Robustness values in reports: ±inf written out explicitly, and read back exactly.
+"""Floats and parameter values as JSON and text: one encoding for every file and channel.
 
 JSON has no infinity (Python's ``json`` would write the non-standard ``Infinity``), CSV and
-JUnit properties are strings. Every report writes rho through these functions so ``+inf``
-(e.g. TTC when nothing is on a collision course) and ``-inf`` (an empty ``eventually``
-window) survive a round trip. Finite values are written so they parse back bit-identical.
+JUnit properties are strings. The error table, JUnit, the summary, the replay database, the
+samplers' saved state and the xdist and Dask channels all write floats through these
+functions, so ``+inf`` (e.g. TTC when nothing is on a collision course), ``-inf`` (an empty
+``eventually`` window) and NaN are the strings ``"inf"``, ``"-inf"``, ``"nan"`` everywhere
+and survive a round trip. Finite values are written so they parse back bit-identical.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
-from typing import Any
+from typing import Any, Mapping
 
-__all__ = ["rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str"]
+__all__ = ["rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str", "jsonable"]
 
 _POS = ("inf", "+inf", "infinity", "+infinity")
 _NEG = ("-inf", "-infinity")
@@ -61,3 +63,23 @@ def _as_float(x: Any) -> float:
     if isinstance(x, bool) or not isinstance(x, numbers.Real):
         raise TypeError(f"robustness must be a real number, got {type(x).__name__}: {x!r}")
     return float(x)
+
+
+def jsonable(value: Any) -> Any:
+    """Parameter values as JSON data: numpy scalars and arrays unwrapped, non-finite floats
+    as strings, anything else (an enum, a custom object) as its ``repr`` — shown, not lost."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return value if math.isfinite(value) else rho_to_str(value)
+    item = getattr(value, "item", None)
+    if callable(item) and getattr(value, "shape", None) == ():  # numpy scalar / 0-d array
+        return jsonable(item())
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
+        seq = value.tolist() if hasattr(value, "tolist") else value
+        return [jsonable(v) for v in seq]
+    return repr(value)

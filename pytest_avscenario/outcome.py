@@ -1,0 +1,211 @@
+"""What one simulated case gives: its outcome, and the error-table row it becomes.
+
+:class:`CaseOutcome` is what running a case produced (the verdict, every ρ, the body's
+exception, and — in the process that ran it — the world and its trajectory). It is the same
+type in this process and on a Dask worker: pickled, it leaves the world and trajectory
+behind and carries its exception as data, re-created on the other side with the same type
+name, text and last frame, so :attr:`CaseOutcome.signature` matches across processes.
+
+:class:`CaseRow` is one finished case as the reports see it — frozen, plain data — with one
+JSON codec (:meth:`CaseRow.to_json` / :meth:`CaseRow.from_json`; floats through
+:mod:`.codec`, so ±inf and NaN are written one way). The error table, JUnit, the summary and
+the xdist channel all carry this row.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pickle
+import traceback
+import types
+from dataclasses import dataclass, field, fields
+from typing import Any, Mapping
+
+from .codec import jsonable, rho_from_json, rho_to_json
+
+__all__ = ["CaseOutcome", "CaseRow", "ORIGINS", "VERDICTS"]
+
+ORIGINS = ("sampled", "replay", "example", "pinned", "shrink")
+VERDICTS = ("pass", "fail", "error")
+
+
+@dataclass
+class CaseOutcome:
+    """What one run of a case produced.
+
+    ``verdict`` is ``"pass"``, ``"fail"`` (a monitor violated or the body's assertion failed)
+    or ``"error"`` (the case could not be judged: an exception, no trajectory, NaN, or a
+    worker that could not run it). ``signature`` identifies *which* failure it is, so
+    shrinking keeps to the same bug: the sorted violated metrics, or the exception type and
+    the line it came from.
+    """
+
+    params: dict[str, Any]
+    verdict: str
+    rho: dict[str, float] = field(default_factory=dict)
+    results: dict[str, Any] = field(default_factory=dict)
+    violated: list[str] = field(default_factory=list)
+    exc: BaseException | None = None
+    error: str | None = None
+    sim_time_s: float = 0.0
+    trajectory: Any = None  # in the process that ran it only
+    world: Any = None  # the World that ran (in-process only), for rendering pictures
+    worker_pid: int = 0  # the process that simulated it (0: this one)
+
+    @property
+    def signature(self) -> tuple[Any, ...]:
+        if self.exc is not None:
+            tb = traceback.extract_tb(self.exc.__traceback__)
+            where = (tb[-1].filename, tb[-1].lineno) if tb else ("?", 0)
+            return ("exception", type(self.exc).__name__, *where)
+        return ("monitors", *sorted(self.violated))
+
+    @property
+    def failed(self) -> bool:
+        return self.verdict == "fail"
+
+    @property
+    def worst_rho(self) -> float | None:
+        vals = [v for v in self.rho.values() if not math.isnan(v)]
+        return min(vals) if vals else None
+
+    # -- crossing a process boundary (Dask) ---------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state.update(trajectory=None, world=None, exc=_pack_exception(self.exc),
+                     worker_pid=self.worker_pid or os.getpid())
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        state = dict(state)
+        state["exc"] = _revive_exception(state["exc"])
+        self.__dict__.update(state)
+
+
+def _pack_exception(exc: BaseException | None) -> dict[str, Any] | None:
+    """An exception as picklable data: itself when it pickles both ways, else its type's
+    name and text; its traceback through tblib (the last frame makes the signature)."""
+    if exc is None:
+        return None
+    cls = type(exc)
+    packed: dict[str, Any] = {"type": (cls.__module__, cls.__qualname__), "text": str(exc),
+                              "kind": "fail" if isinstance(exc, AssertionError) else "error",
+                              "pickle": None, "tb": None}
+    try:
+        data = pickle.dumps(exc)
+        pickle.loads(data)  # some exceptions pickle but do not unpickle (required args)
+        packed["pickle"] = data
+    except Exception:
+        pass
+    try:
+        from tblib import Traceback
+
+        packed["tb"] = Traceback(exc.__traceback__).to_dict()
+    except Exception:
+        pass
+    return packed
+
+
+def _revive_exception(packed: Mapping[str, Any] | None) -> BaseException | None:
+    if packed is None:
+        return None
+    exc: BaseException | None = None
+    if packed["pickle"] is not None:
+        try:
+            exc = pickle.loads(packed["pickle"])
+        except Exception:  # the class is not importable here: fall back to a stand-in
+            exc = None
+    if exc is None:
+        module, name = packed["type"]
+        base = AssertionError if packed["kind"] == "fail" else Exception
+        # same __name__ as the remote class, so CaseOutcome.signature matches across retries
+        stand_in = type(name.rpartition(".")[2], (base,), {"__module__": module,
+                                                          "__doc__": "re-created from a worker"})
+        exc = stand_in(packed["text"])
+    if packed["tb"] is not None:
+        try:
+            from tblib import Traceback
+
+            exc = exc.with_traceback(Traceback.from_dict(packed["tb"]).as_traceback())
+        except Exception:  # a traceback we cannot rebuild must not hide the failure itself
+            pass
+    return exc
+
+
+@dataclass(frozen=True)
+class CaseRow:
+    """One finished case in the error table (plain data).
+
+    ``test`` is the function's node id, ``item`` the case's; ``origin`` one of
+    :data:`ORIGINS`, ``verdict`` one of :data:`VERDICTS`; ``rho`` maps each metric to its
+    robustness (±inf allowed, None for a metric not evaluated); ``minimized`` and
+    ``shrink_sims`` are set on a counterexample that was minimized.
+    """
+
+    test: str
+    item: str
+    sampler: str
+    index: int
+    seed: int | None
+    origin: str
+    params: Mapping[str, Any]
+    rho: Mapping[str, float | None]
+    verdict: str
+    sim_time_s: float = 0.0
+    error: str | None = None
+    minimized: Mapping[str, Any] | None = None
+    shrink_sims: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.origin not in ORIGINS:
+            raise ValueError(f"row origin must be one of {ORIGINS}, got {self.origin!r}")
+        if self.verdict not in VERDICTS:
+            raise ValueError(f"row verdict must be one of {VERDICTS}, got {self.verdict!r}")
+        if not isinstance(self.params, Mapping) or not isinstance(self.rho, Mapping):
+            raise ValueError("row 'params' and 'rho' must be mappings {name: value}")
+        # read-only views: a row is shared by the table, JUnit and the summary
+        object.__setattr__(self, "params", types.MappingProxyType(dict(self.params)))
+        object.__setattr__(self, "rho", types.MappingProxyType(dict(self.rho)))
+
+    def to_json(self) -> dict[str, Any]:
+        """The row as JSON data (one line of errors.jsonl, or what crosses the xdist channel)."""
+        out: dict[str, Any] = {
+            "test": self.test, "item": self.item, "sampler": self.sampler, "index": self.index,
+            "seed": self.seed, "origin": self.origin, "params": jsonable(dict(self.params)),
+            "rho": {k: None if v is None else rho_to_json(v) for k, v in self.rho.items()},
+            "verdict": self.verdict, "sim_time_s": self.sim_time_s, "error": self.error,
+        }
+        if self.minimized is not None:
+            out["minimized"] = jsonable(dict(self.minimized))
+        if self.shrink_sims is not None:
+            out["shrink_sims"] = self.shrink_sims
+        return out
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> "CaseRow":
+        """Inverse of :meth:`to_json`; also takes a hand-written row (rho as floats, ``item``,
+        ``seed``, ``sim_time_s`` and ``error`` optional). ValueError names a missing or bad key."""
+        missing = [k for k in ("test", "sampler", "index", "origin", "params", "rho", "verdict")
+                   if k not in data]
+        if missing:
+            raise ValueError(f"error-table row lacks {missing}; got keys {sorted(data)}")
+        rho = data["rho"]
+        if not isinstance(rho, Mapping):
+            raise ValueError("row 'params' and 'rho' must be mappings {name: value}")
+        return cls(
+            test=str(data["test"]), item=str(data.get("item") or data["test"]),
+            sampler=str(data["sampler"]), index=int(data["index"]),
+            seed=None if data.get("seed") is None else int(data["seed"]),
+            origin=data["origin"], params=data["params"],
+            rho={str(k): None if v is None or v == "" else rho_from_json(v) for k, v in rho.items()},
+            verdict=data["verdict"], sim_time_s=float(data.get("sim_time_s") or 0.0),
+            error=None if data.get("error") is None else str(data["error"]),
+            minimized=data.get("minimized"),
+            shrink_sims=None if data.get("shrink_sims") is None else int(data["shrink_sims"]),
+        )
+
+    @classmethod
+    def coerce(cls, row: "CaseRow | Mapping[str, Any]") -> "CaseRow":
+        """``row`` itself, or a row read from JSON data or written by hand."""
+        return row if isinstance(row, CaseRow) else cls.from_json(row)

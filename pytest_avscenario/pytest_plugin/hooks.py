@@ -1,0 +1,212 @@
+"""The pytest plugin's hooks and fixtures, and nothing else.
+
+Loaded through the ``pytest11`` entry point ``avscenario`` (``-p no:avscenario`` disables it).
+Loading it imports only numpy and the plugin's light modules: highway-env, scipy, matplotlib
+and the rest are imported when a scenario test is collected or run.
+
+A test marked with ``@scenario`` becomes one item per concrete case (``test_x[halton-007]``,
+:mod:`.collect`); each item runs in :mod:`.campaign`; the controller (:mod:`.controller`)
+writes the error table and the report. Settings come from :mod:`.options`, once per session.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from ..case import Case
+from ..space import SpaceError
+from .campaign import (
+    attach_to_html_report,
+    build_world,
+    case_for,
+    executor_of,
+    prefetch_passive_cases,
+    run_item,
+    campaign_of,
+)
+from .collect import CaseSlot, plan_of, plan_scenario
+from .controller import RunState
+from .options import DeclarationError, add_options, read_settings
+from .stash import (
+    campaigns_key,
+    controller_key,
+    db_key,
+    executor_key,
+    pictures_key,
+    plans_key,
+    row_key,
+    settings_key,
+    shrink_rows_key,
+)
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    add_options(parser)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "scenario(**parameters, samples=N, sampler='halton', seed=None, monitors=[...]): "
+        "an abstract driving scenario expanded into N concrete cases (pytest-avscenario). "
+        "Use the @scenario decorator from pytest_avscenario rather than the bare mark.",
+    )
+    config.stash[settings_key] = settings = read_settings(config)
+    config.stash[plans_key] = {}
+    config.stash[campaigns_key] = {}
+    _terminate_like_ctrl_c()
+    config.stash[db_key] = _open_db(config, settings.db_path)
+    config.stash[controller_key] = state = RunState(config)
+    config.pluginmanager.register(state, "avscenario-run")
+    if config.pluginmanager.hasplugin("xdist"):
+        config.pluginmanager.register(_XdistHooks(), "avscenario-xdist")
+
+
+def _open_db(config: pytest.Config, path: Any) -> Any:
+    """The replay database, or None. Workers get the controller's snapshot (same items)."""
+    if path is None:
+        return None
+    from ..db import DatabaseError, ReplayDB
+
+    workerinput = getattr(config, "workerinput", None)
+    try:
+        if workerinput is not None and "avs_db" in workerinput:
+            return ReplayDB.from_snapshot(path, workerinput["avs_db"])
+        db = ReplayDB(path)
+        db.entries()  # read once now, so unreadable files are reported once, before collection
+    except DatabaseError as exc:
+        raise pytest.UsageError(f"avscenario replay database (--avs-db): {exc}") from None
+    for message in db.warnings:
+        config.issue_config_time_warning(pytest.PytestWarning(f"avscenario replay database: {message}"), 2)
+    return db
+
+
+def _terminate_like_ctrl_c() -> None:
+    """Let SIGTERM end a run the way Ctrl-C does: pytest then still finishes the session, so
+    the error table is closed and the partial summary and index are written.
+
+    Only when nobody installed a handler of their own, and only in the main thread."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        return
+
+    def terminate(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM kills at once
+        raise KeyboardInterrupt("SIGTERM")
+
+    signal.signal(signal.SIGTERM, terminate)
+
+
+class _XdistHooks:
+    """Registered only when pytest-xdist is installed: ship seed and database to the workers."""
+
+    def pytest_configure_node(self, node: Any) -> None:
+        node.workerinput["avs_seed"] = node.config.stash[settings_key].seed
+        db = node.config.stash[db_key]
+        if db is not None:
+            node.workerinput["avs_db"] = db.snapshot()
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    seed = config.stash[settings_key].seed
+    return f"avscenario: seed={seed} (replay with --avs-seed={seed})"
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    marker = metafunc.definition.get_closest_marker("scenario")
+    if marker is None:
+        return
+    test = metafunc.definition.nodeid
+    config = metafunc.config
+    try:
+        plan, slots = plan_scenario(metafunc, marker, config.stash[settings_key], config.stash[db_key])
+    except (DeclarationError, SpaceError, ValueError) as exc:
+        raise pytest.Collector.CollectError(f"{test}: {exc}") from None
+    config.stash[plans_key][test] = plan
+    metafunc.parametrize("case", slots, ids=[s.id for s in slots], indirect=True)
+
+
+@pytest.fixture
+def case(request: pytest.FixtureRequest) -> Case:
+    """The concrete case of a ``@scenario`` test: ``case.<parameter>``, ``case.seed``, ``case.rng``."""
+    slot: CaseSlot | None = getattr(request, "param", None)
+    if not isinstance(slot, CaseSlot):
+        raise pytest.UsageError(
+            f"{request.node.nodeid}: the `case` fixture is only available to tests decorated "
+            "with @scenario(...)"
+        )
+    why = campaign_of(request.node).out_of_time(slot.sampler)
+    if why is not None:
+        pytest.skip(why)
+    return case_for(request.node, slot)
+
+
+@pytest.fixture
+def avs_driver(request: pytest.FixtureRequest) -> Any:
+    """The AV under test driving the ego: override this fixture in conftest.py with your stack.
+
+    Return a callable ``policy(observation) -> (acceleration, steering)``, an object with
+    ``act(observation)`` or ``predict(observation)``, or a built-in name (``"autopilot"``,
+    ``"idm"``). The default is ``--avs-driver`` / ini ``avs_driver`` or ``"autopilot"``.
+    """
+    return request.config.stash[settings_key].driver
+
+
+@pytest.fixture
+def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
+    """A fresh simulated world for this case, seeded from it, with ``avs_driver`` as the ego's."""
+    return build_world(case, avs_driver, request.node.nodeid)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
+    if pyfuncitem.get_closest_marker("scenario") is None or "case" not in pyfuncitem.funcargs:
+        return None
+    result = run_item(pyfuncitem)
+    if result.outcome.verdict == "pass":
+        return True
+    if result.reraise:
+        # pytest shows the body's own traceback, with our summary as a report section
+        pyfuncitem.add_report_section("call", "avscenario", result.message)
+        raise result.outcome.exc
+    pytest.fail(result.message, pytrace=False)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
+    report = yield
+    if call.when == "call" and row_key in item.stash:
+        # extra report attributes travel to the xdist controller with the report (as JSON)
+        report.avs_row = item.stash[row_key].to_json()
+        report.avs_shrink_rows = [r.to_json() for r in item.stash.get(shrink_rows_key, [])]
+        report.avs_pictures = item.stash.get(pictures_key, {})
+        if report.avs_pictures and item.config.pluginmanager.hasplugin("html"):
+            attach_to_html_report(report, report.avs_pictures)
+        report.avs_test = plan_of(item).info()
+    return report
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Hand a remote executor the passive cases ahead, so its workers stay busy."""
+    config = session.config
+    if config.stash[settings_key].executor == "inprocess" or hasattr(config, "workerinput"):
+        return
+    if not any(item.get_closest_marker("scenario") is not None for item in session.items):
+        return
+    executor_of(config)  # connect now: an unreachable cluster stops the run once
+    prefetch_passive_cases(session)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    executor = config.stash.get(executor_key, None)
+    if executor is not None:
+        executor.close()
+    state = config.stash.get(controller_key, None)
+    if state is not None:
+        state.close()

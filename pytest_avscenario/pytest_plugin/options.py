@@ -1,0 +1,422 @@
+"""Every setting of the plugin, read once, validated once, with where each value came from.
+
+:func:`read_settings` builds the session's frozen :class:`Settings` in ``pytest_configure``
+from the command line, the ini file and the defaults; a bad value from either source is a
+``pytest.UsageError`` that names the option and where it came from (``--avs-dask-workers``,
+``ini avs_dask_workers``), never an internal error later. A scenario test's own values
+come from its ``@scenario`` marker: :meth:`Settings.for_test` gives a frozen
+:class:`TestSettings`, and a bad marker value is a :class:`DeclarationError`, which
+collection turns into an error naming the test.
+
+Precedence: a marker argument beats the command line, which beats the ini file, which beats
+the default — except ``--avs-samples`` and ``--avs-sampler``, which exist to override every
+test at once (their ini keys are defaults for tests whose marker does not say).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import secrets
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import pytest
+
+from ..markers.spec import ScenarioSpec
+
+DEFAULT_SAMPLES = 20
+DEFAULT_SAMPLER = "halton"
+DEFAULT_SHRINK_BUDGET = 20
+DEFAULT_GIFS = 3
+MAX_SAMPLES = 100_000
+EXECUTORS = ("inprocess", "dask")
+
+
+class DeclarationError(Exception):
+    """A scenario test's declaration or setting is wrong; collection names the test."""
+
+
+# --------------------------------------------------------------------------- parsers
+# Each parser takes the raw value (a marker's Python value, or the text of an option or an
+# ini line) and returns the clean value or raises ValueError saying what it expects.
+def _integer(minimum: int, maximum: int | None = None) -> Callable[[Any], int]:
+    def parse(raw: Any) -> int:
+        try:
+            if isinstance(raw, bool) or (isinstance(raw, float) and not raw.is_integer()):
+                raise ValueError
+            value = int(str(raw).strip()) if isinstance(raw, str) else int(raw)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"must be an integer, got {raw!r}") from None
+        if value < minimum:
+            raise ValueError(f"must be >= {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise ValueError(f"must be at most {maximum}, got {value}")
+        return value
+    return parse
+
+
+def _samples(raw: Any) -> int:
+    value = _integer(1)(raw)
+    if value > MAX_SAMPLES:
+        raise ValueError(
+            f"must be at most {MAX_SAMPLES} per test (got {value}): every case is a pytest "
+            "item; for a long campaign give time_budget= (e.g. '30m') with a large count")
+    return value
+
+
+def parse_duration(raw: Any) -> float:
+    """Seconds from ``90``, ``"90s"``, ``"30m"``, ``"1.5h"``; ValueError otherwise."""
+    if isinstance(raw, bool):
+        raise ValueError(raw)
+    if isinstance(raw, (int, float)):
+        seconds = float(raw)
+    else:
+        text = str(raw).strip().lower()
+        unit = {"s": 1.0, "m": 60.0, "h": 3600.0}.get(text[-1:], None)
+        seconds = float(text[:-1]) * unit if unit else float(text)
+    if not math.isfinite(seconds) or seconds <= 0:
+        raise ValueError(raw)
+    return seconds
+
+
+def _duration(what: str) -> Callable[[Any], float]:
+    def parse(raw: Any) -> float:
+        try:
+            return parse_duration(raw)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"must be {what}, got {raw!r}") from None
+    return parse
+
+
+def _positive_seconds(raw: Any) -> float:
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        value = math.nan
+    if isinstance(raw, bool) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"must be a positive number of seconds, got {raw!r}")
+    return value
+
+
+def _one_of(what: str, *names: str) -> Callable[[Any], str]:
+    def parse(raw: Any) -> str:
+        value = str(raw).strip()
+        if value not in names:
+            raise ValueError(f"unknown {what} {value!r}; available: {', '.join(names)}")
+        return value
+    return parse
+
+
+def _driver(raw: Any) -> str:
+    value = str(raw).strip()
+    if value not in ("autopilot", "idm") and ":" not in value:
+        raise ValueError(f"unknown driver {value!r}; use 'autopilot', 'idm' or 'package.module:Name'")
+    return value
+
+
+def _text(raw: Any) -> str:
+    return str(raw).strip()
+
+
+def _sampler_names(raw: Any) -> tuple[str, ...]:
+    from ..samplers import base
+
+    if isinstance(raw, str):
+        names = [n.strip() for n in raw.split(",") if n.strip()]
+    elif isinstance(raw, (list, tuple)) and all(isinstance(n, str) for n in raw):
+        names = list(raw)
+    else:
+        names = []
+    if not names:
+        raise ValueError(f"must be a name or a list of names, got {raw!r}")
+    for n in names:
+        if n not in base.available():
+            raise ValueError(f"unknown sampler {n!r}; available: {', '.join(base.available())}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"sampler list names a sampler twice: {names!r}")
+    return tuple(names)
+
+
+@dataclass(frozen=True)
+class Option:
+    """One ``--avs-…`` option with its ini key ``avs_…``."""
+
+    name: str  # "shrink-budget": --avs-shrink-budget, ini avs_shrink_budget
+    metavar: str
+    help: str
+    ini_help: str
+    parse: Callable[[Any], Any]
+    per_test: bool = False  # @scenario(<key>=...) may set it too
+    cli_first: bool = False  # the command line overrides the marker
+    ini: bool = True
+
+    @property
+    def key(self) -> str:
+        return self.name.replace("-", "_")
+
+    @property
+    def dest(self) -> str:
+        return f"avs_{self.key}"
+
+
+OPTIONS = (
+    Option("seed", "N|last",
+           "seed for sampling and simulation; 'last' reuses the previous run's seed (default: "
+           "a fresh seed, printed in the header)",
+           "seed of the run (an integer); default: a fresh one each run", _text),
+    Option("samples", "N",
+           "override the number of cases of every scenario test (e.g. 5 for a smoke run)",
+           "cases per scenario test when the marker does not say",
+           _samples, per_test=True, cli_first=True),
+    Option("sampler", "NAME[,NAME]",
+           "override the sampler of every scenario test (halton, random, mab, ce, sa, bo)",
+           "sampler for scenario tests whose marker does not name one",
+           _sampler_names, per_test=True, cli_first=True),
+    Option("driver", "NAME",
+           "driver of the ego: 'autopilot' (default), 'idm' or 'package.module:Name'; a "
+           "conftest `avs_driver` fixture overrides this",
+           "built-in driver of the ego (autopilot or idm) when avs_driver is not overridden",
+           _driver),
+    Option("report", "DIR",
+           "write the scenario report under DIR (default avs-report; 'none' disables)",
+           "directory of the scenario report (error table, summary, plots); 'none' disables",
+           _text),
+    Option("time-budget", "DURATION",
+           "cap each scenario test's campaign per sampler (e.g. 30m, 90s, 1h); remaining "
+           "cases are skipped",
+           "wall-time cap per scenario test and sampler (e.g. 30m, 90s)",
+           _duration("a positive duration like 30m, 90s, 1h or seconds"), per_test=True),
+    Option("db", "PATH",
+           "replay database of found counterexamples (default .avscenario at the rootdir; "
+           "'none' disables)",
+           "replay database directory (default .avscenario at the rootdir; 'none' disables)",
+           _text),
+    Option("shrink-budget", "N",
+           "simulations allowed to minimize each failing case toward the nominal scenario "
+           "(default 20; 0 disables)",
+           "simulations allowed to minimize each failing case (0 disables)",
+           _integer(0), per_test=True),
+    Option("shrink-max", "N",
+           "minimize (and store for replay) only the first N failures of each scenario test "
+           "and sampler; the rest are reported as found (default: every failure)",
+           "failures per test and sampler that are minimized and stored (default: all)",
+           _integer(0), per_test=True),
+    Option("case-timeout", "SECONDS",
+           "end a scenario case that runs longer than SECONDS (reported as an error with the "
+           "time it ran)",
+           "seconds one scenario case may run before it is ended as an error",
+           _duration("a positive number of seconds (or 90s, 2m)"), per_test=True),
+    Option("executor", "NAME",
+           "where scenario cases are simulated: 'inprocess' (default) or 'dask'",
+           "where scenario cases are simulated: inprocess (default) or dask",
+           _one_of("executor", *EXECUTORS)),
+    Option("dask-address", "ADDRESS",
+           "scheduler of an existing Dask cluster, e.g. tcp://host:8786 (default: start a "
+           "LocalCluster with one worker per core)",
+           "Dask scheduler address for --avs-executor=dask (default: a LocalCluster)", _text),
+    Option("dask-workers", "N",
+           "worker processes of the LocalCluster the plugin starts (default: one per core)",
+           "worker processes of the LocalCluster started for --avs-executor=dask",
+           _integer(1)),
+    Option("dask-timeout", "SECONDS",
+           "seconds to wait for the Dask scheduler before giving up (default 10)",
+           "seconds to wait for the Dask scheduler", _positive_seconds),
+    Option("dask-retries", "N",
+           "how often a case whose worker died is resubmitted (default 2)",
+           "resubmissions of a case whose Dask worker died", _integer(0)),
+    Option("gifs", "N",
+           "render a GIF of at most N minimized counterexamples per test (default 3; every "
+           "one gets a PNG of its worst moment)",
+           "GIFs rendered per scenario test for minimized counterexamples (0: none)",
+           _integer(0)),
+    Option("params", "JSON",
+           "run the selected scenario cases with these parameter values (a JSON object; "
+           "missing parameters take their nominal value)", "", _text, ini=False),
+)
+_BY_KEY = {o.key: o for o in OPTIONS}
+
+
+def add_options(parser: pytest.Parser) -> None:
+    group = parser.getgroup("avscenario", "scenario-based AV testing (pytest-avscenario)")
+    for o in OPTIONS:
+        group.addoption(f"--avs-{o.name}", dest=o.dest, metavar=o.metavar, default=None, help=o.help)
+        if o.ini:
+            parser.addini(o.dest, o.ini_help, type="string", default=None)
+
+
+# --------------------------------------------------------------------------- values
+@dataclass(frozen=True)
+class Found:
+    """A validated value and where it came from."""
+
+    value: Any
+    source: str  # "--avs-samples", "ini avs_samples", "@scenario(samples=...)"
+
+
+def _raw(config: pytest.Config, o: Option) -> tuple[Any, str] | None:
+    """The command line's value of ``o``, else the ini file's, else None."""
+    value = config.getoption(o.dest)
+    if value not in (None, ""):
+        return value, f"--avs-{o.name}"
+    if o.ini:
+        value = config.getini(o.dest)
+        if value not in (None, ""):
+            return value, f"ini {o.dest}"
+    return None
+
+
+def _validated(o: Option, raw: Any, source: str, error: type[Exception]) -> Found:
+    try:
+        return Found(o.parse(raw), source)
+    except ValueError as exc:
+        # parsers say "must be …" of the value, or a whole sentence ("unknown sampler …")
+        text = f"{o.key} {exc}" if str(exc).startswith(("must", "list")) else str(exc)
+        if error is DeclarationError:
+            raise error(f"{text} (from {source})") from None
+        raise error(f"{source}: {text}") from None
+
+
+@dataclass(frozen=True)
+class TestSettings:
+    """The settings of one scenario test, after its marker had its say."""
+
+    __test__ = False  # not a pytest test class, despite its name
+
+    samples: int
+    samplers: tuple[str, ...]
+    shrink_budget: int
+    shrink_max: int | None  # failures per sampler minimized and stored (None: all)
+    time_budget_s: float | None
+    case_timeout_s: float | None
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The session's settings: command line and ini, validated, each with its source."""
+
+    seed: int
+    driver: str
+    report_dir: Path | None
+    db_path: Path | None
+    executor: str
+    dask_address: str | None
+    dask_workers: int | None
+    dask_timeout_s: float | None
+    dask_retries: int | None
+    gifs: int
+    params: Mapping[str, Any] | None  # --avs-params, not yet completed against a space
+    per_test: Mapping[str, Found]  # command line / ini values of the per-test settings
+    command_line: Mapping[str, str]  # option key -> the text given on the command line
+
+    @property
+    def pinned(self) -> bool:
+        return self.params is not None
+
+    def for_test(self, spec: ScenarioSpec) -> TestSettings:
+        """This test's settings: marker > command line > ini > default (``samples`` and
+        ``sampler``: command line > marker > ini > default). DeclarationError names the
+        setting and the source of a bad marker value."""
+        def pick(key: str) -> Any:
+            o = _BY_KEY[key]
+            outside = self.per_test.get(key)
+            marker = None
+            if key in spec.given and getattr(spec, key) is not None:
+                marker = _validated(o, getattr(spec, key), f"@scenario({key}=...)", DeclarationError)
+            if o.cli_first and outside is not None and outside.source.startswith("--"):
+                return outside.value
+            found = marker or outside
+            return None if found is None else found.value
+
+        samples = pick("samples")
+        samplers = pick("sampler")
+        budget = pick("shrink_budget")
+        return TestSettings(
+            samples=DEFAULT_SAMPLES if samples is None else samples,
+            samplers=(DEFAULT_SAMPLER,) if samplers is None else samplers,
+            shrink_budget=DEFAULT_SHRINK_BUDGET if budget is None else budget,
+            shrink_max=pick("shrink_max"),
+            time_budget_s=pick("time_budget"),
+            case_timeout_s=pick("case_timeout"),
+        )
+
+
+def read_settings(config: pytest.Config) -> Settings:
+    """The session's :class:`Settings`; ``pytest.UsageError`` names a bad option and its source."""
+    found: dict[str, Found] = {}
+    for o in OPTIONS:
+        raw = _raw(config, o)
+        if raw is not None and o.key != "seed":
+            found[o.key] = _validated(o, raw[0], raw[1], pytest.UsageError)
+
+    def value(key: str, default: Any = None) -> Any:
+        f = found.get(key)
+        return default if f is None else f.value
+
+    executor = value("executor", "inprocess")
+    address = value("dask_address")
+    if executor == "dask" and address is None and getattr(config.option, "numprocesses", None) \
+            and not hasattr(config, "workerinput"):
+        raise pytest.UsageError(
+            "--avs-executor=dask with pytest-xdist (-n) needs --avs-dask-address: otherwise "
+            "every xdist worker would start a Dask cluster of its own")
+    report = value("report", "avs-report")
+    db = value("db")
+    return Settings(
+        seed=_session_seed(config),
+        driver=value("driver", "autopilot"),
+        report_dir=None if report.lower() == "none" else config.invocation_params.dir / report,
+        db_path=(None if db is not None and db.lower() == "none" else
+                 config.rootpath / ".avscenario" if db is None else config.invocation_params.dir / db),
+        executor=executor,
+        dask_address=address,
+        dask_workers=value("dask_workers"),
+        dask_timeout_s=value("dask_timeout"),
+        dask_retries=value("dask_retries"),
+        gifs=value("gifs", DEFAULT_GIFS),
+        params=_pinned_params(found.get("params")),
+        per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
+        command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
+                      if config.getoption(o.dest) not in (None, "")},
+    )
+
+
+def _pinned_params(found: Found | None) -> Mapping[str, Any] | None:
+    if found is None:
+        return None
+    try:
+        given = json.loads(found.value)
+    except json.JSONDecodeError as exc:
+        raise pytest.UsageError(f"--avs-params is not valid JSON: {exc}") from None
+    if not isinstance(given, dict):
+        raise pytest.UsageError("--avs-params must be a JSON object of parameter values")
+    return given
+
+
+def _session_seed(config: pytest.Config) -> int:
+    workerinput = getattr(config, "workerinput", None)
+    if workerinput is not None and "avs_seed" in workerinput:
+        return int(workerinput["avs_seed"])  # the controller's seed: identical collections
+    raw_found = _raw(config, _BY_KEY["seed"])
+    cache = getattr(config, "cache", None)  # absent with -p no:cacheprovider
+    if raw_found is None:
+        seed = secrets.randbelow(2**31)
+    elif str(raw_found[0]).strip() == "last":
+        cached = cache.get("avscenario/seed", None) if cache is not None else None
+        if cached is None:
+            raise pytest.UsageError("--avs-seed=last: no previous run's seed is cached yet")
+        seed = int(cached)
+    else:
+        raw, source = raw_found
+        try:
+            seed = int(str(raw).strip())
+        except ValueError:
+            raise pytest.UsageError(
+                f"--avs-seed / avs_seed must be an integer or 'last', got {raw!r} (from {source})"
+            ) from None
+        if seed < 0:
+            raise pytest.UsageError(f"--avs-seed / avs_seed must be >= 0, got {seed} (from {source})")
+    if cache is not None and workerinput is None:
+        cache.set("avscenario/seed", seed)
+    return seed

@@ -1,0 +1,17 @@
+"""What the plugin keeps per pytest config and per item: ``pytest.StashKey``s, no globals."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+settings_key = pytest.StashKey[Any]()  # the session's options.Settings
+plans_key = pytest.StashKey[dict]()  # function node id -> collect.ScenarioPlan (frozen)
+campaigns_key = pytest.StashKey[dict]()  # function node id -> campaign.Campaign (running state)
+db_key = pytest.StashKey[Any]()  # the ReplayDB, or None
+executor_key = pytest.StashKey[Any]()  # the Executor, made on first use
+controller_key = pytest.StashKey[Any]()  # the controller.RunState
+row_key = pytest.StashKey[Any]()  # item -> its error-table row (outcome.CaseRow)
+shrink_rows_key = pytest.StashKey[list]()  # item -> its shrinking candidates' rows
+pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
