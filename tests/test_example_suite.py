@@ -13,6 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 
 
+@pytest.mark.slow
 def test_example_suite_quick_mode(tmp_path):
     pytest.importorskip("xdist")
     report = tmp_path / "report"

@@ -21,4 +21,7 @@ def test_ci_runs_exactly_the_readme_test_command():
     test_cmd = _commands()[1].split("&&", 1)[1].strip()
     ci = [l.strip() for l in (ROOT / ".ci" / "run").read_text().splitlines()
           if l.strip() and not l.strip().startswith("#")]
-    assert ci[-1] == test_cmd
+    pytest_lines = [l for l in ci if l.startswith("pytest")]
+    # the README's command first, exactly; then only the marked slow set
+    assert pytest_lines[0] == test_cmd
+    assert all(l == f"{test_cmd} -m slow" for l in pytest_lines[1:])

@@ -1,0 +1,149 @@
+"""The package's layering: only the pytest side imports pytest, monitors know trajectories and
+not the simulator, and no module imports itself back through others."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import pytest_avscenario
+
+PACKAGE = Path(pytest_avscenario.__file__).parent
+NAME = "pytest_avscenario"
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _is_package(module: str) -> bool:
+    return MODULES[module].name == "__init__.py"
+
+
+def _imports(module: str, top_level_only: bool = False) -> set[str]:
+    """Modules of this package (and 'pytest') that ``module`` imports, anywhere in its code
+    (functions included) or at its top level only (``if TYPE_CHECKING`` blocks excluded)."""
+    tree = ast.parse(MODULES[module].read_text())
+    base = module if _is_package(module) else module.rpartition(".")[0]
+
+    def walk(node: ast.AST):
+        for child in ast.iter_child_nodes(node):
+            if top_level_only and isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            if top_level_only and isinstance(child, ast.If) and "TYPE_CHECKING" in ast.unparse(child.test):
+                continue
+            yield child
+            yield from walk(child)
+
+    found = set()
+    for node in walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                anchor = base.split(".")
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                target = ".".join(anchor + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            # `from pkg import sub` imports the module pkg.sub; `from mod import name`, mod
+            names = [f"{target}.{a.name}" if f"{target}.{a.name}" in MODULES else target
+                     for a in node.names]
+        else:
+            continue
+        for n in names:
+            if n.split(".")[0] in ("pytest", "_pytest"):
+                found.add("pytest")
+            elif n in MODULES:
+                found.add(n)
+    found.discard(module)
+    return found
+
+
+def test_only_the_pytest_side_imports_pytest_at_module_level():
+    offenders = sorted(m for m in MODULES if not m.startswith(f"{NAME}.pytest_plugin")
+                       and "pytest" in _imports(m, top_level_only=True))
+    assert offenders == []
+
+
+def test_monitors_know_trajectories_not_the_simulator():
+    monitors = [m for m in MODULES if m.startswith(f"{NAME}.monitors")]
+    reach = {(m, i) for m in monitors for i in _imports(m) if i.startswith(f"{NAME}.sim")}
+    assert reach == set()
+
+
+def test_nothing_below_the_pytest_side_imports_it():
+    below = [m for m in MODULES if not m.startswith(f"{NAME}.pytest_plugin")]
+    reach = {(m, i) for m in below for i in _imports(m) if i.startswith(f"{NAME}.pytest_plugin")}
+    assert reach == set()
+
+
+def test_no_import_cycle_in_the_package():
+    graph = {m: _imports(m) - {"pytest"} for m in MODULES}
+    # Tarjan's strongly connected components: any component of more than one module is a cycle
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert cycles == []
+
+
+def test_the_cycle_check_sees_a_cycle(tmp_path, monkeypatch):
+    # the check above must be able to fail: two modules importing each other are found
+    a, b = f"{NAME}._probe_a", f"{NAME}._probe_b"
+    (tmp_path / "a.py").write_text("from ._probe_b import x\n")
+    (tmp_path / "b.py").write_text("def f():\n    from ._probe_a import y\n")
+    monkeypatch.setitem(MODULES, a, tmp_path / "a.py")
+    monkeypatch.setitem(MODULES, b, tmp_path / "b.py")
+    assert _imports(a) == {b} and _imports(b) == {a}
+    with pytest.raises(AssertionError):
+        test_no_import_cycle_in_the_package()
+
+
+@pytest.mark.parametrize("module", ["space", "samplers", "monitors", "sim", "report", "executors",
+                                    "outcome", "trajectory", "shrink", "db", "runner"])
+def test_importing_the_library_loads_no_pytest(module):
+    # a real process: this one has pytest loaded already
+    code = (f"import sys, {NAME}.{module}\n"
+            "loaded = sorted(m for m in ('pytest', '_pytest') if m in sys.modules)\n"
+            "assert not loaded, loaded\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr

@@ -1,0 +1,68 @@
+"""Settings: read once per session, each bad value a usage error naming the option and where
+it came from (command line or ini), never an internal error later in the run."""
+
+import pytest
+
+SCENARIO = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=2)
+def test_s(case):
+    pass
+"""
+
+
+@pytest.mark.parametrize("ini, args, message", [
+    ("avs_dask_workers = two", [], "ini avs_dask_workers: dask_workers must be an integer, got 'two'"),
+    ("avs_dask_timeout = -1", [], "ini avs_dask_timeout: dask_timeout must be a positive number of seconds*"),
+    ("avs_gifs = many", [], "ini avs_gifs: gifs must be an integer, got 'many'"),
+    ("avs_shrink_budget = -2", [], "ini avs_shrink_budget: shrink_budget must be >= 0, got -2"),
+    ("avs_case_timeout = soon", [], "ini avs_case_timeout: case_timeout must be a positive number*'soon'"),
+    ("avs_executor = ray", [], "ini avs_executor: unknown executor 'ray'; available: inprocess, dask"),
+    ("", ["--avs-samples=abc"], "--avs-samples: samples must be an integer, got 'abc'"),
+    ("", ["--avs-samples=0"], "--avs-samples: samples must be >= 1, got 0"),
+    ("", ["--avs-sampler=halton,nope"], "--avs-sampler: unknown sampler 'nope'; available:*"),
+    ("", ["--avs-driver=tesla"], "--avs-driver: unknown driver 'tesla'*"),
+    ("", ["--avs-params=[1]"], "--avs-params must be a JSON object*"),
+    ("avs_dask_retries = 1.5", ["--avs-dask-retries=x"], "--avs-dask-retries: dask_retries must be an integer, got 'x'"),
+])
+def test_a_bad_setting_is_a_usage_error_naming_option_and_source(pytester, ini, args, message):
+    pytester.makepyfile(SCENARIO)
+    if ini:
+        pytester.makeini(f"[pytest]\n{ini}\n")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", *args)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([f"ERROR: {message}"])
+    assert "INTERNALERROR" not in result.stdout.str() + result.stderr.str()
+
+
+def test_ini_values_are_defaults_the_marker_and_command_line_beat(pytester):
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), shrink_budget=3)
+def test_marker(case):
+    pass
+
+@scenario(x=Uniform(0, 1))
+def test_plain(case):
+    pass
+""")
+    pytester.makeini("[pytest]\navs_samples = 4\navs_shrink_budget = 7\n")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", "--collect-only", "-q")
+    assert result.stdout.str().count("test_plain[halton-") == 4  # ini default
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", "--collect-only", "-q",
+                                "--avs-samples=2")
+    assert result.stdout.str().count("test_marker[halton-") == 2  # the command line overrides
+
+
+def test_a_bad_marker_value_names_the_test_and_the_marker(pytester):
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), shrink_max=-1)
+def test_bad(case):
+    pass
+""")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none")
+    result.stdout.fnmatch_lines(["*::test_bad: shrink_max must be >= 0, got -1 (from @scenario(shrink_max=...))*"])
