@@ -20,11 +20,11 @@ from ..space import SpaceError
 from .campaign import (
     attach_to_html_report,
     build_world,
+    campaign_of,
     case_for,
     executor_of,
     prefetch_passive_cases,
     run_item,
-    campaign_of,
 )
 from .collect import CaseSlot, plan_of, plan_scenario
 from .controller import RunState
