@@ -42,6 +42,8 @@ def test_failure_is_minimized_toward_the_nominal_and_pinnable(pytester):
     # the minimized gap lies just below the failure boundary (within 5 % of the range)
     assert 20.0 - 1.5 <= gap < 20.0
     assert "road='dry'" in pinned  # the nominal option still fails, so shrinking takes it
+    assert result.outlines[result.outlines.index(line) + 1].strip() == \
+        "(with: from pytest_avscenario import example)"
     assert "shrinking:" in out and "of 20 simulations" in out
     xml = (pytester.path / "out.xml").read_text()
     assert 'name="avs.minimized"' in xml and 'name="avs.shrink_sims"' in xml
@@ -204,3 +206,19 @@ def test_shrink_max_minimizes_and_stores_only_the_first_failures(pytester):
     assert out.count("pin it as a regression above the test") == 1
     assert out.count("not minimized nor stored: 1 failures of this test's halton campaign") == failed - 1
     assert len(list((pytester.path / ".avscenario").glob("*.json"))) == 1
+
+
+def test_hypothesis_example_on_a_scenario_test_says_which_example_to_import(pytester):
+    pytester.makepyfile("""
+from hypothesis import example
+from pytest_avscenario import scenario, Uniform
+
+@example(gap=12.0)
+@scenario(gap=Uniform(10, 40))
+def test_pinned(case):
+    pass
+""")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none")
+    result.stdout.fnmatch_lines(["*::test_pinned: @example here is Hypothesis's*"
+                                 "from pytest_avscenario import example*"])
+    assert result.ret == pytest.ExitCode.INTERRUPTED

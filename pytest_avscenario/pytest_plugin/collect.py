@@ -130,6 +130,10 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         pinned = {**space.nominal(), **settings.params}
         space.validate(pinned)
 
+    if getattr(metafunc.function, "hypothesis_explicit_examples", None):
+        raise DeclarationError(
+            "@example here is Hypothesis's, which does not pin scenario cases: use "
+            "`from pytest_avscenario import example`")
     slots: list[CaseSlot] = []
     for k, pin in enumerate(getattr(metafunc.function, "_avs_examples", ())):
         params = space.complete(pin)

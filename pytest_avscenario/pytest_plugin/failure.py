@@ -58,6 +58,7 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
         how = "budget spent" if shrink.exhausted else "done"
         lines.append(f"  shrinking: {shrink.sims} of {shrink.budget} simulations ({how})")
         lines.append(f"  pin it as a regression above the test: {call_text('example', shrink.minimized)}")
+        lines.append("      (with: from pytest_avscenario import example)")
     else:
         params = ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items())
         lines.append(f"  parameters: {params}")
