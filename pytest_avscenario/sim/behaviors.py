@@ -209,17 +209,9 @@ class _AllWayStop:
     TIE = 0.2  # [s]
     CONFLICT = 3.0  # [m] centre lines closer than this conflict
 
-    @classmethod
-    def of(cls, world: Any) -> "_AllWayStop":
-        """The world's own instance (kept on the world, made on first use)."""
-        aw = getattr(world, "_allway", None)
-        if aw is None or aw.index is not world._index:
-            aw = world._allway = cls(world)
-        return aw
-
     def __init__(self, world: Any) -> None:
         self.world = world
-        self.index = world._index
+        self.index = world.lane_index
         self.t: float | None = None
         self.waiting: dict[str, tuple[float, Any, float]] = {}  # name -> (since [s], connector, heading)
         self.inside: dict[str, Any] = {}  # name -> connector
@@ -379,7 +371,7 @@ class Turn(Behavior):
         hold = None
         allway = None
         if self.stop:
-            allway = _AllWayStop.of(world)
+            allway = world.all_way_stop
             allway.update()  # every step: arrival times of everyone, before we stop too
         if (self.stop or self.go_when_ego_within is not None) and not st.get("released"):
             d = agent.distance_to_stop_line()

@@ -22,6 +22,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from .errors import SimError
+from .geometry import wrap_to_pi
 from .places import Crosswalk, Lane, Path, Point, Route, StopLine
 
 __all__ = ["StraightRoad", "TwoWayRoad", "Intersection", "LaneIndex", "DIRECTIONS"]
@@ -44,10 +45,6 @@ def _check_median(median: Any, what: str, test: str) -> float:
     return m
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 class LaneIndex:
     """All lanes of one road with their neighbourhoods, stop marks and a tracker for agents."""
 
@@ -67,6 +64,7 @@ class LaneIndex:
             pts = np.array([g.position(s, r) for s in ss for r in (-half, half)])
             boxes.append([pts[:, 0].min(), pts[:, 1].min(), pts[:, 0].max(), pts[:, 1].max()])
         self._box = np.asarray(boxes, dtype=float)
+        self.boxes = self._box  # (lanes, 4): xmin, ymin, xmax, ymax [m] of each lane in `order`
         self.successors: dict[tuple, list[Lane]] = {}
         by_from: dict[str, list[Lane]] = {}
         by_to: dict[str, list[Lane]] = {}
@@ -235,7 +233,7 @@ class LaneIndex:
         g = lane.geometry
         d = abs(r) + max(s - g.length, 0.0) + max(-s, 0.0)
         if not pedestrian:
-            d += abs(_wrap(heading - g.heading_at(s)))
+            d += abs(wrap_to_pi(heading - g.heading_at(s)))
         if lane.index in on_route:
             d -= 0.5
         return d
@@ -251,7 +249,7 @@ class LaneIndex:
             nxt = None
             for cand in self.successors[route[-1].index]:
                 cg = cand.geometry
-                if abs(_wrap(cg.heading_at(cg.length) - h_end)) > 0.1:
+                if abs(wrap_to_pi(cg.heading_at(cg.length) - h_end)) > 0.1:
                     continue
                 if float(np.hypot(*(cg.position(0.0, 0.0) - p_end))) > 0.5:
                     continue
@@ -272,7 +270,7 @@ class LaneIndex:
             g = here.geometry
             s = agent.route_s
             cands = [(abs(l.local(here.position(s))[1]), l) for l in self._parallel(self.order.index(here))
-                     if l.kind == "travel" and abs(_wrap(l.geometry.heading - g.heading)) < 0.1]
+                     if l.kind == "travel" and abs(wrap_to_pi(l.geometry.heading - g.heading)) < 0.1]
             if not cands:
                 raise SimError(f"no travel lane next to {here.id!r} to pull out into",
                                test=agent.world.name, agent=agent.name)
@@ -330,7 +328,7 @@ class _Road:
 
     def default_route(self, lane: Lane) -> Route:
         """The route an agent placed on ``lane`` follows unless told otherwise (straight on)."""
-        return Route(tuple(self.world._index.continue_route(lane)))
+        return Route(tuple(self.world.lane_index.continue_route(lane)))
 
     def _crosswalk_across(self, name: str, lanes: list[Lane], s_of: dict, start: np.ndarray,
                           end: np.ndarray, width: float, sides: tuple[str, str]) -> Crosswalk:
@@ -383,7 +381,7 @@ class StraightRoad(_Road):
             raise SimError(f"crosswalk(s={s!r}): must lie within the road (0..{self.length} m)",
                            test=self.world.name)
         for lane in self.lanes:
-            self.world._index.add_stop(lane, s - width / 2, "crosswalk")
+            self.world.lane_index.add_stop(lane, s - width / 2, "crosswalk")
         return self._crosswalk_across(
             f"crosswalk@{s:g}", self.lanes, {l.index: s for l in self.lanes},
             np.array([s, self._y_right - SIDEWALK]), np.array([s, self._y_left + SIDEWALK]),
@@ -477,7 +475,7 @@ class TwoWayRoad(_Road):
         for lane in crossed:
             ls = s if lane.direction == "forward" else self.length - s
             s_of[lane.index] = ls
-            self.world._index.add_stop(lane, ls - width / 2, "crosswalk")
+            self.world.lane_index.add_stop(lane, ls - width / 2, "crosswalk")
         return self._crosswalk_across(
             f"crosswalk@{s:g}", crossed, s_of, np.array([s, -self._edge - SIDEWALK]),
             np.array([s, self._edge + SIDEWALK]), width, ("south", "north"))
@@ -570,7 +568,7 @@ class Intersection(_Road):
 
     def _after_index(self) -> None:
         """Register stop lines and crosswalks once the lane index exists."""
-        idx = self.world._index
+        idx = self.world.lane_index
         L, cw = self.approach_length, self.crosswalk_width
         span = self.n_lanes * self.lane_width + self.median + SIDEWALK
         for d in DIRECTIONS:

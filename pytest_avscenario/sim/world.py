@@ -19,13 +19,13 @@ import numpy as np
 
 from .drivers import IDMDriver, resolve
 from .errors import SimError
+from .geometry import footprints_overlap, wrap_to_pi
 from .observation import AgentState, Observation, StopLine as ObsStopLine
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
 from ..trajectory import Trajectory
 
 __all__ = ["World"]
 
-_TWO_PI = 2 * math.pi
 _ABSENT = (math.nan,) * 7 + (-1,)
 
 
@@ -81,11 +81,10 @@ class World:
 
     def _finish_road(self, road: Any, net: Any) -> Any:
         from .engine import SimRoad
-        from .roads import LaneIndex
 
         self._road = SimRoad(network=net, vehicles=[], np_random=np.random.default_rng(self.seed),
                           record_history=False)
-        self._index = LaneIndex(road.all_lanes)
+        self.reindex(road.all_lanes)
         self.road = road
         if hasattr(road, "_after_index"):
             road._after_index()
@@ -147,6 +146,44 @@ class World:
         self.road = Network(self, net)
         return self.road
 
+    # -- the interface of the engine, roads and behaviours to the world ------------------------
+    # Agents, roads and behaviours go through these few members, never through the world's
+    # private attributes, so the world can change how it keeps its state.
+
+    @property
+    def lane_index(self) -> Any:
+        """The :class:`~.roads.LaneIndex` of the road: every lane, its neighbours and stop
+        marks, and the tracker that keeps each agent's lane (None before a road is built)."""
+        return self._index
+
+    def reindex(self, lanes: Any) -> Any:
+        """Index ``lanes`` afresh (a road network that grew), keeping the stop marks made so
+        far; returns the new :attr:`lane_index`."""
+        from .roads import LaneIndex
+
+        index = LaneIndex(lanes)
+        if self._index is not None:
+            for key, marks in self._index.stop_marks.items():
+                index.stop_marks[key] = list(marks)
+        self._index = index
+        return index
+
+    @property
+    def movers(self) -> list[Any]:
+        """The agents on the road this step (present ones, in stepping order). Read only."""
+        return self._movers
+
+    @property
+    def all_way_stop(self) -> Any:
+        """The arrival order at this world's all-way stops (see :mod:`.behaviors`), made on
+        first use and remade when the road is re-indexed."""
+        from .behaviors import _AllWayStop
+
+        aw = self._allway
+        if aw is None or aw.index is not self._index:
+            aw = self._allway = _AllWayStop(self)
+        return aw
+
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
         if self.road is None or self._index is None:
@@ -205,18 +242,8 @@ class World:
 
     def _overlapping(self, new: Any, others: list[Any]) -> Any:
         """The first of ``others`` whose footprint intersects ``new``'s, or None."""
-        # ``from highway_env.utils import`` (not ``from highway_env import utils``): the latter
-        # would import the whole package with its gym environments (see _hwenv)
-        from highway_env.utils import are_polygons_intersecting
-
-        poly = new.polygon()
-        zero = np.zeros(2)
         for other in others:
-            if other is new:
-                continue
-            if np.hypot(*(other.position - new.position)) > (other.diagonal + new.diagonal) / 2:
-                continue
-            if are_polygons_intersecting(poly, other.polygon(), zero, zero)[0]:
+            if other is not new and footprints_overlap(new, other):
                 return other
         return None
 
@@ -497,7 +524,7 @@ class World:
             return road.junction_ahead(who)
         return None
 
-    def _turn_route(self, agent: Any, direction: str) -> Route:
+    def turn_route(self, agent: Any, direction: str) -> Route:
         """The agent's route from its current lane through the next intersection's turn."""
         road = self.road
         kind = getattr(road, "kind", "")
@@ -557,7 +584,8 @@ class World:
             "length": float(a.LENGTH), "width": float(a.WIDTH),
             "flags": {"stop_arm": bool(a.stop_arm)} if a.kind == "bus" else {}})
 
-    def _observe(self, ego: Any) -> Observation:
+    def observe(self, ego: Any) -> Observation:
+        """What the driver of ``ego`` sees now: the :class:`~.observation.Observation`."""
         x, y = float(ego.position[0]), float(ego.position[1])
         near = []
         rng2 = self.sensor_range ** 2
@@ -745,7 +773,7 @@ class _Recorder:
             c = math.cos(h)
             s = math.sin(h)
             li = a.lane_index
-            rows.append((p[0], p[1], v * c, v * s, v, (h + math.pi) % _TWO_PI - math.pi,
+            rows.append((p[0], p[1], v * c, v * s, v, wrap_to_pi(h),
                          a.lane_r if li is not None else math.nan,
                          code[li] if li is not None else -1))
             fl.append((a.crashed, a.is_on_road, True))

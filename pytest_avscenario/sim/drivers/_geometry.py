@@ -16,8 +16,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["RoutePath", "bicycle_steering", "box_corners", "boxes_overlap", "parking_path",
-           "pursuit_steering"]
+from ..geometry import poses_hit_boxes
+
+__all__ = ["RoutePath", "bicycle_steering", "parking_moves", "parking_path", "pursuit_steering"]
 
 _ARC_SAMPLE_M = 1.0  # [m] sampling step for curved lanes before resampling (chord error ds²/8R)
 
@@ -306,28 +307,6 @@ def parking_path(
     return np.array(pts)
 
 
-def box_corners(x: float, y: float, heading: float, half_length: float,
-                half_width: float) -> list[tuple[float, float]]:
-    """Corners [m] of a rectangle centred at (x, y) with the given heading [rad]."""
-    c, s = math.cos(heading), math.sin(heading)
-    return [(x + c * dl - s * dw, y + s * dl + c * dw)
-            for dl, dw in ((half_length, half_width), (half_length, -half_width),
-                           (-half_length, -half_width), (-half_length, half_width))]
-
-
-def boxes_overlap(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> bool:
-    """Whether two rectangles (corner lists) overlap: separating-axis test on their edges."""
-    for poly in (a, b):
-        for k in range(2):  # a rectangle has two edge directions
-            ex = poly[k + 1][0] - poly[k][0]
-            ey = poly[k + 1][1] - poly[k][1]
-            pa = [ey * p[0] - ex * p[1] for p in a]
-            pb = [ey * p[0] - ex * p[1] for p in b]
-            if max(pa) < min(pb) or max(pb) < min(pa):
-                return False
-    return True
-
-
 def _arc_poses(x0: float, y0: float, h0: float, direction: float, beta: float, half: float,
                s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Poses after travelling arc lengths ``s`` [m] at a constant slip angle ``beta`` [rad].
@@ -343,23 +322,6 @@ def _arc_poses(x0: float, y0: float, h0: float, direction: float, beta: float, h
     x = x0 + (np.sin(h + beta) - math.sin(h0 + beta)) / k
     y = y0 - (np.cos(h + beta) - math.cos(h0 + beta)) / k
     return x, y, h
-
-
-def _overlaps(x: np.ndarray, y: np.ndarray, h: np.ndarray, half: float, half_w: float,
-              boxes: Sequence[tuple[float, float, float, float]]) -> np.ndarray:
-    """Per pose, whether the car overlaps any axis-aligned box (cx, cy, half_x, half_y) [m]."""
-    c, s = np.abs(np.cos(h)), np.abs(np.sin(h))
-    cs, sn = np.cos(h), np.sin(h)
-    ex = half * c + half_w * s
-    ey = half * s + half_w * c
-    hit = np.zeros(x.shape, dtype=bool)
-    for bx, by, bhx, bhy in boxes:
-        dx, dy = bx - x, by - y
-        sep = (np.abs(dx) > ex + bhx) | (np.abs(dy) > ey + bhy)
-        sep |= np.abs(dx * cs + dy * sn) > half + bhx * c + bhy * s
-        sep |= np.abs(dy * cs - dx * sn) > half_w + bhx * s + bhy * c
-        hit |= ~sep
-    return hit
 
 
 def parking_moves(
@@ -384,7 +346,7 @@ def parking_moves(
 
     def run(x0, y0, h0, direction, beta, stop_h):
         X, Y, H = _arc_poses(x0, y0, h0, direction, beta, half, s_grid)
-        bad = _overlaps(X, Y, H, half, half_w, boxes)
+        bad = poses_hit_boxes(X, Y, H, half, half_w, boxes)
         n = len(s_grid)
         i = int(np.argmax(bad)) if bad.any() else n
         if stop_h is not None and beta:
@@ -399,7 +361,7 @@ def parking_moves(
     best = None
     for x1 in np.arange(x, -2.0, -0.5):
         # The straight reverse to x1 must itself be clear.
-        if _overlaps(np.array([x1]), np.array([y]), np.array([0.0]), half, half_w, boxes)[0]:
+        if poses_hit_boxes(np.array([x1]), np.array([y]), np.array([0.0]), half, half_w, boxes)[0]:
             break
         for phi in np.arange(0.3, 1.0, 0.05):
             moves = [(x, y, 0.0, -1.0, 0.0, x - x1)]
@@ -425,7 +387,7 @@ def parking_moves(
                 continue
             # Final straight move to x = 0 must be clear too.
             xs = np.linspace(cx, 0.0, 20)
-            if _overlaps(xs, np.full_like(xs, cy), np.full_like(xs, ch), half, half_w, boxes).any():
+            if poses_hit_boxes(xs, np.full_like(xs, cy), np.full_like(xs, ch), half, half_w, boxes).any():
                 continue
             cost = 10.0 * abs(cy) + len(moves)
             if best is None or cost < best[0]:

@@ -31,22 +31,13 @@ import numpy as np
 from pytest_avscenario.sim.drivers._geometry import (
     RoutePath,
     bicycle_steering,
-    box_corners,
-    boxes_overlap,
     parking_moves,
     parking_path,
     pursuit_steering,
 )
+from pytest_avscenario.sim.geometry import box_corners, boxes_overlap, heading_change, wrap_to_pi
 
 __all__ = ["Autopilot", "AutopilotOptions"]
-
-_TWO_PI = 2.0 * math.pi
-
-
-def _wrap(angle: float) -> float:
-    """Angle wrapped to [-pi, pi) [rad]."""
-    return (angle + math.pi) % _TWO_PI - math.pi
-
 
 @dataclass(frozen=True)
 class AutopilotOptions:
@@ -150,7 +141,7 @@ class _Junction:
         self.heading = h
         w = float(lane.width_at(0.0))
         x1, y1 = (float(v) for v in conn.position(conn.length, 0.0))
-        turn = _wrap(float(conn.heading_at(conn.length)) - float(conn.heading_at(0.0)))
+        turn = heading_change(conn)
         radius = float(getattr(conn, "radius", math.inf))
         if abs(turn) < 0.5 or not math.isfinite(radius):
             half = 0.5 * math.hypot(x1 - x0, y1 - y0)
@@ -723,7 +714,7 @@ class _Parker:
     def _frame(self, x: float, y: float, h: float, side: float) -> tuple[float, float, float]:
         dx, dy = x - self.gx, y - self.gy
         return (dx * self.c + dy * self.s, side * (-dx * self.s + dy * self.c),
-                side * _wrap(h - self.gh))
+                side * wrap_to_pi(h - self.gh))
 
     def approach_offset(self, path: RoutePath, s_ego: float, width: float) -> float:
         """Offset [m] (left +) from the route centre line to drive the approach at.
@@ -830,13 +821,13 @@ class _Parker:
         # pushes the lateral error the wrong way first.
         kk = min(k, len(pts) - 2)
         seg = max(arc[kk + 1] - arc[kk], 1e-6)
-        kappa_ref = _wrap(pts[kk + 1, 2] - pts[kk, 2]) / seg
+        kappa_ref = wrap_to_pi(pts[kk + 1, 2] - pts[kk, 2]) / seg
         # Reference direction of motion from the points (it differs from the body heading
         # by the slip angle).
         th = math.atan2(pts[kk + 1, 1] - pts[kk, 1], pts[kk + 1, 0] - pts[kk, 0])
         ph = pts[kk, 2]
         e_y = -(x - pts[kk, 0]) * math.sin(th) + (y - pts[kk, 1]) * math.cos(th)
-        e_h = _wrap(h - ph)
+        e_h = wrap_to_pi(h - ph)
         kappa = kappa_ref - 0.3 * e_y - 1.5 * e_h
         steer = bicycle_steering(self._dir * kappa, ego.length, o.max_steering)
         return accel, self.side * steer
