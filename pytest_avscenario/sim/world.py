@@ -61,7 +61,7 @@ class World:
         self._counts: dict[str, int] = {}
         self._route_geoms: tuple = ()
         self._stop_cache: dict[int, tuple] = {}
-        self._allway: Any = None  # arrival order at all-way stops (behaviors._AllWayStop)
+        self._allway: Any = None  # arrival order at all-way stops (right_of_way.AllWayStop)
         self.sensor_range = 80.0  # [m]
 
     def __repr__(self) -> str:
@@ -175,13 +175,13 @@ class World:
 
     @property
     def all_way_stop(self) -> Any:
-        """The arrival order at this world's all-way stops (see :mod:`.behaviors`), made on
-        first use and remade when the road is re-indexed."""
-        from .behaviors import _AllWayStop
+        """The arrival order at this world's all-way stops (a :class:`~.right_of_way.AllWayStop`),
+        made on first use and remade when the road is re-indexed."""
+        from .right_of_way import AllWayStop
 
         aw = self._allway
         if aw is None or aw.index is not self._index:
-            aw = self._allway = _AllWayStop(self)
+            aw = self._allway = AllWayStop(self)
         return aw
 
     # -- placing agents --------------------------------------------------------------------------

@@ -36,6 +36,7 @@ from pytest_avscenario.sim.drivers._geometry import (
     pursuit_steering,
 )
 from pytest_avscenario.sim.geometry import box_corners, boxes_overlap, heading_change, wrap_to_pi
+from pytest_avscenario.sim.right_of_way import has_entered, precedence, waiting_at_line
 
 __all__ = ["Autopilot", "AutopilotOptions"]
 
@@ -125,12 +126,10 @@ class _Junction:
     line to the centre, assumed the same on every arm. From what it sees: when each other
     vehicle came to rest (< 0.5 m/s) facing the box with its front bumper between 1 m past
     and 4 m before where that arm's stop line would be (perception time, i.e. observation
-    time minus latency), and when it entered (front more than 1 m past the line).
+    time minus latency), and when it entered (front more than 1 m past the line). Those
+    thresholds and who goes first are :mod:`~pytest_avscenario.sim.right_of_way`'s, the rule
+    the traffic's ``turn`` behaviour follows too; only what it knows differs.
     """
-
-    SPEED = 0.5  # [m/s] standing
-    BEFORE, PAST = 4.0, 1.0  # [m] front bumper before / past a stop line that counts as "at" it
-    TIE = 0.2  # [s] arrivals this close are simultaneous: the one on the right goes first
 
     def __init__(self, route: tuple, line: Any) -> None:
         j = line.route_index
@@ -172,15 +171,15 @@ class _Junction:
             dx, dy = self.cx - fx, self.cy - fy
             along = dx * a.c + dy * a.s
             if a.name in self.arrived:
-                if along < self.d_line - self.PAST:
+                if has_entered(along, self.d_line):
                     del self.arrived[a.name]
                     self.entered.add(a.name)
                 continue
             if a.c * self.ca + a.s * self.sa > 0.7:
                 continue  # our own approach: a queue, not a rival
-            if math.hypot(a.vx, a.vy) >= self.SPEED or abs(dx * a.s - dy * a.c) > self.half:
+            if abs(dx * a.s - dy * a.c) > self.half:
                 continue
-            if self.d_line - self.PAST <= along <= self.d_line + self.BEFORE:
+            if waiting_at_line(along, self.d_line, math.hypot(a.vx, a.vy)):
                 self.arrived[a.name] = (t_seen, math.atan2(a.s, a.c))
         for name in [n for n in self.arrived if n not in present]:
             del self.arrived[name]  # out of sight
@@ -191,9 +190,7 @@ class _Junction:
         inside the box."""
         if patient and self.t_me is not None:
             for t_o, h_o in self.arrived.values():
-                if t_o < self.t_me - self.TIE - 1e-9:
-                    return False
-                if t_o <= self.t_me + self.TIE + 1e-9 and math.sin(h_o - self.heading) > 0.5:
+                if precedence(self.t_me, self.heading, t_o, h_o) in ("earlier", "right"):
                     return False
         for a in seen.agents:
             if a.ped or math.hypot(a.vx, a.vy) < 0.3:
@@ -453,8 +450,7 @@ class Autopilot:
             if junction is not None and nearest:
                 delay = int(round(o.latency / dt)) * dt if dt > 0 else 0.0
                 junction.observe(seen, obs.t - delay)
-                if junction.t_me is None and v < _Junction.SPEED and \
-                        -_Junction.PAST <= d <= _Junction.BEFORE:
+                if junction.t_me is None and waiting_at_line(d, 0.0, v):
                     junction.t_me = obs.t
             nearest = False
             target = d - o.stop_margin
