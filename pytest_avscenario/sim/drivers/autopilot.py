@@ -28,14 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from pytest_avscenario.sim.drivers._geometry import (
-    RoutePath,
-    bicycle_steering,
-    parking_moves,
-    parking_path,
-    pursuit_steering,
-)
-from pytest_avscenario.sim.geometry import box_corners, boxes_overlap, heading_change, wrap_to_pi
+from pytest_avscenario.sim.drivers.parking import Parker
+from pytest_avscenario.sim.drivers.route_path import RoutePath, pursuit_steering
+from pytest_avscenario.sim.geometry import heading_change
 from pytest_avscenario.sim.right_of_way import has_entered, precedence, waiting_at_line
 
 __all__ = ["Autopilot", "AutopilotOptions"]
@@ -245,7 +240,7 @@ class Autopilot:
         self._yielding: set[str] = set()
         self._evade = 0.0  # [m] wanted shift to the right for oncoming traffic
         self._offset = 0.0  # [m] lateral offset from the centre line it steers for (left +)
-        self._parker: _Parker | None = None
+        self._parker: Parker | None = None
         self._goal_key: Any = None
         # Read by tests and debugging: why the last command was chosen.
         self.last_reason = "cruise"
@@ -285,7 +280,7 @@ class Autopilot:
         if obs.goal is not None and obs.goal.get("kind") == "park":
             key = (obs.goal.get("x"), obs.goal.get("y"), obs.goal.get("heading"))
             if self._parker is None or key != self._goal_key:
-                self._parker = _Parker(obs.goal, o, ego, seen)
+                self._parker = Parker(obs.goal, o, ego, seen)
                 self._goal_key = key
             if self._parker.phase == "approach":
                 self._parker.plan(ego, seen)
@@ -635,195 +630,3 @@ class Autopilot:
             yielding.add(a.name)
             stops.append((d_stop, "yield"))
         return clear
-
-
-class _Parker:
-    """Parallel parking into a slot: approach, reverse on two arcs, pull forward, hold.
-
-    Works in the slot frame (origin at the goal, +x along the goal heading), mirrored so the
-    ego always comes from the +y side; steering is mirrored back on output.
-    """
-
-    def __init__(self, goal: dict, o: AutopilotOptions, ego: Any, seen: _Perceived) -> None:
-        self.o = o
-        self.gx, self.gy = float(goal["x"]), float(goal["y"])
-        self.gh = float(goal.get("heading", 0.0))
-        self.c, self.s = math.cos(self.gh), math.sin(self.gh)
-        self.slot_length = goal.get("length")
-        self.length = L = ego.length
-        kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
-        # Keep 5% of the steering range for feedback (the reference is exact for this model).
-        self.radius = 1.0 / (0.95 * kappa_max)
-        self.min_radius = 1.0 / kappa_max
-        self.end_x = 0.0
-        self._parked: list = []
-        self._boxes: list = []
-        self._queue: list = []
-        self._traffic = False
-        self.phase = "approach"
-        self._track: np.ndarray | None = None
-        self._arc: np.ndarray | None = None
-        self._k = 0
-        self._dir = -1.0
-        self.plan(ego, seen)
-
-    def plan(self, ego: Any, seen: _Perceived) -> None:
-        """(Re)compute the start point from the ego's lateral offset and the parked cars."""
-        o, L = self.o, self.length
-        _, ye, _ = self._frame(ego.x, ego.y, ego.heading, 1.0)
-        self.side = 1.0 if ye >= 0.0 else -1.0
-        self.lateral = max(abs(ye), 0.5)
-        if self.slot_length is not None:
-            self.end_x = min(0.0, -0.5 * float(self.slot_length) + o.parking_clearance + 0.5 * L)
-        # Moving agents near the ego (passing traffic) delay the start of the manoeuvre.
-        self._traffic = any(
-            math.hypot(a.vx, a.vy) > 0.5 and math.hypot(a.x - ego.x, a.y - ego.y) < 30.0
-            and (a.x - ego.x) * a.vx + (a.y - ego.y) * a.vy < 0.0  # coming closer
-            for a in seen.agents)
-        if seen.n:
-            # The cars parked around the slot, in the slot frame, inflated by 0.2 m: what the
-            # manoeuvre must not touch.
-            self._parked = []
-            self._boxes = []
-            best = None
-            for a in seen.agents:
-                x, y, h = self._frame(a.x, a.y, math.atan2(a.s, a.c), self.side)
-                if abs(y) < 1.5 and -15.0 < x < 15.0:
-                    self._parked.append(box_corners(x, y, h, a.hl + 0.2, a.hw + 0.2))
-                    ch, sh = abs(math.cos(h)), abs(math.sin(h))
-                    # 0.3 m for the multi-move plan: its moves end right at the margin,
-                    # and stopping overshoots by a few centimetres.
-                    self._boxes.append((x, y, a.hl * ch + a.hw * sh + 0.3,
-                                        a.hl * sh + a.hw * ch + 0.3))
-                    if x < 0.0:
-                        front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
-                        best = front if best is None else max(best, front)
-            if best is not None and self.slot_length is None:
-                # Reverse in as far as the car behind the slot allows (more room for the
-                # nose to swing in past the car in front), then pull forward to the goal.
-                self.end_x = min(0.0, max(-3.0, best + o.parking_clearance + 0.5 * L))
-        # Length the two reverse arcs need (see parking_path): 2 R cos(b) sin(phi).
-        reff = self.radius * math.cos(math.asin(min(0.99, 0.5 * L / self.radius)))
-        phi = math.acos(max(-1.0, 1.0 - self.lateral / (2.0 * reff)))
-        self.start_x = self.end_x + 2.0 * reff * math.sin(phi)
-
-    def _frame(self, x: float, y: float, h: float, side: float) -> tuple[float, float, float]:
-        dx, dy = x - self.gx, y - self.gy
-        return (dx * self.c + dy * self.s, side * (-dx * self.s + dy * self.c),
-                side * wrap_to_pi(h - self.gh))
-
-    def approach_offset(self, path: RoutePath, s_ego: float, width: float) -> float:
-        """Offset [m] (left +) from the route centre line to drive the approach at.
-
-        Passing the car in front of the slot as closely as safe (0.4 m) shortens the two
-        reverse arcs, hence the kerb length the manoeuvre needs.
-        """
-        if self.phase != "approach":
-            return 0.0
-        x, y = path.point(s_ego)
-        sx, sy, _ = self._frame(x, y, 0.0, self.side)
-        if not -5.0 < sx - self.start_x < 40.0:
-            return 0.0
-        shift = max(0.0, sy - (width + self.o.parking_side_clearance))
-        tx, ty = path.tangent(s_ego)
-        # Toward the slot is the (mirrored) slot frame's -y: side * (sin gh, -cos gh); its
-        # component on the path's left normal (-ty, tx) says which way to shift.
-        toward_left = -self.side * (self.s * ty + self.c * tx)
-        return shift if toward_left > 0 else -shift
-
-    def approach_distance(self, ego: Any) -> float | None:
-        """Centre distance [m] still to drive before the reverse manoeuvre may start."""
-        if self.phase != "approach":
-            return None
-        x, _, _ = self._frame(ego.x, ego.y, ego.heading, self.side)
-        d = self.start_x + 0.3 - x
-        # Only steer the approach stop once near the slot; before that, drive normally.
-        return d if d < 40.0 else None
-
-    def maybe_start(self, ego: Any) -> None:
-        """Begin reversing once stopped at the start point, if the manoeuvre fits.
-
-        The planned footprints are checked against the parked cars it has seen (inflated
-        by 0.2 m); a slot too short for its one-manoeuvre technique is given up, and it drives
-        on (phase "abandoned") rather than touch a car.
-        """
-        x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
-        if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.1 \
-                and x < self.start_x + 30.0:
-            if self._traffic:
-                return  # the nose swings toward the next lane: let passing traffic go first
-            pts = parking_path(max(x, self.start_x), y, self.end_x, self.radius, self.length,
-                               min_radius=self.min_radius)
-            hl, hw = 0.5 * self.length, 0.5 * ego.width
-            fits = not any(boxes_overlap(box_corners(px, py, ph, hl, hw), car)
-                           for px, py, ph in pts[::2] for car in self._parked)
-            if fits:
-                queue = [(pts, -1.0)]
-                if self.end_x < -0.3:  # reversed in short of the goal: pull forward to it
-                    n = max(2, int(math.ceil(-self.end_x / 0.2)))
-                    queue.append((np.array([(self.end_x * (1 - i / n), 0.0, 0.0)
-                                            for i in range(n + 1)]), 1.0))
-            else:
-                # Too tight for one manoeuvre: search a multi-move plan (see parking_moves).
-                max_beta = math.asin(min(0.99, 0.5 * self.length / self.radius))
-                queue = parking_moves(max(x, self.start_x), y, self.length, ego.width, max_beta,
-                                      self._boxes)
-                if not queue:
-                    self.phase = "abandoned"
-                    return
-            self._queue = queue[1:]
-            self._begin(*queue[0])
-
-    def _begin(self, pts: np.ndarray, direction: float) -> None:
-        self.phase = "reverse" if direction < 0 else "forward"
-        self._track = pts
-        seg = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
-        self._arc = np.concatenate([[0.0], np.cumsum(seg)])
-        self._k = 0
-        self._dir = direction
-
-    def act(self, ego: Any, dt: float) -> tuple[float, float]:
-        o = self.o
-        v = ego.speed
-        if self.phase == "done":
-            return (-v / dt if abs(v) > 1e-9 else 0.0), 0.0
-        x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
-        pts, arc = self._track, self._arc
-        # Progress: nearest point a little around the last one (the path may loop close).
-        k0, k1 = self._k, min(len(pts), self._k + 30)
-        d2 = (pts[k0:k1, 0] - x) ** 2 + (pts[k0:k1, 1] - y) ** 2
-        self._k = k = k0 + int(np.argmin(d2))
-        # Longitudinal: remaining distance along the path, projected past the last point.
-        ex, ey = pts[-1, 0], pts[-1, 1]
-        eh = pts[-1, 2]
-        along_end = (ex - x) * math.cos(eh) + (ey - y) * math.sin(eh)
-        rem = max(0.0, arc[-1] - arc[k]) if k < len(pts) - 1 else 0.0
-        if k >= len(pts) - 3:
-            rem = max(0.0, self._dir * along_end)
-        if rem < 0.05 and abs(v) < 0.05:
-            if self._queue:
-                self._begin(*self._queue.pop(0))
-            else:
-                self.phase = "done"
-            return -v / dt, 0.0
-        v_des = self._dir * min(o.parking_speed, math.sqrt(2.0 * 0.8 * max(rem, 0.0)))
-        accel = max(-2.0, min(2.0, (v_des - v) / 0.5))
-        if rem < 0.05:
-            accel = -v / dt
-        # Lateral: the planned curvature fed forward, plus feedback on the lateral and heading
-        # errors. Curvature is of the path as travelled (dh/ds along the motion); reversing,
-        # highway-env's centre turns at -2 sin(beta)/L per metre, hence the sign flip. The
-        # gains (k_y < k_h / (L/2)) keep the reverse loop stable: in reverse the slip angle
-        # pushes the lateral error the wrong way first.
-        kk = min(k, len(pts) - 2)
-        seg = max(arc[kk + 1] - arc[kk], 1e-6)
-        kappa_ref = wrap_to_pi(pts[kk + 1, 2] - pts[kk, 2]) / seg
-        # Reference direction of motion from the points (it differs from the body heading
-        # by the slip angle).
-        th = math.atan2(pts[kk + 1, 1] - pts[kk, 1], pts[kk + 1, 0] - pts[kk, 0])
-        ph = pts[kk, 2]
-        e_y = -(x - pts[kk, 0]) * math.sin(th) + (y - pts[kk, 1]) * math.cos(th)
-        e_h = wrap_to_pi(h - ph)
-        kappa = kappa_ref - 0.3 * e_y - 1.5 * e_h
-        steer = bicycle_steering(self._dir * kappa, ego.length, o.max_steering)
-        return accel, self.side * steer
