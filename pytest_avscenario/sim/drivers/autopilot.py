@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from pytest_avscenario.sim.drivers.junction import Junction
 from pytest_avscenario.sim.drivers.parking import Parker
+from pytest_avscenario.sim.drivers.perception import EMPTY, Perceived
 from pytest_avscenario.sim.drivers.route_path import RoutePath, pursuit_steering
-from pytest_avscenario.sim.geometry import heading_change
-from pytest_avscenario.sim.right_of_way import has_entered, precedence, waiting_at_line
+from pytest_avscenario.sim.right_of_way import waiting_at_line
 
 __all__ = ["Autopilot", "AutopilotOptions"]
 
@@ -79,125 +80,6 @@ class AutopilotOptions:
         for name in ("max_accel", "comfort_decel", "max_decel", "brake_jerk", "max_steering"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"Autopilot option {name} must be > 0")
-
-
-class _Seen:
-    """One perceived agent (world frame), reduced to what the planner reads."""
-
-    __slots__ = ("x", "y", "vx", "vy", "c", "s", "hl", "hw", "ped", "bus", "arm", "name")
-
-    def __init__(self, a: Any) -> None:
-        self.x, self.y, self.vx, self.vy = float(a.x), float(a.y), float(a.vx), float(a.vy)
-        self.c, self.s = math.cos(a.heading), math.sin(a.heading)
-        self.hl, self.hw = 0.5 * float(a.length), 0.5 * float(a.width)
-        self.ped = a.kind == "pedestrian"
-        self.arm = bool(a.flags and a.flags.get("stop_arm"))
-        self.bus = a.kind == "bus" or self.arm
-        self.name = a.name
-
-
-class _Perceived:
-    """One perception snapshot of the other agents.
-
-    Plain Python per agent: with the few agents of a scenario, scalar math beats numpy's
-    per-call overhead; arrays are built only for the conflict prediction.
-    """
-
-    __slots__ = ("agents", "n")
-
-    def __init__(self, agents: tuple) -> None:
-        self.agents = tuple(_Seen(a) for a in agents)
-        self.n = len(self.agents)
-
-
-_EMPTY = _Perceived(())
-
-
-class _Junction:
-    """The all-way stop behind one stop line of the route, as the autopilot infers it.
-
-    From its own route alone: the box centre and half size from the connector after the line
-    (straight: half its length; a turn: its radius -+ half a lane) and the distance from the
-    line to the centre, assumed the same on every arm. From what it sees: when each other
-    vehicle came to rest (< 0.5 m/s) facing the box with its front bumper between 1 m past
-    and 4 m before where that arm's stop line would be (perception time, i.e. observation
-    time minus latency), and when it entered (front more than 1 m past the line). Those
-    thresholds and who goes first are :mod:`~pytest_avscenario.sim.right_of_way`'s, the rule
-    the traffic's ``turn`` behaviour follows too; only what it knows differs.
-    """
-
-    def __init__(self, route: tuple, line: Any) -> None:
-        j = line.route_index
-        lane, conn = route[j], route[j + 1]
-        x0, y0 = (float(v) for v in lane.position(lane.length, 0.0))
-        h = float(lane.heading_at(lane.length))
-        self.ca, self.sa = math.cos(h), math.sin(h)
-        self.heading = h
-        w = float(lane.width_at(0.0))
-        x1, y1 = (float(v) for v in conn.position(conn.length, 0.0))
-        turn = heading_change(conn)
-        radius = float(getattr(conn, "radius", math.inf))
-        if abs(turn) < 0.5 or not math.isfinite(radius):
-            half = 0.5 * math.hypot(x1 - x0, y1 - y0)
-        elif turn > 0.0:
-            half = radius - 0.5 * w  # a left turn from the lane next to the centre line
-        else:
-            half = radius + 0.5 * w  # a right turn from the kerb lane
-        self.half = half
-        # Centre: half ahead of the box edge, half a lane left of our lane's centre line.
-        self.cx = x0 + self.ca * half - self.sa * 0.5 * w
-        self.cy = y0 + self.sa * half + self.ca * 0.5 * w
-        self.d_line = float(lane.length - line.s) + half  # from a stop line to the centre [m]
-        self.arrived: dict[str, tuple[float, float]] = {}  # name -> (came to rest [s], heading)
-        self.entered: set[str] = set()
-        self.t_me: float | None = None  # when we came to rest at our line [s]
-        self.waited = 0.0  # [s] waiting for the right of way
-
-    def observe(self, seen: "_Perceived", t_seen: float) -> None:
-        """Note who came to rest at, or entered from, a stop line of this intersection."""
-        present = set()
-        for a in seen.agents:
-            if a.ped:
-                continue
-            present.add(a.name)
-            if a.name in self.entered:
-                continue
-            fx, fy = a.x + a.hl * a.c, a.y + a.hl * a.s
-            dx, dy = self.cx - fx, self.cy - fy
-            along = dx * a.c + dy * a.s
-            if a.name in self.arrived:
-                if has_entered(along, self.d_line):
-                    del self.arrived[a.name]
-                    self.entered.add(a.name)
-                continue
-            if a.c * self.ca + a.s * self.sa > 0.7:
-                continue  # our own approach: a queue, not a rival
-            if abs(dx * a.s - dy * a.c) > self.half:
-                continue
-            if waiting_at_line(along, self.d_line, math.hypot(a.vx, a.vy)):
-                self.arrived[a.name] = (t_seen, math.atan2(a.s, a.c))
-        for name in [n for n in self.arrived if n not in present]:
-            del self.arrived[name]  # out of sight
-
-    def first_to_go(self, seen: "_Perceived", patient: bool) -> bool:
-        """Whether it is our turn: (a) nobody who came to rest before us (or at the same
-        time on our right) is still waiting, unless ``patient`` is False; (b) nothing moves
-        inside the box."""
-        if patient and self.t_me is not None:
-            for t_o, h_o in self.arrived.values():
-                if precedence(self.t_me, self.heading, t_o, h_o) in ("earlier", "right"):
-                    return False
-        for a in seen.agents:
-            if a.ped or math.hypot(a.vx, a.vy) < 0.3:
-                continue
-            # Its footprint in the box, or past its stop line on the way in.
-            reach = self.half + 0.5 + a.hl
-            if a.name in self.entered and (self.cx - a.x) * a.c + (self.cy - a.y) * a.s > 0.0:
-                reach = max(reach, self.d_line + a.hl)
-            dx, dy = a.x - self.cx, a.y - self.cy
-            if abs(dx * self.ca + dy * self.sa) < reach and abs(dy * self.ca - dx * self.sa) < reach:
-                return False
-        return True
 
 
 class Autopilot:
@@ -251,14 +133,14 @@ class Autopilot:
         return f"Autopilot({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
 
     # -- perception -----------------------------------------------------------------------
-    def _perceive(self, obs: Any) -> _Perceived:
+    def _perceive(self, obs: Any) -> Perceived:
         """The agents as seen ``latency`` seconds ago; nothing until a track is that old."""
         delay = int(round(self.options.latency / obs.dt)) if obs.dt > 0 else 0
-        self._history.append(_Perceived(obs.agents) if obs.agents else _EMPTY)
+        self._history.append(Perceived(obs.agents) if obs.agents else EMPTY)
         while len(self._history) > delay + 1:
             self._history.popleft()
         if len(self._history) < delay + 1:
-            return _EMPTY
+            return EMPTY
         return self._history[0]
 
     def _route_path(self, route: tuple, obs: Any) -> RoutePath | None:
@@ -422,7 +304,7 @@ class Autopilot:
 
     def _stop_lines(self, obs, path, s_ego, L, v, dt, clear, seen) -> list[tuple[float, str]]:
         """Stop targets from the route's stop lines: full stop, then go when ``clear`` and it
-        has the right of way (first to stop, first to go; see :class:`_Junction`)."""
+        has the right of way (first to stop, first to go; see :class:`Junction`)."""
         o = self.options
         out = []
         nearest = True
@@ -436,7 +318,7 @@ class Autopilot:
             state = self._stop_state.get(key)
             if state is None:
                 # A connector after the line: an intersection whose arrival order counts.
-                junction = (_Junction(obs.route, line)
+                junction = (Junction(obs.route, line)
                             if line.route_index + 1 < len(obs.route) else None)
                 state = self._stop_state[key] = ["approach", 0.0, junction]
             if state[0] == "go":
