@@ -19,14 +19,14 @@ import numpy as np
 
 from .drivers import IDMDriver, resolve
 from .errors import SimError
-from .geometry import footprints_overlap, wrap_to_pi
+from .geometry import footprints_overlap
 from .observation import AgentState, Observation, StopLine as ObsStopLine
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
+from .recording import Recorder
 from ..trajectory import Trajectory
 
 __all__ = ["World"]
 
-_ABSENT = (math.nan,) * 7 + (-1,)
 
 
 class World:
@@ -152,14 +152,14 @@ class World:
 
     @property
     def lane_index(self) -> Any:
-        """The :class:`~.roads.LaneIndex` of the road: every lane, its neighbours and stop
+        """The :class:`~.lanes.LaneIndex` of the road: every lane, its neighbours and stop
         marks, and the tracker that keeps each agent's lane (None before a road is built)."""
         return self._index
 
     def reindex(self, lanes: Any) -> Any:
         """Index ``lanes`` afresh (a road network that grew), keeping the stop marks made so
         far; returns the new :attr:`lane_index`."""
-        from .roads import LaneIndex
+        from .lanes import LaneIndex
 
         index = LaneIndex(lanes)
         if self._index is not None:
@@ -655,7 +655,7 @@ class World:
                 except ValueError as exc:
                     raise SimError(f"behaviour {a.behavior.name}: {exc}", test=self.name,
                                    agent=a.name) from exc
-        rec = _Recorder(self, agents, n_steps + 1)
+        rec = Recorder(self, agents, n_steps + 1)
         road = self._road
         reason = None
         k = 0
@@ -741,89 +741,3 @@ def _frozen(cls: Any, values: dict) -> Any:
     obj = object.__new__(cls)
     obj.__dict__.update(values)
     return obj
-
-
-
-class _Recorder:
-    """Fills preallocated ``(T, A, k)`` arrays each step and builds the Trajectory at the end."""
-
-    def __init__(self, world: World, agents: list[Any], n: int) -> None:
-        self.world = world
-        self.agents = agents
-        self.code = world._index.code
-        A = len(agents)
-        self.kin = np.empty((n, A, 8))  # x, y, vx, vy, speed, heading, lane_offset, lane code
-        self.flags = np.zeros((n, A, 3), dtype=bool)  # crashed, on_road, present
-        self.buses = [a for a in agents if a.kind == "bus"]
-        self.arm = np.zeros((n, len(self.buses)))
-        self.cmd = np.zeros((n, 2))  # ego commanded acceleration, steering
-
-    def write(self, k: int) -> None:
-        code = self.code
-        rows = []
-        fl = []
-        for a in self.agents:
-            if not a.active:
-                rows.append(_ABSENT)
-                fl.append((False, False, False))
-                continue
-            p = a.position
-            h = a.heading
-            v = a.speed
-            c = math.cos(h)
-            s = math.sin(h)
-            li = a.lane_index
-            rows.append((p[0], p[1], v * c, v * s, v, wrap_to_pi(h),
-                         a.lane_r if li is not None else math.nan,
-                         code[li] if li is not None else -1))
-            fl.append((a.crashed, a.is_on_road, True))
-        self.kin[k] = rows
-        self.flags[k] = fl
-        if self.buses:
-            self.arm[k] = [b.stop_arm for b in self.buses]
-        act = self.agents[0].action
-        self.cmd[k] = (act["acceleration"], act["steering"])
-
-    def finish(self, n: int, seconds: float, stopped: str | None) -> Trajectory:
-        w = self.world
-        kin = self.kin[:n].transpose(1, 0, 2)  # (A, T, 8)
-        flags = self.flags[:n].transpose(1, 0, 2)
-        ids = np.asarray([l.id for l in w._index.order] + [""])
-        codes = kin[:, :, 7].astype(int)
-        lane = ids[codes]  # -1 picks the trailing "" entry
-        t = np.arange(n) * w.dt
-        ego = self.agents[0]
-        signals = {f"{b.name}.stop_arm": self.arm[:n, i].copy() for i, b in enumerate(self.buses)}
-        # Command at step k is what the ego applied from t[k-1] to t[k]; sample 0 repeats step 1.
-        cmd = self.cmd[:n].copy()
-        if n > 1:
-            cmd[0] = cmd[1]
-        signals[f"{ego.name}.acceleration"] = cmd[:, 0]
-        signals[f"{ego.name}.steering"] = cmd[:, 1]
-        last = ego.plan[-1]
-        reached = bool(ego.route_index == len(ego.plan) - 1
-                       and ego.route_s >= last.length - ego.LENGTH / 2)
-        meta = {
-            "dt": w.dt, "seed": w.seed, "test": w.name, "seconds": seconds,
-            "road": w.road.kind, "ego_driver": repr(ego.driver),
-            "ego_route": [l.id for l in ego.plan],
-            "ego_reached_route_end": reached,
-            "ego_route_index": int(ego.route_index),
-            "stopped_early": stopped,
-            "crashed": [a.name for a in self.agents if a.crashed],
-            "crosswalks": [c.name for c in getattr(w.road, "crosswalks", [])],
-            **({"intersections": list(w.road.intersections)} if w.road.kind == "network" else {}),
-        }
-        return Trajectory(
-            t=t, names=tuple(a.name for a in self.agents), kinds=tuple(a.kind for a in self.agents),
-            length=np.array([float(a.LENGTH) for a in self.agents]),
-            width=np.array([float(a.WIDTH) for a in self.agents]),
-            x=np.ascontiguousarray(kin[:, :, 0]), y=np.ascontiguousarray(kin[:, :, 1]),
-            vx=np.ascontiguousarray(kin[:, :, 2]), vy=np.ascontiguousarray(kin[:, :, 3]),
-            speed=np.ascontiguousarray(kin[:, :, 4]), heading=np.ascontiguousarray(kin[:, :, 5]),
-            lane=lane, lane_offset=np.ascontiguousarray(kin[:, :, 6]),
-            crashed=np.ascontiguousarray(flags[:, :, 0]),
-            present=np.ascontiguousarray(flags[:, :, 2]),
-            on_road=np.ascontiguousarray(flags[:, :, 1]),
-            signals=signals, meta=meta,
-        )
