@@ -4,7 +4,7 @@ This is the only module that imports highway-env at import time; the world impor
 builds its first road, never at plugin load. Every class here sets the class constants it
 relies on itself, so code elsewhere in the process that rewrites highway-env's constants (e.g.
 ``intersection-v0`` rewriting ``IDMVehicle.COMFORT_ACC_MAX``) cannot change a scenario's
-outcome. Each agent keeps its lane by tracking (see :mod:`.roads`) rather than
+outcome. Each agent keeps its lane by tracking (see :mod:`.lanes`) rather than
 highway-env's scan of every lane per step.
 
 Agents expose the few helpers behaviours drive with: ``age`` (seconds since the agent
