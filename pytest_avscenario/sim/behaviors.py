@@ -33,7 +33,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from . import control
+from . import control, right_of_way
 
 __all__ = [
     "Behavior", "keep_lane", "stopped", "brake_at", "change_lane", "turn", "turn_across",
@@ -217,10 +217,10 @@ class Turn(Behavior):
             d = agent.distance_to_stop_line()
             if d is not None:
                 d -= agent.LENGTH / 2  # from the front bumper
-            if d is None or d < -1.0:
+            if d is None or right_of_way.has_entered(d, 0.0):
                 st["released"] = True
             else:
-                stopped = agent.speed < 0.5 and d < 3.0
+                stopped = agent.speed < right_of_way.STANDING and d < 3.0
                 if stopped:
                     st["stopped_for"] = st.get("stopped_for", 0.0) + world.dt
                 waited = st.get("stopped_for", 0.0) >= (self.stop_time if self.stop else 0.0)
