@@ -309,12 +309,12 @@ def test_tracked_lane_agrees_with_highway_envs_full_scan():
     w.car(inter.stop_line("east").before(15), speed=8.0, behavior=b.turn("straight", stop=False))
     tr = w.run(8.0)
     net = w._road.network
-    ids = {l.index: l.id for l in w._index.order}
+    ids = {l.index: l.id for l in w.lane_index.order}
     agree = total = 0
     for i in range(tr.n_agents):
         for k in range(tr.n_steps):
             p = np.array([tr.x[i, k], tr.y[i, k]])
-            mine = w._index.lanes[next(ix for ix, v in ids.items() if v == tr.lane[i, k])]
+            mine = w.lane_index.lanes[next(ix for ix, v in ids.items() if v == tr.lane[i, k])]
             theirs = net.get_lane(net.get_closest_lane_index(p, tr.heading[i, k]))
             total += 1
             # Overlapping connectors tie at their shared start; count a tie as agreement.

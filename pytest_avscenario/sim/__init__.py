@@ -3,6 +3,25 @@
 ``from pytest_avscenario.sim import World, SimError, behaviors`` is cheap: this package and
 :mod:`.behaviors` import neither highway-env nor pygame, matplotlib or pandas. highway-env is
 imported when a :class:`World` builds its first road; pygame when a world renders.
+
+One concept per module; scenario code talks to :mod:`.world`, the rest talk to each other:
+
+* :mod:`.world` — the façade: build one road, place agents, run, keep the trajectory; its
+  small interface for the engine, roads and behaviours (``lane_index``, ``reindex``,
+  ``movers``, ``observe``, ``turn_route``, ``all_way_stop``).
+* :mod:`.roads`, :mod:`.network` — the road types (straight, two-way, intersection) and a
+  network of intersections joined by links.
+* :mod:`.places` — lanes, spots, stop lines, crosswalks, routes: what scenarios name.
+* :mod:`.lanes` — lane tracking: the index of a road's lanes, stop marks, where agents are.
+* :mod:`.engine` — our highway-env lane, road and vehicle subclasses (the only module that
+  imports highway-env at import time); :mod:`._hwenv` loads its core without gym.
+* :mod:`.behaviors` — what non-ego agents do; :mod:`.control` — the control laws they use.
+* :mod:`.right_of_way` — the all-way-stop rule, shared by behaviours and the autopilot.
+* :mod:`.geometry` — angle wrapping and footprint overlap.
+* :mod:`.observation` — what a driver sees; :mod:`.drivers` — who drives the ego (the
+  autopilot with its route path, perception, junction and parking modules).
+* :mod:`.recording` — per-step recording into the Trajectory the monitors read.
+* :mod:`.render` — PNG/GIF replays of a recorded run; :mod:`.errors` — SimError, DriverError.
 """
 
 from __future__ import annotations

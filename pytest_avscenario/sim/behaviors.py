@@ -30,11 +30,10 @@ Importing this module imports neither highway-env nor pygame.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from . import control
+from . import control, right_of_way
 
 __all__ = [
     "Behavior", "keep_lane", "stopped", "brake_at", "change_lane", "turn", "turn_across",
@@ -186,177 +185,10 @@ def change_lane(to: Any = "left", at: float = 0.0, duration: float = 3.0,
     return ChangeLane(to=to, at=at, duration=duration, speed=speed)
 
 
-class _AllWayStop:
-    """Who stopped when at the all-way stops of one world: the arrival order ``turn`` goes by.
-
-    Every vehicle (the ego too, whatever drives it) standing (< 0.5 m/s) with its front bumper
-    between 1 m past and 4 m before the stop line on its route is *waiting* there from the
-    first such step on (a car queued behind another is further back and does not count yet);
-    once its front is more than 1 m past the line, on the connector through the box, or on
-    the exit with its rear still in the box, it is *inside*. Vehicles of one intersection are
-    those whose connectors share its nodes; two connectors *conflict* when they come from
-    different approaches and their centre lines come within 3 m.
-
-    A vehicle waiting at a line may go when every vehicle that began waiting at another line
-    of the same intersection more than 0.2 s earlier has entered, on a tie (within 0.2 s) the
-    one on its right has entered (facing each other: the left turner yields to the other, else
-    the one added to the world later yields), and nothing inside the box is on a conflicting
-    path. One instance per world, updated once per step by the first ``turn`` that acts.
-    """
-
-    SPEED = 0.5  # [m/s] standing
-    BEFORE, PAST = 4.0, 1.0  # [m] front bumper before / past the line that counts as "at" it
-    TIE = 0.2  # [s]
-    CONFLICT = 3.0  # [m] centre lines closer than this conflict
-
-    @classmethod
-    def of(cls, world: Any) -> "_AllWayStop":
-        """The world's own instance (kept on the world, made on first use)."""
-        aw = getattr(world, "_allway", None)
-        if aw is None or aw.index is not world._index:
-            aw = world._allway = cls(world)
-        return aw
-
-    def __init__(self, world: Any) -> None:
-        self.world = world
-        self.index = world._index
-        self.t: float | None = None
-        self.waiting: dict[str, tuple[float, Any, float]] = {}  # name -> (since [s], connector, heading)
-        self.inside: dict[str, Any] = {}  # name -> connector
-        self.order: dict[str, int] = {}
-        self._node: dict[str, str] = {}
-        self._conflict: dict[tuple, bool] = {}
-        parent: dict[str, str] = {}
-
-        def find(n: str) -> str:
-            while parent.setdefault(n, n) != n:
-                n = parent[n]
-            return n
-
-        for lane in self.index.order:
-            if lane.kind == "connector":
-                a, b = find(lane.index[0]), find(lane.index[1])
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
-        self._node = {n: find(n) for n in parent}
-
-    def update(self) -> None:
-        """Refresh who waits where and who is inside (once per simulation step)."""
-        w = self.world
-        if self.t is not None and w.t == self.t:
-            return
-        if self.t is None or w.t < self.t:  # a new run
-            self.waiting.clear()
-        self.t = w.t
-        self.inside = {}
-        agents = w.agents
-        self.order = {a.name: i for i, a in enumerate(agents)}
-        for a in agents:
-            if a.kind not in VEHICLES or a.kind == "parked" or not getattr(a, "active", True):
-                self.waiting.pop(a.name, None)
-                continue
-            where = self._where(a)
-            if where is None:
-                self.waiting.pop(a.name, None)
-            elif where[0] == "inside":
-                self.waiting.pop(a.name, None)
-                self.inside[a.name] = where[1]
-            elif where[0] == "at line":
-                self.waiting.setdefault(a.name, (w.t, where[1], where[2]))
-
-    def _where(self, a: Any) -> tuple | None:
-        plan, ri = a.plan, a.route_index
-        if not plan:
-            return None
-        half = a.LENGTH / 2
-        if plan[ri].kind == "connector":
-            return ("inside", plan[ri])
-        if ri > 0 and plan[ri - 1].kind == "connector" and a.route_s - half < 0.5:
-            return ("inside", plan[ri - 1])
-        found = a.stop_line_ahead()
-        if found is None:
-            return None
-        d, j = found
-        if j + 1 >= len(plan) or plan[j + 1].kind != "connector":
-            return None
-        d -= half
-        if d < -self.PAST:
-            return ("inside", plan[j + 1])
-        if d <= self.BEFORE and a.speed < self.SPEED:
-            g = plan[j].geometry
-            return ("at line", plan[j + 1], float(g.heading_at(g.length)))
-        return ("approach", plan[j + 1])
-
-    def conflict(self, c1: Any, c2: Any) -> bool:
-        """Whether connectors ``c1`` and ``c2`` of one intersection cross or merge."""
-        if c1.index[0] == c2.index[0]:
-            return False  # the same approach: a queue, car following's job
-        if self._node.get(c1.index[0]) != self._node.get(c2.index[0]):
-            return False  # another intersection
-        key = (c1.index, c2.index)
-        hit = self._conflict.get(key)
-        if hit is None:
-            p1, p2 = _centre_points(c1), _centre_points(c2)
-            d2 = min((x1 - x2) ** 2 + (y1 - y2) ** 2 for x1, y1 in p1 for x2, y2 in p2)
-            hit = self._conflict[key] = self._conflict[key[::-1]] = d2 < self.CONFLICT ** 2
-        return hit
-
-    def may_go(self, agent: Any, patient: bool = True) -> bool:
-        """Whether ``agent``, waiting at its stop line, has the right of way now.
-
-        With ``patient`` False (it has waited too long) only what is inside the box counts.
-        """
-        me = self.waiting.get(agent.name)
-        if me is None:
-            where = self._where(agent)
-            if where is None:
-                return True
-            me = (self.world.t, where[1], 0.0)
-        t_me, conn, h_me = me
-        if patient:
-            for name, (t_o, c_o, h_o) in self.waiting.items():
-                if name == agent.name or c_o.index[0] == conn.index[0]:
-                    continue
-                if self._node.get(c_o.index[0]) != self._node.get(conn.index[0]):
-                    continue
-                if t_o < t_me - self.TIE - 1e-9:
-                    return False  # it stopped first
-                if t_o <= t_me + self.TIE + 1e-9:  # a tie
-                    side = math.sin(h_o - h_me)
-                    if side > 0.5:
-                        return False  # it is on our right
-                    if side >= -0.5 and self.conflict(conn, c_o):  # facing each other
-                        mine, theirs = _turn_of(conn), _turn_of(c_o)
-                        if mine == "left" and theirs != "left":
-                            return False
-                        if (mine == "left") == (theirs == "left") and \
-                                self.order.get(name, 0) < self.order.get(agent.name, 0):
-                            return False
-        for name, c_o in self.inside.items():
-            if name != agent.name and self.conflict(conn, c_o):
-                return False
-        return True
-
-
-def _centre_points(lane: Any, n: int = 24) -> list[tuple[float, float]]:
-    g = lane.geometry
-    out = []
-    for k in range(n + 1):
-        p = g.position(g.length * k / n, 0.0)
-        out.append((float(p[0]), float(p[1])))
-    return out
-
-
-def _turn_of(lane: Any) -> str:
-    g = lane.geometry
-    dh = (float(g.heading_at(g.length)) - float(g.heading_at(0.0)) + math.pi) % (2 * math.pi) - math.pi
-    return "left" if dh > 0.5 else "right" if dh < -0.5 else "straight"
-
-
 @dataclass(frozen=True)
 class Turn(Behavior):
     """At an intersection, take ``direction``; stop at the line first when ``stop`` and go in
-    arrival order (see :class:`_AllWayStop`)."""
+    arrival order (the world's :class:`~.right_of_way.AllWayStop`)."""
 
     direction: str = "straight"
     stop: bool = True
@@ -379,16 +211,16 @@ class Turn(Behavior):
         hold = None
         allway = None
         if self.stop:
-            allway = _AllWayStop.of(world)
+            allway = world.all_way_stop
             allway.update()  # every step: arrival times of everyone, before we stop too
         if (self.stop or self.go_when_ego_within is not None) and not st.get("released"):
             d = agent.distance_to_stop_line()
             if d is not None:
                 d -= agent.LENGTH / 2  # from the front bumper
-            if d is None or d < -1.0:
+            if d is None or right_of_way.has_entered(d, 0.0):
                 st["released"] = True
             else:
-                stopped = agent.speed < 0.5 and d < 3.0
+                stopped = agent.speed < right_of_way.STANDING and d < 3.0
                 if stopped:
                     st["stopped_for"] = st.get("stopped_for", 0.0) + world.dt
                 waited = st.get("stopped_for", 0.0) >= (self.stop_time if self.stop else 0.0)

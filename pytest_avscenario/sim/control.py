@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 
+from .geometry import wrap_to_pi
+
 __all__ = [
     "IDM", "idm_acceleration", "track_speed", "lane_steering", "curve_speed",
     "MAX_STEERING", "MAX_ACCELERATION", "MAX_DECELERATION",
@@ -72,7 +74,7 @@ def lane_steering(speed: float, heading: float, lateral_error: float, path_headi
     offset = math.asin(min(max(lateral_speed / v, -1.0), 1.0))
     offset = min(max(offset, -math.pi / 4), math.pi / 4)
     err = path_heading + offset - heading
-    err = (err + math.pi) % (2 * math.pi) - math.pi
+    err = wrap_to_pi(err)
     yaw_rate = k_heading * err
     sin_beta = min(max(length / 2 * yaw_rate / v, -1.0), 1.0)
     delta = math.atan(2.0 * math.tan(math.asin(sin_beta)))

@@ -4,7 +4,7 @@ This is the only module that imports highway-env at import time; the world impor
 builds its first road, never at plugin load. Every class here sets the class constants it
 relies on itself, so code elsewhere in the process that rewrites highway-env's constants (e.g.
 ``intersection-v0`` rewriting ``IDMVehicle.COMFORT_ACC_MAX``) cannot change a scenario's
-outcome. Each agent keeps its lane by tracking (see :mod:`.roads`) rather than
+outcome. Each agent keeps its lane by tracking (see :mod:`.lanes`) rather than
 highway-env's scan of every lane per step.
 
 Agents expose the few helpers behaviours drive with: ``age`` (seconds since the agent
@@ -32,6 +32,7 @@ from highway_env.vehicle.kinematics import Vehicle  # noqa: E402
 from . import control
 from .drivers import action_pair
 from .errors import DriverError, SimError
+from .geometry import wrap_to_pi
 
 __all__ = ["Straight", "Arc", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian"]
 
@@ -83,7 +84,7 @@ class Arc(CircularLane):
         dx = position[0] - self._cx
         dy = position[1] - self._cy
         phi = math.atan2(dy, dx)
-        phi = self.start_phase + ((phi - self.start_phase + math.pi) % (2 * math.pi) - math.pi)
+        phi = self.start_phase + wrap_to_pi(phi - self.start_phase)
         r = math.hypot(dx, dy)
         return (float(self.direction * (phi - self.start_phase) * self.radius),
                 float(self.direction * (self.radius - r)))
@@ -155,12 +156,12 @@ class _Agent:
         self.lane_r = math.nan
         self.is_on_road = lane is not None
         self.stop_arm = False
-        world._index.track(self)
+        world.lane_index.track(self)
 
     def on_state_update(self) -> None:
         # Replaces highway-env's per-step scan of every lane of the network.
         if getattr(self, "world", None) is not None:
-            self.world._index.track(self)
+            self.world.lane_index.track(self)
 
     def step(self, dt: float) -> None:
         super().step(dt)
@@ -223,7 +224,7 @@ class _Agent:
         lanes = [(here, -self.route_s)]
         if self.route_index + 1 < len(self.plan):
             lanes.append((self.plan[self.route_index + 1].geometry, here.length - self.route_s))
-        for o in self.world._movers:
+        for o in self.world.movers:
             if o is self:
                 continue
             pos = o.position
@@ -292,7 +293,7 @@ class _Agent:
         """``(distance [m] from the centre, index in plan of its lane)`` of the next stop line
         on the route (the distance is negative once passed, until the agent leaves that
         lane), or None."""
-        marks = self.world._index.stop_marks
+        marks = self.world.lane_index.stop_marks
         ahead = -self.route_s
         for j in range(self.route_index, len(self.plan)):
             lane = self.plan[j]
@@ -318,15 +319,15 @@ class _Agent:
     def change_lane(self, to: Any) -> None:
         """Re-plan the route onto lane ``to``: "left", "right", "out" (from parking), a number
         or a Lane."""
-        target = self.world._index.resolve_lane_change(self, to)
-        self.plan = self.world._index.continue_route(target)
+        target = self.world.lane_index.resolve_lane_change(self, to)
+        self.plan = self.world.lane_index.continue_route(target)
         self.route_index = 0
         s, r = target.geometry.local_coordinates(self.position)
         self.route_s, self.route_r = s, r
 
     def take_turn(self, direction: str) -> None:
         """Route through the intersection ahead taking ``direction``."""
-        route = self.world._turn_route(self, direction)
+        route = self.world.turn_route(self, direction)
         self.plan = list(route.lanes)
         self.route_index = 0
         s, r = self.plan[0].geometry.local_coordinates(self.position)
@@ -375,7 +376,7 @@ class DriverEgo(Actor):
         if self.crashed:
             return
         w = self.world
-        obs = w._observe(self)
+        obs = w.observe(self)
         try:
             raw = self.driver.act(obs)
         except Exception as exc:  # the driver is user code: report, never swallow
@@ -499,5 +500,5 @@ class Pedestrian(_Agent, Vehicle):
     def road_pause_at(self) -> float | None:
         """Path length [m] at the middle of the first travel lane the path crosses, or None."""
         if self._pause is None:
-            self._pause = self.world._index.first_lane_middle(self._pts, self._cum)
+            self._pause = self.world.lane_index.first_lane_middle(self._pts, self._cum)
         return self._pause if self._pause >= 0 else None

@@ -93,7 +93,7 @@ class Network(_Road):
 
     # -- building --------------------------------------------------------------------------------
     def _building(self, what: str) -> None:
-        if self.world._all():
+        if self.world.agents:
             raise SimError(f"{what}: build the whole network before placing agents",
                            test=self.world.name)
 
@@ -197,15 +197,8 @@ class Network(_Road):
 
     def _adopt(self, part: _Road) -> None:
         """Take ``part``'s lanes into the network and re-index (stop marks carry over)."""
-        from .roads import LaneIndex
-
         self.all_lanes.extend(part.all_lanes)
-        old = self.world._index
-        index = LaneIndex(self.all_lanes)
-        if old is not None:
-            for key, marks in old.stop_marks.items():
-                index.stop_marks[key] = list(marks)
-        self.world._index = index
+        self.world.reindex(self.all_lanes)
         if hasattr(part, "_after_index"):
             part._after_index()
         self.crosswalks.extend(part.crosswalks)
@@ -256,7 +249,7 @@ class Network(_Road):
                 raise SimError(f"network.route(): {part!r} is not a lane, a route or a list of "
                                "lanes", test=self.world.name)
             for l in seq:
-                if self.world._index.lanes.get(l.index) is not l:
+                if self.world.lane_index.lanes.get(l.index) is not l:
                     raise SimError(f"network.route(): lane {l.id!r} is not on this network",
                                    test=self.world.name)
             if lanes:
@@ -269,7 +262,7 @@ class Network(_Road):
 
     def _way(self, frm: Lane, to: Lane) -> list[Lane]:
         """The lanes strictly between ``frm`` and ``to`` on the shortest way (fewest lanes)."""
-        succ = self.world._index.successors
+        succ = self.world.lane_index.successors
         prev: dict[tuple, Lane | None] = {frm.index: None}
         queue = [frm]
         for lane in queue:
@@ -291,7 +284,7 @@ class Network(_Road):
 
     def default_route(self, lane: Lane) -> Route:
         """Straight on from ``lane``, through every intersection on the way."""
-        return Route(tuple(self.world._index.continue_route(lane, limit=64)))
+        return Route(tuple(self.world.lane_index.continue_route(lane, limit=64)))
 
     def __repr__(self) -> str:
         return (f"Network(intersections={list(self.intersections)}, "

@@ -66,7 +66,7 @@ def _view(world: Any, step: int, centre: Any = None,
     """
     tr = world.trajectory
     road = world.road
-    box = world._index._box
+    box = world.lane_index.boxes
     if road.kind == "intersection":
         size = (640, 640)
         half = road.half + min(road.approach_length, 28.0)
@@ -125,7 +125,7 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None)
     surface.scaling = scale
     surface.origin = origin
     surface.fill(GRASS)
-    lanes = world._index.order
+    lanes = world.lane_index.order
     # Asphalt first, then markings, so lane lines stay visible over neighbouring lanes. The
     # box of an intersection is paved whole (its lanes alone leave the middle between the
     # turns and any median unpaved).

@@ -19,14 +19,14 @@ import numpy as np
 
 from .drivers import IDMDriver, resolve
 from .errors import SimError
+from .geometry import footprints_overlap
 from .observation import AgentState, Observation, StopLine as ObsStopLine
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
+from .recording import Recorder
 from ..trajectory import Trajectory
 
 __all__ = ["World"]
 
-_TWO_PI = 2 * math.pi
-_ABSENT = (math.nan,) * 7 + (-1,)
 
 
 class World:
@@ -61,7 +61,7 @@ class World:
         self._counts: dict[str, int] = {}
         self._route_geoms: tuple = ()
         self._stop_cache: dict[int, tuple] = {}
-        self._allway: Any = None  # arrival order at all-way stops (behaviors._AllWayStop)
+        self._allway: Any = None  # arrival order at all-way stops (right_of_way.AllWayStop)
         self.sensor_range = 80.0  # [m]
 
     def __repr__(self) -> str:
@@ -81,11 +81,10 @@ class World:
 
     def _finish_road(self, road: Any, net: Any) -> Any:
         from .engine import SimRoad
-        from .roads import LaneIndex
 
         self._road = SimRoad(network=net, vehicles=[], np_random=np.random.default_rng(self.seed),
                           record_history=False)
-        self._index = LaneIndex(road.all_lanes)
+        self.reindex(road.all_lanes)
         self.road = road
         if hasattr(road, "_after_index"):
             road._after_index()
@@ -147,6 +146,44 @@ class World:
         self.road = Network(self, net)
         return self.road
 
+    # -- the interface of the engine, roads and behaviours to the world ------------------------
+    # Agents, roads and behaviours go through these few members, never through the world's
+    # private attributes, so the world can change how it keeps its state.
+
+    @property
+    def lane_index(self) -> Any:
+        """The :class:`~.lanes.LaneIndex` of the road: every lane, its neighbours and stop
+        marks, and the tracker that keeps each agent's lane (None before a road is built)."""
+        return self._index
+
+    def reindex(self, lanes: Any) -> Any:
+        """Index ``lanes`` afresh (a road network that grew), keeping the stop marks made so
+        far; returns the new :attr:`lane_index`."""
+        from .lanes import LaneIndex
+
+        index = LaneIndex(lanes)
+        if self._index is not None:
+            for key, marks in self._index.stop_marks.items():
+                index.stop_marks[key] = list(marks)
+        self._index = index
+        return index
+
+    @property
+    def movers(self) -> list[Any]:
+        """The agents on the road this step (present ones, in stepping order). Read only."""
+        return self._movers
+
+    @property
+    def all_way_stop(self) -> Any:
+        """The arrival order at this world's all-way stops (a :class:`~.right_of_way.AllWayStop`),
+        made on first use and remade when the road is re-indexed."""
+        from .right_of_way import AllWayStop
+
+        aw = self._allway
+        if aw is None or aw.index is not self._index:
+            aw = self._allway = AllWayStop(self)
+        return aw
+
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
         if self.road is None or self._index is None:
@@ -205,18 +242,8 @@ class World:
 
     def _overlapping(self, new: Any, others: list[Any]) -> Any:
         """The first of ``others`` whose footprint intersects ``new``'s, or None."""
-        # ``from highway_env.utils import`` (not ``from highway_env import utils``): the latter
-        # would import the whole package with its gym environments (see _hwenv)
-        from highway_env.utils import are_polygons_intersecting
-
-        poly = new.polygon()
-        zero = np.zeros(2)
         for other in others:
-            if other is new:
-                continue
-            if np.hypot(*(other.position - new.position)) > (other.diagonal + new.diagonal) / 2:
-                continue
-            if are_polygons_intersecting(poly, other.polygon(), zero, zero)[0]:
+            if other is not new and footprints_overlap(new, other):
                 return other
         return None
 
@@ -497,7 +524,7 @@ class World:
             return road.junction_ahead(who)
         return None
 
-    def _turn_route(self, agent: Any, direction: str) -> Route:
+    def turn_route(self, agent: Any, direction: str) -> Route:
         """The agent's route from its current lane through the next intersection's turn."""
         road = self.road
         kind = getattr(road, "kind", "")
@@ -557,7 +584,8 @@ class World:
             "length": float(a.LENGTH), "width": float(a.WIDTH),
             "flags": {"stop_arm": bool(a.stop_arm)} if a.kind == "bus" else {}})
 
-    def _observe(self, ego: Any) -> Observation:
+    def observe(self, ego: Any) -> Observation:
+        """What the driver of ``ego`` sees now: the :class:`~.observation.Observation`."""
         x, y = float(ego.position[0]), float(ego.position[1])
         near = []
         rng2 = self.sensor_range ** 2
@@ -627,7 +655,7 @@ class World:
                 except ValueError as exc:
                     raise SimError(f"behaviour {a.behavior.name}: {exc}", test=self.name,
                                    agent=a.name) from exc
-        rec = _Recorder(self, agents, n_steps + 1)
+        rec = Recorder(self, agents, n_steps + 1)
         road = self._road
         reason = None
         k = 0
@@ -713,89 +741,3 @@ def _frozen(cls: Any, values: dict) -> Any:
     obj = object.__new__(cls)
     obj.__dict__.update(values)
     return obj
-
-
-
-class _Recorder:
-    """Fills preallocated ``(T, A, k)`` arrays each step and builds the Trajectory at the end."""
-
-    def __init__(self, world: World, agents: list[Any], n: int) -> None:
-        self.world = world
-        self.agents = agents
-        self.code = world._index.code
-        A = len(agents)
-        self.kin = np.empty((n, A, 8))  # x, y, vx, vy, speed, heading, lane_offset, lane code
-        self.flags = np.zeros((n, A, 3), dtype=bool)  # crashed, on_road, present
-        self.buses = [a for a in agents if a.kind == "bus"]
-        self.arm = np.zeros((n, len(self.buses)))
-        self.cmd = np.zeros((n, 2))  # ego commanded acceleration, steering
-
-    def write(self, k: int) -> None:
-        code = self.code
-        rows = []
-        fl = []
-        for a in self.agents:
-            if not a.active:
-                rows.append(_ABSENT)
-                fl.append((False, False, False))
-                continue
-            p = a.position
-            h = a.heading
-            v = a.speed
-            c = math.cos(h)
-            s = math.sin(h)
-            li = a.lane_index
-            rows.append((p[0], p[1], v * c, v * s, v, (h + math.pi) % _TWO_PI - math.pi,
-                         a.lane_r if li is not None else math.nan,
-                         code[li] if li is not None else -1))
-            fl.append((a.crashed, a.is_on_road, True))
-        self.kin[k] = rows
-        self.flags[k] = fl
-        if self.buses:
-            self.arm[k] = [b.stop_arm for b in self.buses]
-        act = self.agents[0].action
-        self.cmd[k] = (act["acceleration"], act["steering"])
-
-    def finish(self, n: int, seconds: float, stopped: str | None) -> Trajectory:
-        w = self.world
-        kin = self.kin[:n].transpose(1, 0, 2)  # (A, T, 8)
-        flags = self.flags[:n].transpose(1, 0, 2)
-        ids = np.asarray([l.id for l in w._index.order] + [""])
-        codes = kin[:, :, 7].astype(int)
-        lane = ids[codes]  # -1 picks the trailing "" entry
-        t = np.arange(n) * w.dt
-        ego = self.agents[0]
-        signals = {f"{b.name}.stop_arm": self.arm[:n, i].copy() for i, b in enumerate(self.buses)}
-        # Command at step k is what the ego applied from t[k-1] to t[k]; sample 0 repeats step 1.
-        cmd = self.cmd[:n].copy()
-        if n > 1:
-            cmd[0] = cmd[1]
-        signals[f"{ego.name}.acceleration"] = cmd[:, 0]
-        signals[f"{ego.name}.steering"] = cmd[:, 1]
-        last = ego.plan[-1]
-        reached = bool(ego.route_index == len(ego.plan) - 1
-                       and ego.route_s >= last.length - ego.LENGTH / 2)
-        meta = {
-            "dt": w.dt, "seed": w.seed, "test": w.name, "seconds": seconds,
-            "road": w.road.kind, "ego_driver": repr(ego.driver),
-            "ego_route": [l.id for l in ego.plan],
-            "ego_reached_route_end": reached,
-            "ego_route_index": int(ego.route_index),
-            "stopped_early": stopped,
-            "crashed": [a.name for a in self.agents if a.crashed],
-            "crosswalks": [c.name for c in getattr(w.road, "crosswalks", [])],
-            **({"intersections": list(w.road.intersections)} if w.road.kind == "network" else {}),
-        }
-        return Trajectory(
-            t=t, names=tuple(a.name for a in self.agents), kinds=tuple(a.kind for a in self.agents),
-            length=np.array([float(a.LENGTH) for a in self.agents]),
-            width=np.array([float(a.WIDTH) for a in self.agents]),
-            x=np.ascontiguousarray(kin[:, :, 0]), y=np.ascontiguousarray(kin[:, :, 1]),
-            vx=np.ascontiguousarray(kin[:, :, 2]), vy=np.ascontiguousarray(kin[:, :, 3]),
-            speed=np.ascontiguousarray(kin[:, :, 4]), heading=np.ascontiguousarray(kin[:, :, 5]),
-            lane=lane, lane_offset=np.ascontiguousarray(kin[:, :, 6]),
-            crashed=np.ascontiguousarray(flags[:, :, 0]),
-            present=np.ascontiguousarray(flags[:, :, 2]),
-            on_road=np.ascontiguousarray(flags[:, :, 1]),
-            signals=signals, meta=meta,
-        )

@@ -28,25 +28,13 @@ from typing import Any
 
 import numpy as np
 
-from pytest_avscenario.sim.drivers._geometry import (
-    RoutePath,
-    bicycle_steering,
-    box_corners,
-    boxes_overlap,
-    parking_moves,
-    parking_path,
-    pursuit_steering,
-)
+from pytest_avscenario.sim.drivers.junction import Junction
+from pytest_avscenario.sim.drivers.parking import Parker
+from pytest_avscenario.sim.drivers.perception import EMPTY, Perceived
+from pytest_avscenario.sim.drivers.route_path import RoutePath, pursuit_steering
+from pytest_avscenario.sim.right_of_way import waiting_at_line
 
 __all__ = ["Autopilot", "AutopilotOptions"]
-
-_TWO_PI = 2.0 * math.pi
-
-
-def _wrap(angle: float) -> float:
-    """Angle wrapped to [-pi, pi) [rad]."""
-    return (angle + math.pi) % _TWO_PI - math.pi
-
 
 @dataclass(frozen=True)
 class AutopilotOptions:
@@ -94,129 +82,6 @@ class AutopilotOptions:
                 raise ValueError(f"Autopilot option {name} must be > 0")
 
 
-class _Seen:
-    """One perceived agent (world frame), reduced to what the planner reads."""
-
-    __slots__ = ("x", "y", "vx", "vy", "c", "s", "hl", "hw", "ped", "bus", "arm", "name")
-
-    def __init__(self, a: Any) -> None:
-        self.x, self.y, self.vx, self.vy = float(a.x), float(a.y), float(a.vx), float(a.vy)
-        self.c, self.s = math.cos(a.heading), math.sin(a.heading)
-        self.hl, self.hw = 0.5 * float(a.length), 0.5 * float(a.width)
-        self.ped = a.kind == "pedestrian"
-        self.arm = bool(a.flags and a.flags.get("stop_arm"))
-        self.bus = a.kind == "bus" or self.arm
-        self.name = a.name
-
-
-class _Perceived:
-    """One perception snapshot of the other agents.
-
-    Plain Python per agent: with the few agents of a scenario, scalar math beats numpy's
-    per-call overhead; arrays are built only for the conflict prediction.
-    """
-
-    __slots__ = ("agents", "n")
-
-    def __init__(self, agents: tuple) -> None:
-        self.agents = tuple(_Seen(a) for a in agents)
-        self.n = len(self.agents)
-
-
-_EMPTY = _Perceived(())
-
-
-class _Junction:
-    """The all-way stop behind one stop line of the route, as the autopilot infers it.
-
-    From its own route alone: the box centre and half size from the connector after the line
-    (straight: half its length; a turn: its radius -+ half a lane) and the distance from the
-    line to the centre, assumed the same on every arm. From what it sees: when each other
-    vehicle came to rest (< 0.5 m/s) facing the box with its front bumper between 1 m past
-    and 4 m before where that arm's stop line would be (perception time, i.e. observation
-    time minus latency), and when it entered (front more than 1 m past the line).
-    """
-
-    SPEED = 0.5  # [m/s] standing
-    BEFORE, PAST = 4.0, 1.0  # [m] front bumper before / past a stop line that counts as "at" it
-    TIE = 0.2  # [s] arrivals this close are simultaneous: the one on the right goes first
-
-    def __init__(self, route: tuple, line: Any) -> None:
-        j = line.route_index
-        lane, conn = route[j], route[j + 1]
-        x0, y0 = (float(v) for v in lane.position(lane.length, 0.0))
-        h = float(lane.heading_at(lane.length))
-        self.ca, self.sa = math.cos(h), math.sin(h)
-        self.heading = h
-        w = float(lane.width_at(0.0))
-        x1, y1 = (float(v) for v in conn.position(conn.length, 0.0))
-        turn = _wrap(float(conn.heading_at(conn.length)) - float(conn.heading_at(0.0)))
-        radius = float(getattr(conn, "radius", math.inf))
-        if abs(turn) < 0.5 or not math.isfinite(radius):
-            half = 0.5 * math.hypot(x1 - x0, y1 - y0)
-        elif turn > 0.0:
-            half = radius - 0.5 * w  # a left turn from the lane next to the centre line
-        else:
-            half = radius + 0.5 * w  # a right turn from the kerb lane
-        self.half = half
-        # Centre: half ahead of the box edge, half a lane left of our lane's centre line.
-        self.cx = x0 + self.ca * half - self.sa * 0.5 * w
-        self.cy = y0 + self.sa * half + self.ca * 0.5 * w
-        self.d_line = float(lane.length - line.s) + half  # from a stop line to the centre [m]
-        self.arrived: dict[str, tuple[float, float]] = {}  # name -> (came to rest [s], heading)
-        self.entered: set[str] = set()
-        self.t_me: float | None = None  # when we came to rest at our line [s]
-        self.waited = 0.0  # [s] waiting for the right of way
-
-    def observe(self, seen: "_Perceived", t_seen: float) -> None:
-        """Note who came to rest at, or entered from, a stop line of this intersection."""
-        present = set()
-        for a in seen.agents:
-            if a.ped:
-                continue
-            present.add(a.name)
-            if a.name in self.entered:
-                continue
-            fx, fy = a.x + a.hl * a.c, a.y + a.hl * a.s
-            dx, dy = self.cx - fx, self.cy - fy
-            along = dx * a.c + dy * a.s
-            if a.name in self.arrived:
-                if along < self.d_line - self.PAST:
-                    del self.arrived[a.name]
-                    self.entered.add(a.name)
-                continue
-            if a.c * self.ca + a.s * self.sa > 0.7:
-                continue  # our own approach: a queue, not a rival
-            if math.hypot(a.vx, a.vy) >= self.SPEED or abs(dx * a.s - dy * a.c) > self.half:
-                continue
-            if self.d_line - self.PAST <= along <= self.d_line + self.BEFORE:
-                self.arrived[a.name] = (t_seen, math.atan2(a.s, a.c))
-        for name in [n for n in self.arrived if n not in present]:
-            del self.arrived[name]  # out of sight
-
-    def first_to_go(self, seen: "_Perceived", patient: bool) -> bool:
-        """Whether it is our turn: (a) nobody who came to rest before us (or at the same
-        time on our right) is still waiting, unless ``patient`` is False; (b) nothing moves
-        inside the box."""
-        if patient and self.t_me is not None:
-            for t_o, h_o in self.arrived.values():
-                if t_o < self.t_me - self.TIE - 1e-9:
-                    return False
-                if t_o <= self.t_me + self.TIE + 1e-9 and math.sin(h_o - self.heading) > 0.5:
-                    return False
-        for a in seen.agents:
-            if a.ped or math.hypot(a.vx, a.vy) < 0.3:
-                continue
-            # Its footprint in the box, or past its stop line on the way in.
-            reach = self.half + 0.5 + a.hl
-            if a.name in self.entered and (self.cx - a.x) * a.c + (self.cy - a.y) * a.s > 0.0:
-                reach = max(reach, self.d_line + a.hl)
-            dx, dy = a.x - self.cx, a.y - self.cy
-            if abs(dx * self.ca + dy * self.sa) < reach and abs(dy * self.ca - dx * self.sa) < reach:
-                return False
-        return True
-
-
 class Autopilot:
     """Route-following, IDM-based driver with conflict prediction and parallel parking.
 
@@ -257,7 +122,7 @@ class Autopilot:
         self._yielding: set[str] = set()
         self._evade = 0.0  # [m] wanted shift to the right for oncoming traffic
         self._offset = 0.0  # [m] lateral offset from the centre line it steers for (left +)
-        self._parker: _Parker | None = None
+        self._parker: Parker | None = None
         self._goal_key: Any = None
         # Read by tests and debugging: why the last command was chosen.
         self.last_reason = "cruise"
@@ -268,14 +133,14 @@ class Autopilot:
         return f"Autopilot({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
 
     # -- perception -----------------------------------------------------------------------
-    def _perceive(self, obs: Any) -> _Perceived:
+    def _perceive(self, obs: Any) -> Perceived:
         """The agents as seen ``latency`` seconds ago; nothing until a track is that old."""
         delay = int(round(self.options.latency / obs.dt)) if obs.dt > 0 else 0
-        self._history.append(_Perceived(obs.agents) if obs.agents else _EMPTY)
+        self._history.append(Perceived(obs.agents) if obs.agents else EMPTY)
         while len(self._history) > delay + 1:
             self._history.popleft()
         if len(self._history) < delay + 1:
-            return _EMPTY
+            return EMPTY
         return self._history[0]
 
     def _route_path(self, route: tuple, obs: Any) -> RoutePath | None:
@@ -297,7 +162,7 @@ class Autopilot:
         if obs.goal is not None and obs.goal.get("kind") == "park":
             key = (obs.goal.get("x"), obs.goal.get("y"), obs.goal.get("heading"))
             if self._parker is None or key != self._goal_key:
-                self._parker = _Parker(obs.goal, o, ego, seen)
+                self._parker = Parker(obs.goal, o, ego, seen)
                 self._goal_key = key
             if self._parker.phase == "approach":
                 self._parker.plan(ego, seen)
@@ -439,7 +304,7 @@ class Autopilot:
 
     def _stop_lines(self, obs, path, s_ego, L, v, dt, clear, seen) -> list[tuple[float, str]]:
         """Stop targets from the route's stop lines: full stop, then go when ``clear`` and it
-        has the right of way (first to stop, first to go; see :class:`_Junction`)."""
+        has the right of way (first to stop, first to go; see :class:`Junction`)."""
         o = self.options
         out = []
         nearest = True
@@ -453,7 +318,7 @@ class Autopilot:
             state = self._stop_state.get(key)
             if state is None:
                 # A connector after the line: an intersection whose arrival order counts.
-                junction = (_Junction(obs.route, line)
+                junction = (Junction(obs.route, line)
                             if line.route_index + 1 < len(obs.route) else None)
                 state = self._stop_state[key] = ["approach", 0.0, junction]
             if state[0] == "go":
@@ -462,8 +327,7 @@ class Autopilot:
             if junction is not None and nearest:
                 delay = int(round(o.latency / dt)) * dt if dt > 0 else 0.0
                 junction.observe(seen, obs.t - delay)
-                if junction.t_me is None and v < _Junction.SPEED and \
-                        -_Junction.PAST <= d <= _Junction.BEFORE:
+                if junction.t_me is None and waiting_at_line(d, 0.0, v):
                     junction.t_me = obs.t
             nearest = False
             target = d - o.stop_margin
@@ -648,195 +512,3 @@ class Autopilot:
             yielding.add(a.name)
             stops.append((d_stop, "yield"))
         return clear
-
-
-class _Parker:
-    """Parallel parking into a slot: approach, reverse on two arcs, pull forward, hold.
-
-    Works in the slot frame (origin at the goal, +x along the goal heading), mirrored so the
-    ego always comes from the +y side; steering is mirrored back on output.
-    """
-
-    def __init__(self, goal: dict, o: AutopilotOptions, ego: Any, seen: _Perceived) -> None:
-        self.o = o
-        self.gx, self.gy = float(goal["x"]), float(goal["y"])
-        self.gh = float(goal.get("heading", 0.0))
-        self.c, self.s = math.cos(self.gh), math.sin(self.gh)
-        self.slot_length = goal.get("length")
-        self.length = L = ego.length
-        kappa_max = 2.0 * math.sin(math.atan(0.5 * math.tan(o.max_steering))) / L
-        # Keep 5% of the steering range for feedback (the reference is exact for this model).
-        self.radius = 1.0 / (0.95 * kappa_max)
-        self.min_radius = 1.0 / kappa_max
-        self.end_x = 0.0
-        self._parked: list = []
-        self._boxes: list = []
-        self._queue: list = []
-        self._traffic = False
-        self.phase = "approach"
-        self._track: np.ndarray | None = None
-        self._arc: np.ndarray | None = None
-        self._k = 0
-        self._dir = -1.0
-        self.plan(ego, seen)
-
-    def plan(self, ego: Any, seen: _Perceived) -> None:
-        """(Re)compute the start point from the ego's lateral offset and the parked cars."""
-        o, L = self.o, self.length
-        _, ye, _ = self._frame(ego.x, ego.y, ego.heading, 1.0)
-        self.side = 1.0 if ye >= 0.0 else -1.0
-        self.lateral = max(abs(ye), 0.5)
-        if self.slot_length is not None:
-            self.end_x = min(0.0, -0.5 * float(self.slot_length) + o.parking_clearance + 0.5 * L)
-        # Moving agents near the ego (passing traffic) delay the start of the manoeuvre.
-        self._traffic = any(
-            math.hypot(a.vx, a.vy) > 0.5 and math.hypot(a.x - ego.x, a.y - ego.y) < 30.0
-            and (a.x - ego.x) * a.vx + (a.y - ego.y) * a.vy < 0.0  # coming closer
-            for a in seen.agents)
-        if seen.n:
-            # The cars parked around the slot, in the slot frame, inflated by 0.2 m: what the
-            # manoeuvre must not touch.
-            self._parked = []
-            self._boxes = []
-            best = None
-            for a in seen.agents:
-                x, y, h = self._frame(a.x, a.y, math.atan2(a.s, a.c), self.side)
-                if abs(y) < 1.5 and -15.0 < x < 15.0:
-                    self._parked.append(box_corners(x, y, h, a.hl + 0.2, a.hw + 0.2))
-                    ch, sh = abs(math.cos(h)), abs(math.sin(h))
-                    # 0.3 m for the multi-move plan: its moves end right at the margin,
-                    # and stopping overshoots by a few centimetres.
-                    self._boxes.append((x, y, a.hl * ch + a.hw * sh + 0.3,
-                                        a.hl * sh + a.hw * ch + 0.3))
-                    if x < 0.0:
-                        front = x + a.hl * abs(math.cos(h)) + a.hw * abs(math.sin(h))
-                        best = front if best is None else max(best, front)
-            if best is not None and self.slot_length is None:
-                # Reverse in as far as the car behind the slot allows (more room for the
-                # nose to swing in past the car in front), then pull forward to the goal.
-                self.end_x = min(0.0, max(-3.0, best + o.parking_clearance + 0.5 * L))
-        # Length the two reverse arcs need (see parking_path): 2 R cos(b) sin(phi).
-        reff = self.radius * math.cos(math.asin(min(0.99, 0.5 * L / self.radius)))
-        phi = math.acos(max(-1.0, 1.0 - self.lateral / (2.0 * reff)))
-        self.start_x = self.end_x + 2.0 * reff * math.sin(phi)
-
-    def _frame(self, x: float, y: float, h: float, side: float) -> tuple[float, float, float]:
-        dx, dy = x - self.gx, y - self.gy
-        return (dx * self.c + dy * self.s, side * (-dx * self.s + dy * self.c),
-                side * _wrap(h - self.gh))
-
-    def approach_offset(self, path: RoutePath, s_ego: float, width: float) -> float:
-        """Offset [m] (left +) from the route centre line to drive the approach at.
-
-        Passing the car in front of the slot as closely as safe (0.4 m) shortens the two
-        reverse arcs, hence the kerb length the manoeuvre needs.
-        """
-        if self.phase != "approach":
-            return 0.0
-        x, y = path.point(s_ego)
-        sx, sy, _ = self._frame(x, y, 0.0, self.side)
-        if not -5.0 < sx - self.start_x < 40.0:
-            return 0.0
-        shift = max(0.0, sy - (width + self.o.parking_side_clearance))
-        tx, ty = path.tangent(s_ego)
-        # Toward the slot is the (mirrored) slot frame's -y: side * (sin gh, -cos gh); its
-        # component on the path's left normal (-ty, tx) says which way to shift.
-        toward_left = -self.side * (self.s * ty + self.c * tx)
-        return shift if toward_left > 0 else -shift
-
-    def approach_distance(self, ego: Any) -> float | None:
-        """Centre distance [m] still to drive before the reverse manoeuvre may start."""
-        if self.phase != "approach":
-            return None
-        x, _, _ = self._frame(ego.x, ego.y, ego.heading, self.side)
-        d = self.start_x + 0.3 - x
-        # Only steer the approach stop once near the slot; before that, drive normally.
-        return d if d < 40.0 else None
-
-    def maybe_start(self, ego: Any) -> None:
-        """Begin reversing once stopped at the start point, if the manoeuvre fits.
-
-        The planned footprints are checked against the parked cars it has seen (inflated
-        by 0.2 m); a slot too short for its one-manoeuvre technique is given up, and it drives
-        on (phase "abandoned") rather than touch a car.
-        """
-        x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
-        if self.phase == "approach" and abs(ego.speed) < 0.05 and x > self.start_x - 0.1 \
-                and x < self.start_x + 30.0:
-            if self._traffic:
-                return  # the nose swings toward the next lane: let passing traffic go first
-            pts = parking_path(max(x, self.start_x), y, self.end_x, self.radius, self.length,
-                               min_radius=self.min_radius)
-            hl, hw = 0.5 * self.length, 0.5 * ego.width
-            fits = not any(boxes_overlap(box_corners(px, py, ph, hl, hw), car)
-                           for px, py, ph in pts[::2] for car in self._parked)
-            if fits:
-                queue = [(pts, -1.0)]
-                if self.end_x < -0.3:  # reversed in short of the goal: pull forward to it
-                    n = max(2, int(math.ceil(-self.end_x / 0.2)))
-                    queue.append((np.array([(self.end_x * (1 - i / n), 0.0, 0.0)
-                                            for i in range(n + 1)]), 1.0))
-            else:
-                # Too tight for one manoeuvre: search a multi-move plan (see parking_moves).
-                max_beta = math.asin(min(0.99, 0.5 * self.length / self.radius))
-                queue = parking_moves(max(x, self.start_x), y, self.length, ego.width, max_beta,
-                                      self._boxes)
-                if not queue:
-                    self.phase = "abandoned"
-                    return
-            self._queue = queue[1:]
-            self._begin(*queue[0])
-
-    def _begin(self, pts: np.ndarray, direction: float) -> None:
-        self.phase = "reverse" if direction < 0 else "forward"
-        self._track = pts
-        seg = np.hypot(np.diff(pts[:, 0]), np.diff(pts[:, 1]))
-        self._arc = np.concatenate([[0.0], np.cumsum(seg)])
-        self._k = 0
-        self._dir = direction
-
-    def act(self, ego: Any, dt: float) -> tuple[float, float]:
-        o = self.o
-        v = ego.speed
-        if self.phase == "done":
-            return (-v / dt if abs(v) > 1e-9 else 0.0), 0.0
-        x, y, h = self._frame(ego.x, ego.y, ego.heading, self.side)
-        pts, arc = self._track, self._arc
-        # Progress: nearest point a little around the last one (the path may loop close).
-        k0, k1 = self._k, min(len(pts), self._k + 30)
-        d2 = (pts[k0:k1, 0] - x) ** 2 + (pts[k0:k1, 1] - y) ** 2
-        self._k = k = k0 + int(np.argmin(d2))
-        # Longitudinal: remaining distance along the path, projected past the last point.
-        ex, ey = pts[-1, 0], pts[-1, 1]
-        eh = pts[-1, 2]
-        along_end = (ex - x) * math.cos(eh) + (ey - y) * math.sin(eh)
-        rem = max(0.0, arc[-1] - arc[k]) if k < len(pts) - 1 else 0.0
-        if k >= len(pts) - 3:
-            rem = max(0.0, self._dir * along_end)
-        if rem < 0.05 and abs(v) < 0.05:
-            if self._queue:
-                self._begin(*self._queue.pop(0))
-            else:
-                self.phase = "done"
-            return -v / dt, 0.0
-        v_des = self._dir * min(o.parking_speed, math.sqrt(2.0 * 0.8 * max(rem, 0.0)))
-        accel = max(-2.0, min(2.0, (v_des - v) / 0.5))
-        if rem < 0.05:
-            accel = -v / dt
-        # Lateral: the planned curvature fed forward, plus feedback on the lateral and heading
-        # errors. Curvature is of the path as travelled (dh/ds along the motion); reversing,
-        # highway-env's centre turns at -2 sin(beta)/L per metre, hence the sign flip. The
-        # gains (k_y < k_h / (L/2)) keep the reverse loop stable: in reverse the slip angle
-        # pushes the lateral error the wrong way first.
-        kk = min(k, len(pts) - 2)
-        seg = max(arc[kk + 1] - arc[kk], 1e-6)
-        kappa_ref = _wrap(pts[kk + 1, 2] - pts[kk, 2]) / seg
-        # Reference direction of motion from the points (it differs from the body heading
-        # by the slip angle).
-        th = math.atan2(pts[kk + 1, 1] - pts[kk, 1], pts[kk + 1, 0] - pts[kk, 0])
-        ph = pts[kk, 2]
-        e_y = -(x - pts[kk, 0]) * math.sin(th) + (y - pts[kk, 1]) * math.cos(th)
-        e_h = _wrap(h - ph)
-        kappa = kappa_ref - 0.3 * e_y - 1.5 * e_h
-        steer = bicycle_steering(self._dir * kappa, ego.length, o.max_steering)
-        return accel, self.side * steer
