@@ -108,8 +108,10 @@ def avs_driver():
     return policy
 """)
     pytester.makepyfile(test_body=BODY)
-    result = pytester.runpytest("--avs-db=none", "--avs-seed=1")
-    result.assert_outcomes(failed=4)
+    result = pytester.runpytest("--avs-db=none", "--avs-seed=1", "--junitxml=out.xml")
+    result.assert_outcomes(errors=4)  # errors, not counterexamples: JUnit <error>
+    xml = (pytester.path / "out.xml").read_text()
+    assert xml.count("<error ") == 4 and "<failure " not in xml
     rows = [json.loads(l) for l in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
     assert [r["verdict"] for r in rows] == ["error"] * 4
     assert "before the run" in rows[0]["error"]
@@ -119,7 +121,7 @@ def avs_driver():
 def test_body_raising_before_or_after_the_run_is_an_error_with_the_cause(pytester):
     pytester.makepyfile(test_body=BODY)
     result = pytester.runpytest("--avs-db=none", "--avs-seed=1", "--avs-driver=idm")
-    result.assert_outcomes(failed=2, passed=2)
+    result.assert_outcomes(errors=2, passed=2)
     rows = [json.loads(l) for l in (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
     assert [r["verdict"] for r in rows] == ["error", "error", "pass", "pass"]
     assert "RuntimeError: before the run" in rows[0]["error"]
@@ -141,7 +143,7 @@ def test_zz_sampler_state(request):
     assert sampler.n_told == 3 and sampler.n_invalid == 3
 """)
     result = pytester.runpytest("-p", "no:randomly", "--avs-db=none")
-    result.assert_outcomes(failed=3, passed=1)
+    result.assert_outcomes(errors=3, passed=1)
 
 
 def test_case_timeout_reports_the_time_it_ran(pytester):
@@ -156,7 +158,7 @@ def test_hang(case):
     t0 = time.monotonic()
     result = pytester.runpytest("--avs-case-timeout=0.5", "--avs-db=none")
     assert time.monotonic() - t0 < 30
-    result.assert_outcomes(failed=2)
+    result.assert_outcomes(errors=2)
     result.stdout.fnmatch_lines(["*CaseTimeout: the case ran longer than its time limit of 0.5 s (ran 0.5* s)*"])
 
 

@@ -193,7 +193,7 @@ def test_hang(case):
         pass
 """)
     result = pytester.runpytest_subprocess("-n", "2", "--avs-db=none", "-p", "no:cacheprovider")
-    result.assert_outcomes(failed=2)
+    result.assert_outcomes(errors=2)
     result.stdout.fnmatch_lines(["*CaseTimeout*0.5 s*"])
 
 

@@ -55,7 +55,7 @@ def avs_driver():
 """)
     pytester.makepyfile(test_follow=FOLLOW)
     result = pytester.runpytest("--avs-seed=1", "--avs-db=none")
-    result.assert_outcomes(failed=2)
+    result.assert_outcomes(errors=2)
     result.stdout.fnmatch_lines(["*perception crashed*"])
     rows = (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()
     assert len(rows) == 2 and all('"verdict": "error"' in r for r in rows)
@@ -70,7 +70,7 @@ def test_nothing(case, world):
     world.straight_road(lanes=1, length=100)
 """)
     result = pytester.runpytest("--avs-db=none")
-    result.assert_outcomes(failed=1)
+    result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*declares monitors but produced no trajectory*world.run*"])
 
 

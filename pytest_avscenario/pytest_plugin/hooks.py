@@ -36,7 +36,9 @@ from .stash import (
     executor_key,
     pictures_key,
     plans_key,
+    result_key,
     row_key,
+    sent_key,
     settings_key,
     shrink_rows_key,
 )
@@ -164,16 +166,43 @@ def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
     return build_world(case, avs_driver, request.node.nodeid)
 
 
+def _is_scenario_case(item: pytest.Item) -> bool:
+    return isinstance(item, pytest.Function) and item.get_closest_marker("scenario") is not None \
+        and isinstance(getattr(item, "funcargs", {}).get("case"), Case)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Any:
+    """Simulate the case as the last step of the item's setup, once its fixtures exist.
+
+    A case that cannot be judged (the body or the driver raised, a scenario mistake, a time
+    limit) is an *error* of the setup, as pytest and JUnit count errors; a counterexample
+    fails the call that follows (:func:`pytest_pyfunc_call`)."""
+    result = yield
+    config = item.config
+    if not _is_scenario_case(item) or config.option.setuponly or config.option.setupplan:
+        return result
+    outcome = item.stash[result_key] = run_item(item)
+    if outcome.outcome.verdict == "error":
+        _raise_for(item, outcome, "setup")
+    return result
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
-    if pyfuncitem.get_closest_marker("scenario") is None or "case" not in pyfuncitem.funcargs:
+    result = pyfuncitem.stash.get(result_key, None)
+    if result is None:
         return None
-    result = run_item(pyfuncitem)
     if result.outcome.verdict == "pass":
         return True
+    _raise_for(pyfuncitem, result, "call")
+    return None  # not reached
+
+
+def _raise_for(item: pytest.Item, result: Any, when: str) -> None:
     if result.reraise:
         # pytest shows the body's own traceback, with our summary as a report section
-        pyfuncitem.add_report_section("call", "avscenario", result.message)
+        item.add_report_section(when, "avscenario", result.message)
         raise result.outcome.exc
     pytest.fail(result.message, pytrace=False)
 
@@ -181,8 +210,12 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
     report = yield
-    if call.when == "call" and row_key in item.stash:
-        # extra report attributes travel to the xdist controller with the report (as JSON)
+    if row_key in item.stash and not item.stash.get(sent_key, False):
+        # the first report after the case ran carries its row (the setup's, when the case was
+        # an error and no call follows); extra attributes travel to the xdist controller too
+        if call.when == "setup" and report.passed:
+            return report
+        item.stash[sent_key] = True
         report.avs_row = item.stash[row_key].to_json()
         report.avs_shrink_rows = [r.to_json() for r in item.stash.get(shrink_rows_key, [])]
         report.avs_pictures = item.stash.get(pictures_key, {})

@@ -15,3 +15,5 @@ controller_key = pytest.StashKey[Any]()  # the controller.RunState
 row_key = pytest.StashKey[Any]()  # item -> its error-table row (outcome.CaseRow)
 shrink_rows_key = pytest.StashKey[list]()  # item -> its shrinking candidates' rows
 pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
+result_key = pytest.StashKey[Any]()  # item -> its campaign.ItemResult (set during setup)
+sent_key = pytest.StashKey[bool]()  # item -> its row went out with a report already
