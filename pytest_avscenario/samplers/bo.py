@@ -12,7 +12,10 @@ objective is their sum, which is separable).
 Plain numpy/scipy, cubic in the number of cases: beyond ``max_points`` the fit keeps the best
 half and the most recent half. Cases asked but not told yet count at the posterior mean
 ("kriging believer"), so a batch of asks spreads out instead of repeating one point.
-Invalid cases are kept at the median rho: no evidence, but not proposed again.
+A told case is matched to its ask through the parameters the ask produced, so integer and
+categorical parameters (whose told value maps back to the centre of its stratum, not to the
+asked point) match too. Invalid cases are kept at the median rho: no evidence, but not
+proposed again.
 """
 
 from __future__ import annotations
@@ -171,7 +174,10 @@ class BayesianOptimizationSampler(ActiveSampler):
         self.gp = GaussianProcess(kernel, max(self.d, 1))
         self.X: list[list[float]] = []  # every told case (unit cube) and its rho (None: invalid)
         self.y: list[float | None] = []
+        # asked, not told yet: the unit points, and the parameters each produced as unit
+        # points (what ``tell`` computes from them), by which a told case finds its ask
         self.pending: list[list[float]] = []
+        self._pending_keys: list[tuple[float, ...]] = []
 
     # -- proposing ----------------------------------------------------------------------
     def ask_unit(self) -> np.ndarray:
@@ -182,7 +188,22 @@ class BayesianOptimizationSampler(ActiveSampler):
         else:
             x = self._propose()
         self.pending.append(x.tolist())
+        self._pending_keys.append(self._key(x))
         return x
+
+    def _key(self, u: Any) -> tuple[float, ...]:
+        """The unit point ``tell`` computes from the case ``u`` stands for."""
+        return tuple(self._unit(self._params(u)))
+
+    def tell(self, params: Mapping[str, Any], rho: Rho) -> None:
+        """Feedback for an evaluated case; learned at the unit point it was asked as."""
+        u = self._unit(params)
+        key = tuple(u)
+        for j in range(len(self._pending_keys) - 1, -1, -1):
+            if self._pending_keys[j] == key:
+                u = self.pending[j]
+                break
+        self.tell_unit(u, rho)
 
     def _training_set(self) -> tuple[np.ndarray, np.ndarray]:
         X = np.asarray(self.X, dtype=float).reshape(-1, self.d)
@@ -262,13 +283,19 @@ class BayesianOptimizationSampler(ActiveSampler):
         u = np.asarray(u, dtype=float)
         if self.pending and self.d == 0:
             self.pending.pop()
+            self._pending_keys.pop()
         elif self.pending:
             P = np.asarray(self.pending, dtype=float)
             j = int(np.argmin(np.abs(P - u).sum(1)))
-            if np.abs(P[j] - u).max() < 1e-6:
-                del self.pending[j]
+            if np.abs(P[j] - u).max() >= 1e-6:
+                # told as the case it stands for (tell_unit of a stratum centre)
+                key = self._key(u)
+                j = next((i for i, k in enumerate(self._pending_keys) if k == key), -1)
+            if j >= 0:
+                del self.pending[j], self._pending_keys[j]
             elif len(self.pending) > 4 * self.max_points:
-                del self.pending[0]  # asks never told (skipped cases) must not pile up
+                # asks never told (skipped cases) must not pile up
+                del self.pending[0], self._pending_keys[0]
         self.X.append(u.tolist())
         self.y.append(r)
 
@@ -284,4 +311,5 @@ class BayesianOptimizationSampler(ActiveSampler):
         self.X = [list(map(float, x)) for x in state["X"]]
         self.y = [None if v is None else float(v) for v in state["y"]]
         self.pending = [list(map(float, x)) for x in state["pending"]]
+        self._pending_keys = [self._key(x) for x in self.pending]
         self.gp.theta = np.array(state["theta"], dtype=float)
