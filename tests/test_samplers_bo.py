@@ -110,3 +110,107 @@ def test_other_active_samplers_learn_the_told_case_in_the_asked_stratum(name):
         assert s._params(back) == s._params(u)
         assert back.shape == (space_d,)
         s.tell(s._params(u), 1.0)
+
+
+# -- bounded cost: a fitting subset and hyperparameters refitted on a schedule ------------------
+
+BOX = {"x": Uniform(0.0, 1.0), "y": Uniform(0.0, 1.0)}
+
+
+def bowl(u):
+    return float((u[0] - 0.3) ** 2 + (u[1] - 0.7) ** 2)
+
+
+def with_history(n, seed=0, **opts):
+    s = samplers.make("bo", BOX, seed=seed, **opts)
+    for u in np.random.default_rng(100 + seed).random((n, 2)):
+        s.tell_unit(u, bowl(u))
+    return s
+
+
+def test_the_fit_holds_at_most_max_points_the_best_and_the_latest_among_them():
+    s = with_history(300, max_points=30)
+    best = told(s)[np.argmin([bowl(u) for u in told(s)])]
+    latest = told(s)[-10:]
+    s.ask()
+    fitted = {tuple(x) for x in np.asarray(s.gp.X).tolist()}
+    assert len(fitted) == 30
+    assert tuple(best) in fitted
+    assert all(tuple(u) in fitted for u in latest.tolist())
+
+
+def test_the_rest_of_the_fit_covers_the_space_the_search_has_left():
+    s = samplers.make("bo", BOX, seed=0, max_points=30)
+    rng = np.random.default_rng(0)
+    # a few cases anywhere, then the search crowded one corner
+    pts = np.vstack([rng.random((30, 2)), 0.2 * rng.random((270, 2))])
+    for u in pts:
+        s.tell_unit(u, bowl(u))
+    s.ask()
+    fitted = np.asarray(s.gp.X)
+    quadrants = {(bool(x > 0.5), bool(y > 0.5)) for x, y in fitted}
+    assert len(quadrants) == 4
+
+
+def test_hyperparameters_are_refitted_on_a_schedule_not_at_every_ask():
+    s = with_history(200, max_points=30)
+    for _ in range(30):
+        u = s.ask_unit()
+        s.tell_unit(u, bowl(u))
+    assert 1 <= s.gp.n_fits <= 3  # every 20 cases at this size
+
+
+def test_with_a_long_history_the_search_still_converges():
+    s = with_history(200, seed=1, max_points=30)
+    best = np.inf
+    for _ in range(15):
+        u = s.ask_unit()
+        best = min(best, bowl(u))
+        s.tell_unit(u, bowl(u))
+    assert best < 1e-3
+
+
+def test_a_long_campaign_restored_from_its_state_continues_the_same_asks():
+    s = samplers.make("bo", MIXED, seed=8, max_points=12)
+    pairs(s, 40)
+    t = samplers.make("bo", MIXED, seed=0, max_points=12)
+    t.restore(json.loads(json.dumps(s.state(), allow_nan=False)))
+    a, b = [], []
+    for _ in range(6):
+        p, q = s.ask(), t.ask()
+        a.append(p)
+        b.append(q)
+        s.tell(p, rho(p))
+        t.tell(q, rho(q))
+    assert a == b
+
+
+CODE = """
+import numpy as np
+from pytest_avscenario import samplers
+from pytest_avscenario.space import Choice, IntRange, Uniform
+space = {"gap_m": Uniform(5.0, 50.0), "lane": IntRange(0, 3),
+         "weather": Choice(["dry", "wet", "icy"], weights=[0.5, 0.3, 0.2])}
+s = samplers.make("bo", space, seed=9, max_points=12)
+out = []
+for _ in range(40):
+    p = s.ask()
+    out.append(repr(p["gap_m"]) + str(p["lane"]) + p["weather"])
+    s.tell(p, p["gap_m"] / 10.0 - p["lane"] - (p["weather"] == "icy"))
+print(" ".join(out))
+"""
+
+
+def test_a_long_campaign_asks_the_same_cases_bit_for_bit_in_another_process():
+    import subprocess
+    import sys
+
+    here = []
+    s = samplers.make("bo", MIXED, seed=9, max_points=12)
+    for _ in range(40):
+        p = s.ask()
+        here.append(repr(p["gap_m"]) + str(p["lane"]) + p["weather"])
+        s.tell(p, rho(p))
+    out = subprocess.run([sys.executable, "-c", CODE], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.split() == here
