@@ -8,9 +8,11 @@ random and near-best candidates, then polished from the ``starts`` best of them 
 (all starts in one call: the objective is their sum, which is separable).
 
 Bounded cost, whatever the number of cases told: the GP is fitted to at most ``max_points``
-of them — all while there are that few, then the best third, the most recent third and a
-space-filling rest (greedy maximin, in the GP's length scales, over the remaining cases), so
-the model stays sharp where the search is and still knows the space it has left. Its
+of them — all while there are that few, then a tenth chosen to cover the space (greedy
+maximin, in the GP's length scales) and, in equal parts, the best and the most recent of the
+rest, so the model stays sharp where the search is and still knows roughly where it has
+been. (A third for coverage found the ball of bench_bo.py later at tight caps: spread-out
+high rho flattened the standardized model near the minimum.) Its
 hyperparameters (maximizing the log marginal likelihood with scipy's bounded truncated
 Newton and analytic gradients, warm-started from the previous fit) are re-optimized, and the
 space-filling part chosen again, whenever the cases told have grown by a tenth since the
@@ -42,6 +44,7 @@ _METHOD = "TNC"
 # share of the asks later, where the fitting subset changes slowly
 _REFIT_SHARE = 10
 _REFIT_MAX = 50
+_FILL_SHARE = 0.1  # of the fitting subset, chosen to cover the space (the rest: best, latest)
 
 
 def _inv_from_cholesky(L: np.ndarray) -> np.ndarray:
@@ -272,22 +275,23 @@ class BayesianOptimizationSampler(ActiveSampler):
         return X, y
 
     def _subset(self, X: np.ndarray, y: np.ndarray, refresh: bool) -> np.ndarray:
-        """Indices of the at most ``max_points`` cases the GP is fitted to: the best third,
-        the most recent third of the rest, and a space-filling rest chosen by greedy maximin
-        (distances in the current length scales) from the remaining cases. The space-filling
-        part is chosen again only with the hyperparameters (``refresh``): it is the costly
-        part and changes slowly. No randomness: the cases decide."""
+        """Indices of the at most ``max_points`` cases the GP is fitted to: the best, the
+        most recent of the rest, and a space-filling share chosen by greedy maximin
+        (distances in the current length scales) from the remaining cases. The
+        space-filling part is chosen again only with the hyperparameters (``refresh``): it
+        is the costly part and changes slowly. No randomness: the cases decide."""
         n, m = len(y), self.max_points
-        third = m // 3
+        n_fill = int(m * _FILL_SHARE)
+        n_best = (m - n_fill + 1) // 2
         chosen = np.zeros(n, dtype=bool)
-        chosen[np.argsort(y, kind="stable")[:third]] = True
-        chosen[np.flatnonzero(~chosen)[-third:]] = True
+        chosen[np.argsort(y, kind="stable")[:n_best]] = True
+        chosen[np.flatnonzero(~chosen)[n_best + n_fill - m:]] = True
         if refresh or self._fill is None:
             Xs = X / np.exp(self.gp.theta[: self.d])
             dmin = _sq_dist(Xs, Xs[chosen]).min(1)
             dmin[chosen] = -1.0
             fill = []
-            for _ in range(m - 2 * third):
+            for _ in range(n_fill):
                 j = int(np.argmax(dmin))
                 fill.append(j)
                 t = Xs - Xs[j]
