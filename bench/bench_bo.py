@@ -9,7 +9,10 @@ the current code against an earlier commit, in one run.
    hyperparameters.
 2. Samples to the first counterexample on the 3-D ball of bench/bench_samplers.py (its
    ``ball_center`` and radius, imported from it; 20 seeds, budget 300).
-3. 120 ask/tell pairs on a mixed space (Uniform + IntRange + Choice) and on an all-Uniform
+3. The same search at a tight cap (``max_points=30``, so the fitting subset matters within the
+   budget), 8 seeds, budget 300: a 3-D ball of radius 0.03, and "decoys" — that ball plus
+   three other basins whose rho bottoms out at +0.05 (a falsifier must leave them).
+4. 120 ask/tell pairs on a mixed space (Uniform + IntRange + Choice) and on an all-Uniform
    space of the same dimension: CPU seconds, asks still pending, cases in the GP's last fit.
 
 The earlier commit's package is exported with ``git archive`` to a temporary directory; each
@@ -103,6 +106,32 @@ def part_search(seeds: int, budget: int) -> dict:
     return {"firsts": firsts, "cpu_s": time.process_time() - t0}
 
 
+def part_cap(max_points: int, seeds: int, budget: int) -> dict:
+    from pytest_avscenario import samplers
+    from pytest_avscenario.space import Uniform
+
+    space = {f"x{i}": Uniform(0.0, 1.0) for i in range(3)}
+    keys = list(space)
+    out = {}
+    for problem in ("ball", "decoys"):
+        firsts = []
+        for seed in range(seeds):
+            C = np.random.default_rng(1000 + seed).uniform(0.15, 0.85, (4, 3))
+            s = samplers.make("bo", space, seed=seed, max_points=max_points)
+            first = budget
+            for i in range(budget):
+                p = s.ask()
+                d = np.linalg.norm(C - np.asarray([p[k] for k in keys]), axis=1)
+                r = float(d[0] - 0.03 if problem == "ball" else min(d[0] - 0.03, d[1:].min() + 0.05))
+                s.tell(p, r)
+                if r < 0:
+                    first = i + 1
+                    break
+            firsts.append(first)
+        out[problem] = firsts
+    return out
+
+
 def part_mixed(pairs: int) -> dict:
     from pytest_avscenario import samplers
     from pytest_avscenario.space import Choice, IntRange, Uniform
@@ -136,6 +165,8 @@ def worker(args: argparse.Namespace) -> None:
         res = part_ask(args.told, args.asks)
     elif args.part == "search":
         res = part_search(args.seeds, args.budget)
+    elif args.part == "cap":
+        res = part_cap(30, args.cap_seeds, args.budget)
     else:
         res = part_mixed(args.pairs)
     print(json.dumps(res))
@@ -154,10 +185,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--budget", type=int, default=300)
     ap.add_argument("--pairs", type=int, default=120)
-    ap.add_argument("--quick", action="store_true", help="10 asks, 5 seeds, 60 pairs")
+    ap.add_argument("--cap-seeds", type=int, default=8)
+    ap.add_argument("--quick", action="store_true", help="10 asks, 5 seeds, 60 pairs, 3 cap seeds")
     args = ap.parse_args()
     if args.quick:
-        args.asks, args.seeds, args.pairs = 10, 5, 60
+        args.asks, args.seeds, args.pairs, args.cap_seeds = 10, 5, 60, 3
     if args.worker:
         worker(args)
         return
@@ -176,7 +208,8 @@ def main() -> None:
     def run(code: str, part: str, **extra) -> dict:
         cmd = [sys.executable, __file__, "--worker", "--code", code, "--part", part,
                "--asks", str(args.asks), "--seeds", str(args.seeds),
-               "--budget", str(args.budget), "--pairs", str(args.pairs)]
+               "--budget", str(args.budget), "--pairs", str(args.pairs),
+               "--cap-seeds", str(args.cap_seeds)]
         for k, v in extra.items():
             cmd += [f"--{k}", str(v)]
         proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tempfile.gettempdir())
@@ -191,6 +224,7 @@ def main() -> None:
         for side, code in sides.items():
             asks[side][n] = run(code, "ask", told=n)
     search = {side: run(code, "search") for side, code in sides.items()}
+    cap = {side: run(code, "cap") for side, code in sides.items()}
     mixed = {side: run(code, "mixed") for side, code in sides.items()}
     load1 = os.getloadavg()[0]
 
@@ -216,6 +250,16 @@ def main() -> None:
               f"{sum(x >= args.budget for x in f)}/{len(f)} | {r['cpu_s']:.1f} |")
     for side, r in search.items():
         print(f"  {side} firsts: {r['firsts']}")
+
+    print(f"\nthe same at max_points=30, r=0.03, {len(next(iter(cap.values()))['ball'])} seeds, "
+          f"budget {args.budget}: samples to the first counterexample\n")
+    print("| code | problem | mean | median | not found |\n|---|---|---|---|---|")
+    for side, r in cap.items():
+        for problem, f in r.items():
+            print(f"| {side} | {problem} | {statistics.mean(f):.1f} | {statistics.median(f):.1f} | "
+                  f"{sum(x >= args.budget for x in f)}/{len(f)} |")
+    for side, r in cap.items():
+        print(f"  {side}: {r}")
 
     print(f"\n{args.pairs} ask/tell pairs, Uniform + IntRange + Choice vs 3 x Uniform\n")
     print("| code | space | CPU s | pending at the end | cases told | cases in the last fit |")

@@ -283,9 +283,11 @@ class BayesianOptimizationSampler(ActiveSampler):
         n, m = len(y), self.max_points
         n_fill = int(m * _FILL_SHARE)
         n_best = (m - n_fill + 1) // 2
+        n_recent = m - n_fill - n_best
         chosen = np.zeros(n, dtype=bool)
         chosen[np.argsort(y, kind="stable")[:n_best]] = True
-        chosen[np.flatnonzero(~chosen)[n_best + n_fill - m:]] = True
+        rest = np.flatnonzero(~chosen)
+        chosen[rest[len(rest) - n_recent:]] = True
         if refresh or self._fill is None:
             Xs = X / np.exp(self.gp.theta[: self.d])
             dmin = _sq_dist(Xs, Xs[chosen]).min(1)
