@@ -282,6 +282,8 @@ class Choice(Distribution):
         if weights is None:
             w = np.full(len(self.options), 1.0 / len(self.options))
         else:
+            if isinstance(weights, (str, bytes)) or not hasattr(weights, "__len__"):
+                raise SpaceError(f"Choice weights must be a list of numbers, one per option, got {weights!r}")
             if len(weights) != len(self.options):
                 raise SpaceError(
                     f"Choice has {len(self.options)} options but {len(weights)} weights"
