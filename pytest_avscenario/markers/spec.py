@@ -23,6 +23,7 @@ SPEC_KEYWORDS = (
     "shrink_max",
     "time_budget",
     "case_timeout",
+    "accept",
 )
 
 _UNSET: Any = object()
@@ -43,6 +44,7 @@ class ScenarioSpec:
     shrink_max: Any = None
     time_budget: Any = None
     case_timeout: Any = None
+    accept: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
     given: frozenset[str] = field(default_factory=frozenset)
 
@@ -58,6 +60,7 @@ def scenario(
     shrink_max: int | None = _UNSET,
     time_budget: str | float | None = _UNSET,
     case_timeout: float | None = _UNSET,
+    accept: Any = _UNSET,
     **parameters: Any,
 ) -> pytest.MarkDecorator:
     """Declare an abstract scenario on a test; returns a ``pytest.mark.scenario`` mark.
@@ -79,13 +82,17 @@ def scenario(
         are reported as found (default: every failure).
     :param time_budget: wall-time cap for this test's campaign (``"30m"``, ``"90s"``, seconds).
     :param case_timeout: seconds one case may run before it is ended as an error.
+    :param accept: when the campaign may ship (see :mod:`pytest_avscenario.acceptance`):
+        ``"any"`` counterexample rejects it (default), metric names (only their violations
+        reject it), ``"regressions"`` (only stored or pinned cases failing again), or
+        ``rate(metric, at_most=..., confidence=...)`` bounds; a list combines them.
     """
     given = {
         k
         for k, v in dict(
             samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
-            time_budget=time_budget, case_timeout=case_timeout,
+            time_budget=time_budget, case_timeout=case_timeout, accept=accept,
         ).items()
         if v is not _UNSET
     }
@@ -94,7 +101,7 @@ def scenario(
         for k, v in dict(
             samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
-            time_budget=time_budget, case_timeout=case_timeout,
+            time_budget=time_budget, case_timeout=case_timeout, accept=accept,
         ).items()
     }
     spec = ScenarioSpec(parameters=dict(parameters), given=frozenset(given), **values)

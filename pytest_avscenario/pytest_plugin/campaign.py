@@ -21,6 +21,7 @@ from typing import Any
 
 import pytest
 
+from ..acceptance import accepted_reason, case_verdict
 from ..case import Case
 from ..outcome import CaseOutcome, CaseRow
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, slot_of
@@ -110,6 +111,7 @@ class ItemResult:
     outcome: CaseOutcome
     message: str | None = None
     reraise: bool = False
+    accepted: str | None = None  # an accepted counterexample: the xfail reason
 
 
 def run_item(item: pytest.Function) -> ItemResult:
@@ -157,7 +159,10 @@ def run_item(item: pytest.Function) -> ItemResult:
     message = failure_message(item, case_obj, outcome, shrink, note)
     # the body's own exception keeps its traceback; monitor errors are our message alone
     reraise = outcome.exc is not None and not isinstance(outcome.exc, monitor_error_type())
-    return ItemResult(outcome, message, reraise)
+    accepted = None
+    if outcome.failed and case_verdict(plan.accept, row, outcome.violated) is None:
+        accepted = accepted_reason(plan.accept, outcome.violated)
+    return ItemResult(outcome, message, reraise, accepted)
 
 
 def ask_ahead(item: pytest.Function, campaign: Campaign, slot: CaseSlot) -> None:

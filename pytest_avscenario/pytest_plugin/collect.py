@@ -63,6 +63,7 @@ class ScenarioPlan:
     shrink_max: int | None  # failures per sampler minimized and stored (None: all)
     case_timeout_s: float | None
     replays: Mapping[int, Any]  # replay index -> db entry
+    accept: Any  # acceptance.Criteria
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -70,7 +71,8 @@ class ScenarioPlan:
 
     def info(self) -> dict[str, Any]:
         """What the controller needs to summarize this test (plain JSON)."""
-        return {"metrics": list(self.metrics), "space": self.space.describe()}
+        return {"metrics": list(self.metrics), "space": self.space.describe(),
+                "accept": self.accept.to_json()}
 
     def make_sampler(self, name: str) -> Any:
         from .. import samplers
@@ -162,7 +164,14 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         monitor_set=monitor_set, sampler_options=types.MappingProxyType(dict(opts)),
         time_budget_s=own.time_budget_s, shrink_budget=own.shrink_budget,
         shrink_max=own.shrink_max, case_timeout_s=own.case_timeout_s,
-        replays=types.MappingProxyType(replays))
+        replays=types.MappingProxyType(replays), accept=own.accept)
+    from ..samplers import base as sampler_base
+
+    for name in plan.samplers:
+        try:
+            own.accept.check(plan.metrics, active=sampler_base.is_active(name))
+        except ValueError as exc:
+            raise DeclarationError(f"accept: {exc} (sampler {name!r})") from None
 
     from ..samplers import SamplerError
 

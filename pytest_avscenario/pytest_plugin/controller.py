@@ -11,7 +11,7 @@ file, and prints the paper's table.
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, Mapping
 
 import pytest
 
@@ -57,6 +57,9 @@ class RunState:
         from ..report.summary import suite_properties
 
         self.summary_rows = None
+        verdicts = self.verdicts()
+        if verdicts and session.exitstatus == pytest.ExitCode.OK:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED  # a rejected campaign fails the build
         if self.directory is not None and self.table is not None:
             from ..report.build import finish_report
 
@@ -64,11 +67,11 @@ class RunState:
                 self.table.close()  # every row is on disk; the report is built from the files
                 self.summary_rows = finish_report(
                     self.directory, self.test_infos(), seed=self.config.stash[settings_key].seed,
-                    versions=versions(), case_images=self.pictures)
+                    versions=versions(), case_images=self.pictures, verdicts=verdicts)
             except OSError as exc:
                 self.report_failed(exc)
         if self.summary_rows is None:
-            self.summary_rows = self.summary()
+            self.summary_rows = self.summary(verdicts)
         props = suite_properties(self.summary_rows, seed=self.config.stash[settings_key].seed,
                                  versions=versions())
         add_suite_properties_to_logxml(self.config.stash.get(xml_key, None), props)
@@ -76,12 +79,14 @@ class RunState:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if self.is_worker or not self.rows:
             return
-        from ..report.summary import format_pointer, format_table
+        from ..report.summary import format_pointer, format_rejections, format_table
 
-        summary = self.summary_rows if self.summary_rows is not None else self.summary()
+        summary = self.summary_rows if self.summary_rows is not None else self.summary(self.verdicts())
         terminalreporter.write_sep("=", "avscenario")
         for line in format_table(summary).splitlines():
             terminalreporter.write_line(line)
+        for line in format_rejections(summary):
+            terminalreporter.write_line(line, red=True, bold=True)
         if self.directory is not None:
             terminalreporter.write_line(format_pointer(self.directory))
 
@@ -129,10 +134,36 @@ class RunState:
             for test, info in self.tests.items()
         }
 
-    def summary(self) -> list[Any]:
+    def summary(self, verdicts: Mapping[tuple[str, str], list[str]] | None = None) -> list[Any]:
         from ..report.summary import summarize
 
-        return summarize(self.rows, self.test_infos())
+        return summarize(self.rows, self.test_infos(), verdicts=verdicts)
+
+    def verdicts(self) -> dict[tuple[str, str], list[str]]:
+        """The rejected campaigns, (test, sampler) -> reasons, by each test's criteria."""
+        from ..acceptance import Criteria, campaign_verdict, case_verdict
+
+        baseline = self.config.stash[settings_key].baseline
+        campaigns: dict[tuple[str, str], list[CaseRow]] = {}
+        for row in self.rows:
+            if row.origin != "shrink":
+                campaigns.setdefault((row.test, row.sampler), []).append(row)
+        out = {}
+        for (test, sampler), rows in campaigns.items():
+            info = self.tests[test]
+            criteria = Criteria.from_json(info["accept"])
+            rejected = []
+            for r in rows:
+                if r.verdict != "fail":
+                    continue
+                why = case_verdict(criteria, r, [m for m, v in r.rho.items() if v is not None and v < 0])
+                if why is not None:
+                    rejected.append((r.item, why))
+            reasons = campaign_verdict(criteria, rows, rejected, baseline, test, sampler,
+                                       info["metrics"])
+            if reasons:
+                out[(test, sampler)] = reasons
+        return out
 
 
 def remove_stale_pictures(folder: Any, since: float) -> None:

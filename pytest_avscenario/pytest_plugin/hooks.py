@@ -200,6 +200,11 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
 
 
 def _raise_for(item: pytest.Item, result: Any, when: str) -> None:
+    if result.accepted is not None:
+        # a counterexample the campaign's acceptance criteria accept: an expected failure,
+        # still minimized, stored and reported
+        item.add_report_section(when, "avscenario", result.message)
+        pytest.xfail(result.accepted)
     if result.reraise:
         # pytest shows the body's own traceback, with our summary as a report section
         item.add_report_section(when, "avscenario", result.message)

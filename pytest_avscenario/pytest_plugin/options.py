@@ -116,6 +116,12 @@ def _driver(raw: Any) -> str:
     return value
 
 
+def _accept(raw: Any) -> Any:
+    from ..acceptance import parse_accept
+
+    return parse_accept(raw)
+
+
 def _text(raw: Any) -> str:
     return str(raw).strip()
 
@@ -231,6 +237,16 @@ OPTIONS = (
            "one gets a PNG of its worst moment)",
            "GIFs rendered per scenario test for minimized counterexamples (0: none)",
            _integer(0)),
+    Option("accept", "CRITERIA",
+           "when a scenario campaign is accepted: any (default: every counterexample rejects "
+           "it), metric names (only their violations), regressions, rate:METRIC<=1%@95%; "
+           "comma-separated terms combine",
+           "acceptance criteria of scenario campaigns whose marker does not say (see --avs-accept)",
+           _accept, per_test=True),
+    Option("baseline", "PATH",
+           "an earlier run's summary.json: a campaign whose violation rate of a metric is "
+           "significantly higher (one-sided Fisher exact test, p < 0.05) is rejected",
+           "summary.json of an earlier run to compare violation rates with", _text),
     Option("params", "JSON",
            "run the selected scenario cases with these parameter values (a JSON object; "
            "missing parameters take their nominal value)", "", _text, ini=False),
@@ -290,6 +306,7 @@ class TestSettings:
     shrink_max: int | None  # failures per sampler minimized and stored (None: all)
     time_budget_s: float | None
     case_timeout_s: float | None
+    accept: Any  # acceptance.Criteria
 
 
 @dataclass(frozen=True)
@@ -307,6 +324,7 @@ class Settings:
     dask_retries: int | None
     gifs: int
     params: Mapping[str, Any] | None  # --avs-params, not yet completed against a space
+    baseline: Any  # acceptance.Baseline of --avs-baseline, or None
     per_test: Mapping[str, Found]  # command line / ini values of the per-test settings
     command_line: Mapping[str, str]  # option key -> the text given on the command line
 
@@ -339,6 +357,7 @@ class Settings:
             shrink_max=pick("shrink_max"),
             time_budget_s=pick("time_budget"),
             case_timeout_s=pick("case_timeout"),
+            accept=pick("accept") or _default_criteria(),
         )
 
 
@@ -376,10 +395,28 @@ def read_settings(config: pytest.Config) -> Settings:
         dask_retries=value("dask_retries"),
         gifs=value("gifs", DEFAULT_GIFS),
         params=_pinned_params(found.get("params")),
+        baseline=_baseline(found.get("baseline"), config),
         per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
         command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
                       if config.getoption(o.dest) not in (None, "")},
     )
+
+
+def _default_criteria() -> Any:
+    from ..acceptance import DEFAULT
+
+    return DEFAULT
+
+
+def _baseline(found: Found | None, config: pytest.Config) -> Any:
+    if found is None:
+        return None
+    from ..acceptance import load_baseline
+
+    try:
+        return load_baseline(config.invocation_params.dir / found.value)
+    except ValueError as exc:
+        raise pytest.UsageError(f"{found.source}: {exc}") from None
 
 
 def _pinned_params(found: Found | None) -> Mapping[str, Any] | None:

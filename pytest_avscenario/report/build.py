@@ -34,6 +34,7 @@ def finish_report(
     case_images: Mapping[str, Mapping[str, Any]] | None = None,
     tol: float = DEFAULT_TOL,
     within_radius: float | None = 0.1,
+    verdicts: Mapping[tuple[str, str], Any] | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run's tables under ``directory`` and write the rest of the report.
 
@@ -41,12 +42,13 @@ def finish_report(
     False skips the PNGs (and matplotlib's import) but still writes ``index.html``.
     ``case_images``: ``{test: {caption: path}}`` pictures of single cases (e.g. the GIF and
     worst-moment PNG of each minimized counterexample), listed after the test's plots.
+    ``verdicts``: the campaigns' rejection reasons (see :func:`.summary.summarize`).
     Returns the summary rows (possibly empty).
     """
     root = Path(directory)
     main = read_rows(root)
     shrink = read_rows(root, shrink=True)
-    summary = summarize(main + shrink, tests, tol=tol, within_radius=within_radius)
+    summary = summarize(main + shrink, tests, tol=tol, within_radius=within_radius, verdicts=verdicts)
     atomic_write_text(
         root / SUMMARY_JSON,
         json.dumps({"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)},

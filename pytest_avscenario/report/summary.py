@@ -36,6 +36,7 @@ __all__ = [
     "summarize",
     "format_table",
     "format_pointer",
+    "format_rejections",
     "suite_properties",
     "summary_to_json",
     "metric_columns",
@@ -83,6 +84,13 @@ class SummaryRow:
     shrink_sims: int
     sim_time_s: float
     failed_items: tuple[str, ...] = field(default=())
+    #: why the campaign is rejected by its acceptance criteria (empty: accepted; None: the
+    #: campaign was not judged)
+    reasons: tuple[str, ...] | None = None
+
+    @property
+    def verdict(self) -> str | None:
+        return None if self.reasons is None else "rejected" if self.reasons else "accepted"
 
 
 def _unit_points(rows: Sequence[CaseRow], space: Any):
@@ -110,13 +118,15 @@ def summarize(
     tol: float = DEFAULT_TOL,
     within_radius: float | None = 0.1,
     cross_check: bool = True,
+    verdicts: Mapping[tuple[str, str], Sequence[str]] | None = None,
 ) -> list[SummaryRow]:
     """Summary rows per (test, sampler), tests in the order of ``tests`` (collection order),
     then any others in order of first appearance; samplers in order of first appearance.
 
     ``rows`` may mix main-table and shrink rows. ``tol`` is ε's binary-search tolerance;
     ``within_radius`` the radius for the covered-fraction figure (None to skip);
-    ``cross_check`` also computes the mesh covering radius.
+    ``cross_check`` also computes the mesh covering radius; ``verdicts`` maps (test, sampler)
+    to the reasons its campaign is rejected (see :mod:`pytest_avscenario.acceptance`).
     """
     from . import coverage
 
@@ -177,6 +187,7 @@ def summarize(
                 shrink_sims=len(shrink),
                 sim_time_s=float(sum(r.sim_time_s for r in group)),
                 failed_items=tuple(sorted(failing_items)),
+                reasons=None if verdicts is None else tuple(verdicts.get((test, sampler), ())),
             )
         )
     return out
@@ -224,7 +235,9 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     metrics = metric_columns(summary)
     show_errors = any(s.errors for s in summary)
     header = ["test", "sampler", "samples", *(_metric_title(m) for m in metrics), "ε"]
+    judged = any(s.verdict is not None for s in summary)
     header += ["cex", "min"] + (["errors"] if show_errors else []) + ["sim s"]
+    header += ["verdict"] if judged else []
     body = []
     for s in summary:
         line = [s.test, s.sampler, str(s.samples)]
@@ -232,6 +245,7 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
         line += [_fmt_eps(s.epsilon), str(s.counterexamples), str(s.minimized)]
         line += [str(s.errors)] if show_errors else []
         line += [_fmt_time(s.sim_time_s)]
+        line += [{"rejected": "REJECTED", None: DASH}.get(s.verdict, s.verdict)] if judged else []
         body.append(line)
     return header, body
 
@@ -243,7 +257,7 @@ def format_table(summary: Sequence[SummaryRow]) -> str:
         return ""
     header, body = table_cells(summary)
     widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
-    left = {0, 1}  # test id and sampler are text
+    left = {0, 1} | ({len(header) - 1} if header[-1] == "verdict" else set())  # text columns
 
     def line(cells: Sequence[str]) -> str:
         parts = [c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))]
@@ -251,6 +265,11 @@ def format_table(summary: Sequence[SummaryRow]) -> str:
 
     rule = "  ".join("-" * w for w in widths)
     return "\n".join([line(header), rule, *(line(r) for r in body)])
+
+
+def format_rejections(summary: Sequence[SummaryRow]) -> list[str]:
+    """One line per rejected campaign, saying why (for the terminal, after the table)."""
+    return [f"REJECTED {s.test} [{s.sampler}]: {'; '.join(s.reasons)}" for s in summary if s.reasons]
 
 
 def format_pointer(directory: Any) -> str:
@@ -280,7 +299,8 @@ def suite_properties(
     ``avs.seed``, ``avs.version.<package>`` for each entry of ``versions`` (e.g.
     ``{"pytest-avscenario": "0.1.0", "highway-env": "1.12.1"}``), then per test and sampler
     ``avs.test[<test>][<sampler>].samples`` / ``.violations.<metric>`` / ``.epsilon`` /
-    ``.counterexamples`` / ``.minimized`` / ``.sim_time_s``. Brackets delimit the ids because
+    ``.counterexamples`` / ``.minimized`` / ``.sim_time_s`` / ``.verdict`` (``accepted``, or
+    ``rejected; <reason>; …``). Brackets delimit the ids because
     node ids themselves contain dots and colons.
     """
     props: dict[str, str] = {}
@@ -297,6 +317,8 @@ def suite_properties(
         props[f"{key}.counterexamples"] = str(s.counterexamples)
         props[f"{key}.minimized"] = str(s.minimized)
         props[f"{key}.sim_time_s"] = f"{s.sim_time_s:.3f}"
+        if s.verdict is not None:
+            props[f"{key}.verdict"] = s.verdict + "".join(f"; {r}" for r in s.reasons)
     return props
 
 
@@ -311,5 +333,7 @@ def summary_to_json(summary: Sequence[SummaryRow]) -> list[dict[str, Any]]:
         d["metrics"] = list(s.metrics)
         d["continuous"] = list(s.continuous)
         d["failed_items"] = list(s.failed_items)
+        d["reasons"] = None if s.reasons is None else list(s.reasons)
+        d["verdict"] = s.verdict
         out.append(d)
     return out

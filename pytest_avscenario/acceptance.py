@@ -1,0 +1,257 @@
+"""Acceptance criteria: when a scenario campaign may ship, for gating CI on it.
+
+A campaign is one scenario test with one sampler. By default any counterexample rejects it
+(falsification mode). ``@scenario(accept=...)``, ``--avs-accept`` or ini ``avs_accept`` say
+otherwise, with any combination of:
+
+* ``"any"`` — every counterexample rejects the campaign (the default);
+* metric names, e.g. ``["collision", "school_bus"]`` — only counterexamples violating one of
+  them reject it; every other one is an expected failure (still minimized, stored, reported);
+* ``"regressions"`` — only a stored counterexample (replayed) or a pinned ``@example`` that
+  fails again rejects it; new counterexamples are expected failures;
+* :func:`rate` bounds, e.g. ``rate("collision", at_most=0.01, confidence=0.95)`` — judged on
+  the whole campaign's sampled cases: the one-sided Clopper–Pearson upper bound of the
+  violation rate must not exceed ``at_most`` (needs a passive sampler: an active one's cases
+  are not a random sample, so their rate is biased);
+* and, with ``--avs-baseline PATH`` (an earlier run's ``summary.json``), a campaign whose
+  violation rate of a metric is significantly higher than in the baseline (one-sided Fisher
+  exact test at ``alpha``) is rejected.
+
+On the command line and in the ini file the same terms are written as text, separated by
+commas: ``any``, ``regressions``, a metric name, ``rate:collision<=1%@95%``.
+Nothing here imports pytest; scipy is imported when a rate or a baseline is judged.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping, Sequence
+
+from .outcome import CaseRow
+
+__all__ = ["Criteria", "RateBound", "rate", "parse_accept", "Baseline", "load_baseline",
+           "case_verdict", "campaign_verdict", "clopper_pearson_upper"]
+
+KEYWORDS = ("any", "regressions")
+
+
+@dataclass(frozen=True)
+class RateBound:
+    """The violation rate of ``metric`` is at most ``at_most`` with ``confidence``."""
+
+    metric: str
+    at_most: float
+    confidence: float = 0.95
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.metric, str) or not self.metric:
+            raise ValueError(f"rate(): metric must be a metric name, got {self.metric!r}")
+        for name, value, lo, hi in (("at_most", self.at_most, 0.0, 1.0), ("confidence", self.confidence, 0.5, 1.0)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (lo <= value < hi or (name == "at_most" and value == hi)):
+                raise ValueError(f"rate(): {name} must be a number in [{lo}, {hi}{']' if name == 'at_most' else ')'}, got {value!r}")
+
+    def text(self) -> str:
+        return f"rate:{self.metric}<={_pct(self.at_most)}@{_pct(self.confidence)}"
+
+
+def rate(metric: str, at_most: float, confidence: float = 0.95) -> RateBound:
+    """An acceptance criterion: ``metric``'s violation rate ≤ ``at_most`` (a fraction, e.g.
+    0.01) at one-sided ``confidence`` (Clopper–Pearson)."""
+    return RateBound(metric, float(at_most), float(confidence))
+
+
+@dataclass(frozen=True)
+class Criteria:
+    """A campaign's acceptance criteria, combined (each one can reject it)."""
+
+    any: bool = True
+    metrics: tuple[str, ...] = ()
+    regressions: bool = False
+    rates: tuple[RateBound, ...] = field(default=())
+
+    def text(self) -> str:
+        terms = (["any"] if self.any else []) + list(self.metrics) + \
+            (["regressions"] if self.regressions else []) + [r.text() for r in self.rates]
+        return ",".join(terms)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"any": self.any, "metrics": list(self.metrics), "regressions": self.regressions,
+                "rates": [[r.metric, r.at_most, r.confidence] for r in self.rates]}
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> "Criteria":
+        return cls(bool(data["any"]), tuple(data["metrics"]), bool(data["regressions"]),
+                   tuple(RateBound(m, a, c) for m, a, c in data["rates"]))
+
+    def check(self, metrics: Sequence[str], active: bool) -> None:
+        """ValueError when a criterion names an undeclared metric, or bounds the rate of an
+        active sampler's campaign."""
+        named = list(self.metrics) + [r.metric for r in self.rates]
+        unknown = [m for m in named if m not in metrics]
+        if unknown:
+            known = ", ".join(metrics) if metrics else "none: declare monitors=[...]"
+            raise ValueError(f"accept names metric {unknown[0]!r}, which the scenario does not "
+                             f"monitor (its metrics: {known})")
+        if self.rates and active:
+            raise ValueError("accept= bounds a violation rate, but an active sampler's cases are "
+                             "not a random sample (its rate is biased): use sampler='halton' or "
+                             "'random' for that campaign")
+
+
+_RATE = re.compile(r"^rate:\s*([^<\s]+)\s*<=\s*([0-9.eE+-]+%?)\s*(?:@\s*([0-9.eE+-]+%?))?$")
+
+
+def _fraction(text: str) -> float:
+    return float(text[:-1]) / 100.0 if text.endswith("%") else float(text)
+
+
+def _pct(x: float) -> str:
+    return f"{x * 100:g}%"
+
+
+def parse_accept(value: Any) -> Criteria:
+    """Criteria from ``accept=`` (a string, a :func:`rate`, or a list of them) or from the
+    text of ``--avs-accept``; ValueError says what is wrong."""
+    if isinstance(value, Criteria):
+        return value
+    if isinstance(value, str):
+        terms: list[Any] = [t.strip() for t in value.split(",") if t.strip()]
+    elif isinstance(value, RateBound):
+        terms = [value]
+    elif isinstance(value, (list, tuple)):
+        terms = list(value)
+    else:
+        raise ValueError(f"must be 'any', 'regressions', metric names or rate(...) bounds, got {value!r}")
+    if not terms:
+        raise ValueError(f"must name at least one criterion, got {value!r}")
+    any_, regressions, metrics, rates = False, False, [], []
+    for term in terms:
+        if isinstance(term, RateBound):
+            rates.append(term)
+        elif isinstance(term, str) and term.startswith("rate:"):
+            m = _RATE.match(term)
+            if m is None:
+                raise ValueError(f"cannot read {term!r}: write rate:METRIC<=LIMIT[@CONFIDENCE], "
+                                 "e.g. rate:collision<=1%@95%")
+            rates.append(RateBound(m.group(1), _fraction(m.group(2)),
+                                   _fraction(m.group(3)) if m.group(3) else 0.95))
+        elif term == "any":
+            any_ = True
+        elif term == "regressions":
+            regressions = True
+        elif isinstance(term, str) and term.isidentifier():
+            metrics.append(term)
+        else:
+            raise ValueError(f"unknown criterion {term!r}: use 'any', 'regressions', a metric "
+                             "name or rate(...)")
+    return Criteria(any_, tuple(dict.fromkeys(metrics)), regressions, tuple(rates))
+
+
+DEFAULT = Criteria()
+
+
+def case_verdict(criteria: Criteria, row: CaseRow, violated: Iterable[str]) -> str | None:
+    """Why this counterexample rejects its campaign, or None when the criteria accept it (an
+    expected failure). ``violated``: its violated metrics (empty for a failed assertion)."""
+    violated = list(violated)
+    what = ", ".join(violated) or "the test's assertion"
+    if criteria.any:
+        return f"counterexample ({what})"
+    hit = [m for m in violated if m in criteria.metrics]
+    if hit:
+        return f"counterexample violating {', '.join(hit)}"
+    if criteria.regressions and row.origin in ("replay", "example"):
+        return f"a {'stored counterexample' if row.origin == 'replay' else 'pinned @example'} fails again ({what})"
+    return None
+
+
+def accepted_reason(criteria: Criteria, violated: Iterable[str]) -> str:
+    """The xfail reason of an accepted counterexample."""
+    return f"violated {', '.join(violated) or 'the assertion'}; accepted by accept={criteria.text()}"
+
+
+def clopper_pearson_upper(k: int, n: int, confidence: float) -> float:
+    """One-sided Clopper–Pearson upper bound of a binomial rate: k events in n trials."""
+    if n <= 0:
+        return 1.0
+    if k >= n:
+        return 1.0
+    from scipy.stats import beta
+
+    return float(beta.ppf(confidence, k + 1, n - k))
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """Per (test, sampler): sampled cases and violations per metric of an earlier run."""
+
+    path: str
+    campaigns: Mapping[tuple[str, str], tuple[int, Mapping[str, int]]]
+    alpha: float = 0.05
+
+
+def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
+    """An earlier run's ``summary.json``; ValueError says why it cannot be used."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+        campaigns = {
+            (str(t["test"]), str(t["sampler"])): (int(t["samples"]), {str(k): int(v) for k, v in t["violations"].items()})
+            for t in data["tests"]
+        }
+    except OSError as exc:
+        raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise ValueError(f"{path} is not a pytest-avscenario summary.json ({type(exc).__name__}: {exc})") from None
+    return Baseline(str(path), campaigns, alpha)
+
+
+def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases: Sequence[tuple[str, str]],
+                     baseline: Baseline | None, test: str, sampler: str,
+                     metrics: Sequence[str]) -> list[str]:
+    """The reasons this campaign is rejected (empty: accepted).
+
+    ``rows`` are its main-table rows; ``rejected_cases`` (item, why) its counterexamples that
+    the criteria reject. Errors always reject: a case that could not be judged tells nothing.
+    """
+    reasons = []
+    errors = [r for r in rows if r.verdict == "error"]
+    if errors:
+        reasons.append(f"{len(errors)} case{'s' if len(errors) > 1 else ''} could not be judged "
+                       f"(errors; first: {errors[0].item})")
+    if rejected_cases:
+        item, why = rejected_cases[0]
+        more = f" and {len(rejected_cases) - 1} more" if len(rejected_cases) > 1 else ""
+        reasons.append(f"{why}: {item}{more}")
+    sampled = [r for r in rows if r.origin == "sampled" and r.verdict != "error"]
+    n = len(sampled)
+    for bound in criteria.rates:
+        k = sum(1 for r in sampled if _violates(r, bound.metric))
+        upper = clopper_pearson_upper(k, n, bound.confidence)
+        if upper > bound.at_most:
+            reasons.append(f"{bound.metric} rate {k}/{n}: upper {_pct(bound.confidence)} bound "
+                           f"{upper:.1%} > {bound.at_most:.1%}")
+    if baseline is not None and (test, sampler) in baseline.campaigns and n:
+        n0, before = baseline.campaigns[(test, sampler)]
+        from scipy.stats import fisher_exact
+
+        for metric in metrics:
+            if metric not in before or n0 <= 0:
+                continue
+            k, k0 = sum(1 for r in sampled if _violates(r, metric)), before[metric]
+            if k / n <= k0 / n0:
+                continue
+            p = float(fisher_exact([[k, n - k], [k0, n0 - k0]], alternative="greater")[1])
+            if p < baseline.alpha:
+                reasons.append(f"{metric} rate {k}/{n} ({k / n:.1%}) vs {k0}/{n0} ({k0 / n0:.1%}) "
+                               f"in the baseline, p = {p:.2g}")
+    return reasons
+
+
+def _violates(row: CaseRow, metric: str) -> bool:
+    value = row.rho.get(metric)
+    return value is not None and not math.isnan(value) and value < 0
