@@ -140,7 +140,8 @@ class CaseRow:
     ``test`` is the function's node id, ``item`` the case's; ``origin`` one of
     :data:`ORIGINS`, ``verdict`` one of :data:`VERDICTS`; ``rho`` maps each metric to its
     robustness (±inf allowed, None for a metric not evaluated); ``minimized`` and
-    ``shrink_sims`` are set on a counterexample that was minimized.
+    ``shrink_sims`` are set on a counterexample that was minimized, ``flaky`` on one that did
+    not fail again when replayed with its seed.
     """
 
     test: str
@@ -156,6 +157,7 @@ class CaseRow:
     error: str | None = None
     minimized: Mapping[str, Any] | None = None
     shrink_sims: int | None = None
+    flaky: bool = False  # a replay with the same seed did not fail the same way
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -180,6 +182,8 @@ class CaseRow:
             out["minimized"] = jsonable(dict(self.minimized))
         if self.shrink_sims is not None:
             out["shrink_sims"] = self.shrink_sims
+        if self.flaky:
+            out["flaky"] = True
         return out
 
     @classmethod
@@ -203,6 +207,7 @@ class CaseRow:
             error=None if data.get("error") is None else str(data["error"]),
             minimized=data.get("minimized"),
             shrink_sims=None if data.get("shrink_sims") is None else int(data["shrink_sims"]),
+            flaky=bool(data.get("flaky", False)),
         )
 
     @classmethod

@@ -1,6 +1,7 @@
 """The product's main job in quick mode, as CI runs it: the example scenario suite with
 5 cases per scenario and sampler on the built-in autopilot (``example_tests/ci_quick.sh``:
-every nominal case passes, no case is an error, every test ran its cases, report written)."""
+every nominal case passes, no case is an error, every test ran its cases, report written,
+every campaign accepted under ``--avs-accept regressions``)."""
 
 import json
 import os
@@ -25,4 +26,7 @@ def test_example_suite_quick_mode(tmp_path):
     assert out.returncode == 0, (out.stdout[-3000:], out.stderr[-3000:])
     summary = json.loads((report / "summary.json").read_text())
     assert {t["sampler"] for t in summary["tests"]} >= {"halton", "mab"}
+    assert len({t["test"] for t in summary["tests"]}) == 11
+    assert all(t["samples"] == 5 and t["errors"] == 0 for t in summary["tests"])
+    assert {t["verdict"] for t in summary["tests"]} == {"accepted"}
     assert (report / "index.html").exists()

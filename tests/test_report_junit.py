@@ -206,3 +206,35 @@ def test_case_properties_encode_infinities_and_control_characters():
     assert props["avs.seed"] == "" and props["avs.error"] == "boom <here>"
     assert "\x07" not in props["avs.params"] and xml_safe("\x07") == "#x07"
     assert "avs.minimized" not in props and "avs.shrink_sims" not in props
+
+
+@pytest.mark.parametrize("xdist", [False, True])
+def test_strict_mode_writes_a_file_valid_against_the_junit_10_schema(pytester, xdist):
+    pytester.makepyfile(test_gap="""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+from pytest_avscenario.trajectory import Trajectory
+
+@scenario(x=Uniform(0, 1), samples=4, monitors=[distance(5.0)], accept=["distance"])
+def test_gap(case):
+    gap = 20 * case.x
+    return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
+                                               "lead": {"x": [gap, gap], "y": [3.0, 3.0]}})
+""")
+    args = ["--avs-db=none", "--avs-seed=1", "--avs-junit=strict", "--junitxml=out.xml",
+            "-p", "no:cacheprovider"]
+    if xdist:
+        pytest.importorskip("xdist")
+        result = pytester.runpytest_subprocess(*args, "-n", "2")
+    else:
+        result = pytester.runpytest(*args)
+    assert result.ret == pytest.ExitCode.TESTS_FAILED  # halton-003 (x = 0.125) violates distance
+    xml_path = pytester.path / "out.xml"
+    _validate(xml_path, "junit-xunit2-strict.xsd")
+    props = read_properties(xml_path)
+    assert all(not p for p in props["cases"].values())  # nothing inside <testcase>
+    suite = props["suite"]
+    assert suite["avs.case[test_gap.py::test_gap[halton-003]].verdict"] == "fail"
+    assert float(suite["avs.case[test_gap.py::test_gap[halton-003]].rho.distance"]) < 0
+    assert json.loads(suite["avs.case[test_gap.py::test_gap[halton-000]].params"]) == {"x": 0.5}
+    assert suite["avs.test[test_gap.py::test_gap][halton].verdict"].startswith("rejected; ")

@@ -24,6 +24,7 @@ import pytest
 from ..acceptance import accepted_reason, case_verdict
 from ..case import Case
 from ..outcome import CaseOutcome, CaseRow
+from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, slot_of
 from .failure import failure_message
 from .stash import (
@@ -143,10 +144,14 @@ def run_item(item: pytest.Function) -> ItemResult:
     minimized = shrink is not None and shrink.minimized is not None
     row = make_row(item, case_obj, outcome,
                    minimized=shrink.minimized if minimized else None,
-                   shrink_sims=shrink.sims if minimized else None)
+                   shrink_sims=shrink.sims if minimized else None,
+                   flaky=shrink is not None and shrink.flaky)
     item.stash[row_key] = row
     item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
-    record_properties(item, row, shrink)
+    if item.config.stash[settings_key].junit == "properties":
+        # user_properties (not record_property): the same XML without xunit2's warning;
+        # under --avs-junit=strict the controller writes them at suite level instead
+        item.user_properties.extend(case_properties(row))
     if capped:
         note = (f"not minimized nor stored: {plan.shrink_max} failures of this test's "
                 f"{slot.sampler} campaign were already (--avs-shrink-max)")
@@ -421,19 +426,11 @@ def body_rho(outcome: CaseOutcome) -> float:
 
 
 def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
-             minimized: Mapping[str, Any] | None = None, shrink_sims: int | None = None) -> CaseRow:
+             minimized: Mapping[str, Any] | None = None, shrink_sims: int | None = None,
+             flaky: bool = False) -> CaseRow:
     """The error-table row of one finished case."""
     return CaseRow(
         test=function_id(item), item=item.nodeid, sampler=case.sampler, index=case.index,
         seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
         verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
-        minimized=minimized, shrink_sims=shrink_sims)
-
-
-def record_properties(item: pytest.Item, row: CaseRow, shrink: ShrinkReport | None) -> None:
-    from ..report.junit import case_properties
-
-    # user_properties (not record_property) gives the same XML without xunit2's warning
-    item.user_properties.extend(case_properties(row))
-    if shrink is not None and shrink.flaky:
-        item.user_properties.append(("avs.flaky", "true"))
+        minimized=minimized, shrink_sims=shrink_sims, flaky=flaky)

@@ -72,8 +72,14 @@ class RunState:
                 self.report_failed(exc)
         if self.summary_rows is None:
             self.summary_rows = self.summary(verdicts)
-        props = suite_properties(self.summary_rows, seed=self.config.stash[settings_key].seed,
-                                 versions=versions())
+        settings = self.config.stash[settings_key]
+        props = suite_properties(self.summary_rows, seed=settings.seed, versions=versions())
+        if settings.junit == "strict":
+            from ..report.junit import case_suite_properties
+
+            for row in self.rows:
+                if row.origin != "shrink":
+                    props.update(case_suite_properties(row))
         add_suite_properties_to_logxml(self.config.stash.get(xml_key, None), props)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:

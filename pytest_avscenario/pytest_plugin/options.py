@@ -247,6 +247,12 @@ OPTIONS = (
            "an earlier run's summary.json: a campaign whose violation rate of a metric is "
            "significantly higher (one-sided Fisher exact test, p < 0.05) is rejected",
            "summary.json of an earlier run to compare violation rates with", _text),
+    Option("junit", "MODE",
+           "per-case data in the --junitxml file: 'properties' (default: <properties> in each "
+           "<testcase>, read by junitparser, GitLab, GitHub) or 'strict' (valid against the "
+           "junit-10 schema of Jenkins' xUnit plugin: as suite properties avs.case[<id>].<name>)",
+           "where per-case data goes in the JUnit file: properties (default) or strict",
+           _one_of("JUnit mode", "properties", "strict")),
     Option("params", "JSON",
            "run the selected scenario cases with these parameter values (a JSON object; "
            "missing parameters take their nominal value)", "", _text, ini=False),
@@ -325,6 +331,7 @@ class Settings:
     gifs: int
     params: Mapping[str, Any] | None  # --avs-params, not yet completed against a space
     baseline: Any  # acceptance.Baseline of --avs-baseline, or None
+    junit: str  # "properties" or "strict"
     per_test: Mapping[str, Found]  # command line / ini values of the per-test settings
     command_line: Mapping[str, str]  # option key -> the text given on the command line
 
@@ -396,6 +403,7 @@ def read_settings(config: pytest.Config) -> Settings:
         gifs=value("gifs", DEFAULT_GIFS),
         params=_pinned_params(found.get("params")),
         baseline=_baseline(found.get("baseline"), config),
+        junit=value("junit", "properties"),
         per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
         command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
                       if config.getoption(o.dest) not in (None, "")},

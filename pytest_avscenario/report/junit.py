@@ -20,7 +20,9 @@ plugin's ``junit-10.xsd`` that junitparser's ``xunit2`` module models. ``xunit1`
 holds for every family: the strict ``junit-10.xsd`` has no ``<properties>`` inside
 ``<testcase>`` (pytest's docs warn that per-test properties "break schema verification");
 the Jenkins JUnit plugin, GitLab and junitparser read them all the same. Suite-level
-properties are valid under the strict schema. Nothing here imports pytest.
+properties are valid under the strict schema, so for strict consumers (Jenkins' xUnit plugin)
+each case's properties can go there instead, named ``avs.case[<item>].<name>``
+(:func:`case_suite_properties`, ``--avs-junit=strict``). Nothing here imports pytest.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from .table import atomic_write_bytes
 
 __all__ = [
     "case_properties",
+    "case_suite_properties",
     "add_suite_properties",
     "add_suite_properties_to_logxml",
     "read_properties",
@@ -89,7 +92,17 @@ def case_properties(
         props.append(("avs.shrink_sims", str(int(shrink_sims))))
     if r.error:
         props.append(("avs.error", r.error))
+    if r.flaky:
+        props.append(("avs.flaky", "true"))
     return [(name, xml_safe(value)) for name, value in props]
+
+
+def case_suite_properties(row: CaseRow | Mapping[str, Any]) -> dict[str, str]:
+    """One case's properties at suite level, ``avs.case[<item>].<name>``: where the strict
+    junit-10 schema allows them (it has no ``<properties>`` inside ``<testcase>``)."""
+    r = CaseRow.coerce(row)
+    return {f"avs.case[{xml_safe(r.item)}].{name[len('avs.'):]}": value
+            for name, value in case_properties(r)}
 
 
 def add_suite_properties_to_logxml(logxml: Any, props: Mapping[str, Any]) -> None:
