@@ -42,15 +42,20 @@ def test_active_sampler_draws_at_run_time_reproducibly(pytester, monkeypatch):
     assert a != c
 
 
-def test_active_failure_prints_a_rerun_command_that_pins_values(pytester, monkeypatch):
+def test_active_failure_prints_a_rerun_command_that_replays_its_values(pytester, monkeypatch):
     src = ACTIVE.format(sampler="mab").replace("> 0.01", "> 10")  # every case fails
     result, rows = _run(pytester, monkeypatch, src, "--avs-seed=3", "--avs-samples=3",
                         "--avs-shrink-budget=0")
     result.assert_outcomes(failed=3)
     line = [l for l in result.outlines if "re-run only this case:" in l][-1]
-    assert "--avs-params '" in line
-    pinned = json.loads(line.split("--avs-params '")[1].split("'")[0])
-    assert pinned == rows[-1]
+    command = line.split("re-run only this case: ")[1]
+    assert "--avs-params" not in command and len(command) < 120
+    args = [a.strip("'") for a in command.split()[1:]]
+    again, replayed = _run(pytester, monkeypatch, src, *args, "--avs-shrink-budget=0")
+    again.assert_outcomes(failed=1)
+    # the earlier cases are simulated first (their values are recorded too): the last
+    # recorded values are the re-run case's, the same as in the full run
+    assert replayed[-1] == rows[-1]
 
 
 def test_time_budget_skips_the_rest_with_a_reason(pytester, monkeypatch):

@@ -139,7 +139,7 @@ def test_err(case):
 
 def test_zz_sampler_state(request):
     campaign = request.config.stash[stash.campaigns_key]["test_active_sampler_is_told_errors_as_invalid.py::test_err"]
-    sampler = campaign.active["mab"]
+    sampler = campaign.active["mab"].sampler
     assert sampler.n_told == 3 and sampler.n_invalid == 3
 """)
     result = pytester.runpytest("-p", "no:randomly", "--avs-db=none")

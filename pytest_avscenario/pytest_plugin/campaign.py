@@ -12,6 +12,7 @@ item's stash, from where the hooks hand them to the controller with the report.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 import warnings
@@ -25,7 +26,7 @@ from ..acceptance import accepted_reason, case_verdict
 from ..case import Case
 from ..outcome import CaseOutcome, CaseRow
 from ..report.junit import case_properties
-from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, slot_of
+from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
 from .failure import failure_message
 from .stash import (
     campaigns_key,
@@ -40,25 +41,51 @@ from .stash import (
 
 
 @dataclass
+class ActiveRun:
+    """One active sampler's campaign, drawn in case-index order whatever order pytest runs
+    its items in: case k is asked only once cases 0 .. k-1 are told. An item reached before
+    the items of earlier cases (a reversed or shuffled order, ``-k``, ``--lf``, an xdist
+    worker given a share) simulates those cases first, with its own fixtures, and keeps their
+    outcomes for their items. So ``test_x[mab-007]`` names the same values in every order
+    and process for one seed. When this run selects only part of the campaign, values that
+    pytest's cache kept from the run that drew them are replayed instead."""
+
+    sampler: Any
+    params: list[dict[str, Any]] = field(default_factory=list)  # asked, by case index
+    told: int = 0  # cases 0 .. told-1 are told
+    ahead: dict[int, CaseOutcome] = field(default_factory=dict)  # simulated before their item
+    cached: dict[int, dict[str, Any]] = field(default_factory=dict)  # from pytest's cache
+    from_cache: set[int] = field(default_factory=set)  # items that replayed cached values
+
+
+@dataclass
 class Campaign:
     """The running state of one scenario test's campaign (all its samplers)."""
 
     plan: ScenarioPlan
-    active: dict[str, Any] = field(default_factory=dict)  # sampler name -> live sampler
+    active: dict[str, ActiveRun] = field(default_factory=dict)  # active sampler name -> its run
     shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
     gifs: int = 0  # GIFs rendered so far for this test
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
-    # asking ahead on a cluster: (sampler, index) -> the item, values asked, last index asked
+    # asking ahead on a cluster: (sampler, index) -> the item
     items: dict[tuple[str, int], Any] = field(default_factory=dict)
-    asked: dict[tuple[str, int], dict[str, Any]] = field(default_factory=dict)
-    asked_upto: dict[str, int] = field(default_factory=dict)
 
-    def sampler(self, name: str) -> Any:
-        """The live active sampler ``name`` of this campaign, made on first use."""
+    def run_of(self, name: str) -> ActiveRun:
+        """The run of active sampler ``name``, made on first use."""
         if name not in self.active:
-            self.active[name] = self.plan.make_sampler(name)
+            self.active[name] = ActiveRun(self.plan.make_sampler(name))
         return self.active[name]
+
+    def cache_key(self, name: str) -> str:
+        """pytest's cache key of the values active sampler ``name`` draws in this campaign:
+        the same declaration and seed, the same key."""
+        p = self.plan
+        what = [p.test, name, p.seed, p.space.fingerprint(), p.samples,
+                sorted(p.sampler_options.items()), list(p.metrics),
+                list(p.monitor_set.priority_edges) if p.monitor_set is not None else []]
+        digest = hashlib.sha256(json.dumps(what, default=repr).encode()).hexdigest()[:24]
+        return f"avscenario/active/{digest}"
 
     def out_of_time(self, sampler: str) -> str | None:
         """Why the next case of ``sampler`` is skipped (its time budget is spent), or None."""
@@ -79,16 +106,84 @@ def campaign_of(item: pytest.Item) -> Campaign:
     return campaigns[test]
 
 
-def case_for(item: pytest.Item, slot: CaseSlot) -> Case:
-    """The case of ``item``: the slot's values, or an active sampler's answer now."""
-    campaign = campaign_of(item)
-    params = slot.params
-    if params is None:
-        params = campaign.asked.pop((slot.sampler, slot.index), None)  # asked ahead for a cluster
-    if params is None:
-        params = campaign.sampler(slot.sampler).ask()
+def case_for(item: pytest.Function, slot: CaseSlot, request: pytest.FixtureRequest) -> Case:
+    """The case of ``item``: the slot's values, or its active sampler's (see :class:`ActiveRun`)."""
+    params = slot.params if slot.params is not None else active_params(item, slot, request)
     pinned = item.config.stash[settings_key].pinned
     return slot.case(item.nodeid, params, origin="pinned" if pinned else None)
+
+
+def active_params(item: pytest.Function, slot: CaseSlot, request: pytest.FixtureRequest) -> dict[str, Any]:
+    """Case ``slot.index`` of an active campaign, after simulating the cases before it that
+    no item has run yet (with this item's fixtures; their outcomes wait for their items)."""
+    campaign = campaign_of(item)
+    run = campaign.run_of(slot.sampler)
+    k = slot.index
+    if k < len(run.params):  # asked already: by an item after it, or ahead for a cluster
+        return run.params[k]
+    if k in run.cached:
+        run.from_cache.add(k)
+        return run.cached[k]
+    fixtures = None
+    executor = executor_of(item.config)
+    while run.told < k:
+        j = run.told
+        if j == len(run.params):
+            run.params.append(run.sampler.ask())
+        if fixtures is None:
+            fixtures = {name: request.getfixturevalue(name) for name in item._fixtureinfo.argnames
+                        if name not in ("case", "world")}
+        earlier = sampled_slot(campaign.plan, slot.sampler, j).case(
+            f"{function_id(item)}[{slot.sampler}-{j:03d}]", run.params[j])
+        outcome = executor.run(make_job(item, campaign.plan, earlier, fresh_world=True, fixtures=fixtures))
+        run.ahead[j] = outcome
+        tell(run, outcome)
+    run.params.append(run.sampler.ask())
+    return run.params[k]
+
+
+def tell(run: ActiveRun, outcome: CaseOutcome) -> None:
+    """Tell the next case's outcome to its sampler (errors as invalid: no evidence)."""
+    run.sampler.tell(outcome.params,
+                     None if outcome.verdict == "error" else (dict(outcome.rho) or body_rho(outcome)))
+    run.told += 1
+
+
+def note_selection(session: pytest.Session) -> None:
+    """Where this run selects only part of an active campaign (``-k``, ``--lf``), load the
+    values pytest's cache kept from the run that drew them, to replay them exactly."""
+    cache = getattr(session.config, "cache", None)
+    if cache is None:
+        return
+    chosen: dict[tuple[str, str], set[int]] = {}
+    for item in session.items:
+        slot = slot_of(item)
+        if slot is not None and slot.params is None and slot.origin == "sampled":
+            chosen.setdefault((function_id(item), slot.sampler), set()).add(slot.index)
+    for (test, name), indexes in chosen.items():
+        campaign = campaign_of(next(i for i in session.items if function_id(i) == test))
+        if len(indexes) == campaign.plan.samples:
+            continue  # the whole campaign runs: draw it afresh
+        kept = cache.get(campaign.cache_key(name), None)
+        if isinstance(kept, list):
+            campaign.run_of(name).cached = {j: p for j, p in enumerate(kept) if isinstance(p, dict)}
+
+
+def keep_drawn_values(config: pytest.Config) -> None:
+    """Put the values each active campaign drew into pytest's cache, for re-runs of single ids."""
+    cache = getattr(config, "cache", None)
+    if cache is None:
+        return
+    from ..codec import jsonable
+
+    for campaign in config.stash[campaigns_key].values():
+        for name, run in campaign.active.items():
+            if not run.params or run.from_cache:
+                continue
+            key = campaign.cache_key(name)
+            kept = cache.get(key, None)
+            if not isinstance(kept, list) or len(kept) <= len(run.params):
+                cache.set(key, [jsonable(p) for p in run.params])
 
 
 @dataclass
@@ -122,15 +217,15 @@ def run_item(item: pytest.Function) -> ItemResult:
     plan = campaign.plan
     case_obj: Case = item.funcargs["case"]
     slot = slot_of(item)
-    asked = slot.params is None and case_obj.origin == "sampled"
-    if asked:
-        ask_ahead(item, campaign, slot)
-    outcome = executor_of(item.config).run(make_job(item, plan, case_obj, fresh_world=False))
-    if asked:
-        campaign.sampler(slot.sampler).tell(
-            outcome.params,
-            None if outcome.verdict == "error" else (dict(outcome.rho) or body_rho(outcome)),
-        )
+    run = campaign.run_of(slot.sampler) if slot.params is None and case_obj.origin == "sampled" else None
+    if run is not None and slot.index in run.ahead:  # simulated before its item, in index order
+        outcome = run.ahead.pop(slot.index)
+    else:
+        if run is not None:
+            ask_ahead(item, campaign, slot)
+        outcome = executor_of(item.config).run(make_job(item, plan, case_obj, fresh_world=False))
+        if run is not None and slot.index not in run.from_cache:
+            tell(run, outcome)
     campaign.ran[slot.sampler] = campaign.ran.get(slot.sampler, 0) + 1
 
     shrink = None
@@ -180,17 +275,14 @@ def ask_ahead(item: pytest.Function, campaign: Campaign, slot: CaseSlot) -> None
     submit = getattr(executor, "submit", None)
     if submit is None or hasattr(item.config, "workerinput") or driver_ahead(item) is None:
         return
-    sampler = campaign.sampler(slot.sampler)
-    start = max(slot.index, campaign.asked_upto.get(slot.sampler, -1)) + 1
+    run = campaign.run_of(slot.sampler)
     jobs = []
-    for j in range(start, slot.index + executor.capacity):
+    for j in range(len(run.params), slot.index + executor.capacity):
         ahead = campaign.items.get((slot.sampler, j))
         if ahead is None:
             break
-        params = sampler.ask()
-        campaign.asked[(slot.sampler, j)] = params
-        campaign.asked_upto[slot.sampler] = j
-        case_j = slot_of(ahead).case(ahead.nodeid, params)
+        run.params.append(run.sampler.ask())
+        case_j = slot_of(ahead).case(ahead.nodeid, run.params[j])
         jobs.append(make_job(ahead, campaign.plan, case_j, fresh_world=True, prefetch=True))
     if jobs:
         submit(jobs)
@@ -354,22 +446,23 @@ def driver_ahead(item: pytest.Function) -> Any:
 
 
 def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: bool,
-             prefetch: bool = False) -> Any:
+             prefetch: bool = False, fixtures: Mapping[str, Any] | None = None) -> Any:
     """The executor's description of one case of ``item``'s test.
 
     With ``prefetch`` (before the item's fixtures exist) there are no fixture values, and the
     driver is known only when ``avs_driver`` is the plugin's own (then it is the built-in
-    name); otherwise ``driver`` is None and the job cannot be started ahead.
+    name); otherwise ``driver`` is None and the job cannot be started ahead. ``fixtures``
+    gives the values of the test's other fixtures while the item's own are being set up.
     """
     from ..executors import CaseJob
 
     argnames = tuple(item._fixtureinfo.argnames)
     if prefetch:
-        fixtures: Mapping[str, Any] = {}
+        fixtures = {}
         driver = driver_ahead(item)
     else:
-        fixtures = item.funcargs
-        driver = item.funcargs.get("avs_driver")
+        fixtures = item.funcargs if fixtures is None else fixtures
+        driver = fixtures.get("avs_driver")
         if driver is None and "world" in argnames:
             driver = item._request.getfixturevalue("avs_driver")
     return CaseJob(

@@ -187,8 +187,15 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         else:
             values = [space.from_unit(p) for p in sampler.sample_unit(plan.samples)]
         for k, params in enumerate(values):
-            slots.append(CaseSlot(name, k, stable_seed(seed, name, k), origin="sampled", params=params))
+            slots.append(sampled_slot(plan, name, k, params))
     return plan, slots
+
+
+def sampled_slot(plan: ScenarioPlan, sampler: str, index: int,
+                 params: Mapping[str, Any] | None = None) -> CaseSlot:
+    """The slot of sampled case ``index`` of ``sampler``'s campaign (its seed is fixed by the
+    plan's seed, the sampler and the index alone)."""
+    return CaseSlot(sampler, index, stable_seed(plan.seed, sampler, index), origin="sampled", params=params)
 
 
 def _space(metafunc: pytest.Metafunc, spec: ScenarioSpec) -> FeatureSpace:

@@ -12,7 +12,7 @@ import pytest
 from ..case import Case
 from ..codec import rho_to_str
 from ..outcome import CaseOutcome
-from .collect import call_text, plan_of, slot_of
+from .collect import call_text, plan_of
 from .stash import settings_key
 
 
@@ -78,8 +78,7 @@ def rerun_command(item: pytest.Item, case: Case) -> str:
     settings = item.config.stash[settings_key]
     cmd = f"pytest '{item.nodeid}' --avs-seed={settings.seed}"
     plan = plan_of(item)
-    if slot_of(item).params is None or settings.pinned:
-        # an active sampler's case depends on the cases before it: pin its values instead
+    if settings.pinned:
         pinned = json.dumps({k: v for k, v in case.params.items() if k in plan.space.parameters})
         cmd += f" --avs-params '{pinned}'"
     for name in ("samples", "sampler", "driver"):  # they change which case an id names

@@ -23,6 +23,8 @@ from .campaign import (
     campaign_of,
     case_for,
     executor_of,
+    keep_drawn_values,
+    note_selection,
     prefetch_passive_cases,
     run_item,
 )
@@ -146,7 +148,7 @@ def case(request: pytest.FixtureRequest) -> Case:
     why = campaign_of(request.node).out_of_time(slot.sampler)
     if why is not None:
         pytest.skip(why)
-    return case_for(request.node, slot)
+    return case_for(request.node, slot, request)
 
 
 @pytest.fixture
@@ -231,14 +233,20 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
-    """Hand a remote executor the passive cases ahead, so its workers stay busy."""
+    """Note which cases of active campaigns this run selects; hand a remote executor the
+    passive cases ahead, so its workers stay busy."""
     config = session.config
+    note_selection(session)
     if config.stash[settings_key].executor == "inprocess" or hasattr(config, "workerinput"):
         return
     if not any(item.get_closest_marker("scenario") is not None for item in session.items):
         return
     executor_of(config)  # connect now: an unreachable cluster stops the run once
     prefetch_passive_cases(session)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    keep_drawn_values(session.config)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
