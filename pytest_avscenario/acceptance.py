@@ -222,11 +222,11 @@ def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases
     errors = [r for r in rows if r.verdict == "error"]
     if errors:
         reasons.append(f"{len(errors)} case{'s' if len(errors) > 1 else ''} could not be judged "
-                       f"(errors; first: {errors[0].item})")
+                       f"(errors; first: {_case_id(errors[0].item)})")
     if rejected_cases:
         item, why = rejected_cases[0]
         more = f" and {len(rejected_cases) - 1} more" if len(rejected_cases) > 1 else ""
-        reasons.append(f"{why}: {item}{more}")
+        reasons.append(f"{why}: {_case_id(item)}{more}")
     sampled = [r for r in rows if r.origin == "sampled" and r.verdict != "error"]
     n = len(sampled)
     for bound in criteria.rates:
@@ -250,6 +250,11 @@ def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases
                 reasons.append(f"{metric} rate {k}/{n} ({k / n:.1%}) vs {k0}/{n0} ({k0 / n0:.1%}) "
                                f"in the baseline, p = {p:.2g}")
     return reasons
+
+
+def _case_id(item: str) -> str:
+    """``[halton-003]`` of ``path::test[halton-003]``: the line already names the test."""
+    return item[item.index("["):] if "[" in item else item
 
 
 def _violates(row: CaseRow, metric: str) -> bool:

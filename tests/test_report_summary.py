@@ -107,14 +107,15 @@ def test_terminal_table_text(rows, tests_info):
     assert header == ["test", "sampler", "samples", "Progress", "Distance", "TTC", "Lane",
                       "Collision", "ε", "cex", "min", "sim", "s"]
     assert set(lines[1]) == {"-", " "}
-    halton, mab, park = (line.split() for line in lines[2:])
-    assert halton == [FOLLOW, "halton", "6", "0", "1", "1", "1", "—", halton[8], "3", "1", "4.0"]
+    assert lines[-1].startswith("ε: ε-coverage")  # the legend
+    halton, mab, park = (line.split() for line in lines[2:-1])
+    assert halton == [FOLLOW.rpartition("::")[2], "halton", "6", "0", "1", "1", "1", "—", halton[8], "3", "1", "4.0"]
     assert float(halton[8]) == pytest.approx(summarize(rows, tests_info)[0].epsilon, abs=5e-4)
     # A metric a test does not declare, and ε without continuous parameters, are "—".
-    assert park == [PARK, "random", "2", "—", "1", "—", "—", "0", "—", "1", "0", "1.0"]
+    assert park == [PARK.rpartition("::")[2], "random", "2", "—", "1", "—", "—", "0", "—", "1", "0", "1.0"]
     # Columns line up: every numeric column ends at the same offset on every line.
     eps_end = lines[0].index("ε") + 1
-    assert all(line[eps_end - 1] != " " for line in lines[2:])
+    assert all(line[eps_end - 1] != " " for line in lines[2:-1])
 
 
 def test_errors_column_appears_only_when_a_case_errored(rows, tests_info):
@@ -158,3 +159,25 @@ def test_rows_in_json_form_count_the_same(rows, tests_info):
 
     json_rows = [CaseRow.from_json(r).to_json() for r in rows]
     assert summarize(json_rows, tests_info) == summarize(rows, tests_info)
+
+
+def test_terminal_table_fits_the_terminal_width(rows, tests_info):
+    summary = summarize(rows, tests_info)
+    wide = format_table(summary, width=400)
+    narrow = format_table(summary, width=80)
+    assert max(map(len, narrow.splitlines()[:-1])) <= 80 < max(map(len, wide.splitlines()[:-1]))
+    # two lines per campaign when narrow: the figures, then the violations per metric
+    lines = narrow.splitlines()
+    assert lines[3].strip() == "violations: Distance 1, TTC 1, Lane 1"  # the metrics violated
+    assert len(lines) == 2 + 2 * len(summary) + 1
+
+
+def test_short_names_stay_unique():
+    from pytest_avscenario.report.summary import short_names
+
+    assert short_names(["a/t1.py::test_x", "a/t2.py::test_y"]) == {
+        "a/t1.py::test_x": "test_x", "a/t2.py::test_y": "test_y"}
+    assert short_names(["a/t1.py::test_x", "b/t2.py::test_x"]) == {
+        "a/t1.py::test_x": "t1.py::test_x", "b/t2.py::test_x": "t2.py::test_x"}
+    assert short_names(["a/t.py::test_x", "b/t.py::test_x"]) == {
+        "a/t.py::test_x": "a/t.py::test_x", "b/t.py::test_x": "b/t.py::test_x"}

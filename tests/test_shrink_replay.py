@@ -31,7 +31,7 @@ def _src(limit=20.0, budget=None, pins=""):
 
 def test_failure_is_minimized_toward_the_nominal_and_pinnable(pytester):
     pytester.makepyfile(test_gap=_src())
-    result = pytester.runpytest("--avs-seed=1", "--junitxml=out.xml")
+    result = pytester.runpytest("--avs-seed=1", "--junitxml=out.xml", "-v")  # -v: the full tables
     out = result.stdout.str()
     # Halton gaps below 20 m fail: 17.5, 13.75, 11.875, 19.375 (Halton index 1, 3, 7, 9 ...)
     assert result.parseoutcomes()["failed"] >= 1
@@ -57,7 +57,7 @@ def test_shrinking_respects_the_budget(pytester):
     pytester.makepyfile(test_gap=_src(budget=3))
     result = pytester.runpytest("--avs-seed=1", "-k", "halton-001")  # gap 17.5 fails
     result.assert_outcomes(failed=1)
-    result.stdout.fnmatch_lines(["*shrinking: 3 of 3 simulations*"])
+    result.stdout.fnmatch_lines(["*minimized (3 simulations): gap=*"])
     rows = (pytester.path / "avs-report" / "shrink.jsonl").read_text().splitlines()
     assert len(rows) == 1 + 3  # one replay for flakiness, then the budget
 
@@ -222,3 +222,28 @@ def test_pinned(case):
     result.stdout.fnmatch_lines(["*::test_pinned: @example here is Hypothesis's*"
                                  "from pytest_avscenario import example*"])
     assert result.ret == pytest.ExitCode.INTERRUPTED
+
+
+def test_a_counterexample_says_it_in_at_most_twenty_lines_by_default(pytester):
+    # eight metrics (five violated), nine parameters, minimized: the compact text still fits
+    pytester.makepyfile(test_many="""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+from pytest_avscenario.trajectory import Trajectory
+
+@scenario(samples=1, shrink_budget=5, monitors=[distance(d, name=f"d{d}") for d in range(1, 9)],
+          **{f"p{i}": Uniform(0, 1, nominal=0.5) for i in range(9)})
+def test_many(case):
+    return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
+                                               "other": {"x": [4.0, 4.0], "y": [3.0, 3.0]}})
+""")
+    result = pytester.runpytest("--avs-db=none", "--avs-seed=1")
+    text = result.stdout.str()
+    section = text[text.index("_ test_many[halton-000] _"):text.index("= avscenario =")]
+    lines = [l for l in section.strip().splitlines()[1:] if not l.startswith("=")]
+    assert 5 < len(lines) <= 20, section
+    assert sum(l.strip().startswith("d") and "rho" in l for l in lines) == 3  # d6, d7, d8 violated
+    assert any("pin it as a regression" in l for l in lines)
+    assert lines[-1].strip().startswith("re-run only this case: pytest ")
+    verbose = pytester.runpytest("--avs-db=none", "--avs-seed=1", "-v").stdout.str()
+    assert "parameter          found      minimized        nominal" in verbose

@@ -72,7 +72,7 @@ class ScenarioPlan:
     def info(self) -> dict[str, Any]:
         """What the controller needs to summarize this test (plain JSON)."""
         return {"metrics": list(self.metrics), "space": self.space.describe(),
-                "accept": self.accept.to_json()}
+                "accept": self.accept.to_json(), "samplers": list(self.samplers)}
 
     def make_sampler(self, name: str) -> Any:
         from .. import samplers

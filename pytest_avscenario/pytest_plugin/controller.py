@@ -10,6 +10,7 @@ file, and prints the paper's table.
 
 from __future__ import annotations
 
+import shutil
 import time
 from typing import Any, Mapping
 
@@ -33,8 +34,17 @@ class RunState:
         self.summary_rows: list[Any] | None = None
         self.pictures: dict[str, dict[str, str]] = {}
         self.started = time.time()
+        self.order: dict[str, None] = {}  # scenario tests in collection order
+
+    def note_order(self, nodeids: Any) -> None:
+        """The collection order (this process's items, or an xdist worker's ids)."""
+        for nodeid in nodeids:
+            self.order.setdefault(nodeid.partition("[")[0], None)
 
     # -- hooks (this object is registered as a plugin for its config) ---------------------
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        self.note_order(item.nodeid for item in session.items)
+
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
         if data is not None and not self.is_worker:
@@ -89,7 +99,8 @@ class RunState:
 
         summary = self.summary_rows if self.summary_rows is not None else self.summary(self.verdicts())
         terminalreporter.write_sep("=", "avscenario")
-        for line in format_table(summary).splitlines():
+        width = shutil.get_terminal_size(fallback=(120, 24)).columns  # COLUMNS, if set
+        for line in format_table(summary, width=width).splitlines():
             terminalreporter.write_line(line)
         for line in format_rejections(summary):
             terminalreporter.write_line(line, red=True, bold=True)
@@ -134,10 +145,13 @@ class RunState:
     def test_infos(self) -> dict[str, Any]:
         from ..report.summary import TestInfo
 
+        ordered = sorted(self.tests, key=list(self.order).index) if set(self.tests) <= set(self.order) \
+            else list(self.tests)
         return {
-            test: TestInfo(metrics=tuple(info["metrics"]),
-                           space=FeatureSpace.from_description(info["space"]))
-            for test, info in self.tests.items()
+            test: TestInfo(metrics=tuple(self.tests[test]["metrics"]),
+                           space=FeatureSpace.from_description(self.tests[test]["space"]),
+                           samplers=tuple(self.tests[test]["samplers"]))
+            for test in ordered
         }
 
     def summary(self, verdicts: Mapping[tuple[str, str], list[str]] | None = None) -> list[Any]:

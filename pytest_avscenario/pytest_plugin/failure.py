@@ -32,7 +32,9 @@ def fmt_value(v: Any) -> str:
 
 def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
                     shrink: Any = None, note: str | None = None) -> str:
-    """The text a failing case shows: metrics, parameters (found and minimized), what to do."""
+    """The text a failing case shows: by default the violated metrics, the parameters (found
+    and minimized), the line to pin it and the command to re-run it; with ``-v`` every
+    metric and found / minimized / nominal side by side, as the report has them."""
     lines = []
     if outcome.verdict == "fail" and outcome.violated:
         lines.append(f"scenario violated: {', '.join(outcome.violated)}")
@@ -41,15 +43,46 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
     else:
         lines.append(f"scenario case could not be judged: {outcome.error}")
     shrunk = shrink is not None and shrink.minimized is not None and shrink.outcome is not None
+    verbose = item.config.get_verbosity() >= 1
+    if verbose:
+        lines += _full_tables(item, case, outcome, shrink if shrunk else None)
+    else:
+        # compact: the violated metrics, the parameters, what to paste and what to run
+        for name, res in outcome.results.items():
+            if res.rho < 0:
+                thr = "" if res.threshold is None else f", threshold {res.threshold:g}"
+                lines.append(f"  {name}: rho {fmt_rho(res.rho)}{thr} — {res.detail}")
+        lines.append("  parameters: " + ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items()))
+        if shrunk:
+            lines.append(f"  minimized ({shrink.sims} simulations): "
+                         + ", ".join(f"{k}={fmt_value(v)}" for k, v in shrink.minimized.items()))
+    if shrunk:
+        lines.append(f"  pin it as a regression above the test: {call_text('example', shrink.minimized)}")
+        lines.append("      (with: from pytest_avscenario import example)")
+    if shrink is not None and shrink.flaky:
+        lines.append("  FLAKY: a replay of this case with the same seed did not fail the same way; "
+                     "it was not shrunk (is the scene or the driver nondeterministic?)")
+    if verbose:
+        lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
+                     f"simulated in {outcome.sim_time_s:.3f} s")
+    if note:
+        lines.append(f"  {note}")
+    lines.append(f"  re-run only this case: {rerun_command(item, case)}")
+    return "\n".join(lines)
+
+
+def _full_tables(item: pytest.Item, case: Case, outcome: CaseOutcome, shrink: Any) -> list[str]:
+    """Every metric (and, for a minimized case, found / minimized / nominal side by side)."""
+    lines = []
     if outcome.results:
-        head = "  metric            rho" + ("   minimized" if shrunk else "") + "  threshold  verdict   worst (as found)"
+        head = "  metric            rho" + ("   minimized" if shrink else "") + "  threshold  verdict   worst (as found)"
         lines.append(head)
         for name, res in outcome.results.items():
             thr = "" if res.threshold is None else f"{res.threshold:g}"
-            mid = f"  {fmt_rho(shrink.outcome.rho.get(name)):>10}" if shrunk else ""
+            mid = f"  {fmt_rho(shrink.outcome.rho.get(name)):>10}" if shrink else ""
             verdict = "VIOLATED" if res.rho < 0 else "ok"
             lines.append(f"  {name:<12} {fmt_rho(res.rho):>9}{mid}  {thr:>9}  {verdict:<8}  {res.detail}")
-    if shrunk:
+    if shrink:
         nominal = plan_of(item).space.nominal()
         lines.append("  parameter          found      minimized        nominal")
         for k, v in case.params.items():
@@ -57,20 +90,9 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
                          f"{fmt_value(nominal.get(k)):>13}")
         how = "budget spent" if shrink.exhausted else "done"
         lines.append(f"  shrinking: {shrink.sims} of {shrink.budget} simulations ({how})")
-        lines.append(f"  pin it as a regression above the test: {call_text('example', shrink.minimized)}")
-        lines.append("      (with: from pytest_avscenario import example)")
     else:
-        params = ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items())
-        lines.append(f"  parameters: {params}")
-        if shrink is not None and shrink.flaky:
-            lines.append("  FLAKY: a replay of this case with the same seed did not fail the same way; "
-                         "it was not shrunk (is the scene or the driver nondeterministic?)")
-    lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
-                 f"simulated in {outcome.sim_time_s:.3f} s")
-    if note:
-        lines.append(f"  {note}")
-    lines.append(f"  re-run only this case: {rerun_command(item, case)}")
-    return "\n".join(lines)
+        lines.append("  parameters: " + ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items()))
+    return lines
 
 
 def rerun_command(item: pytest.Item, case: Case) -> str:

@@ -108,7 +108,11 @@ def _terminate_like_ctrl_c() -> None:
 
 
 class _XdistHooks:
-    """Registered only when pytest-xdist is installed: ship seed and database to the workers."""
+    """Registered only when pytest-xdist is installed: ship seed and database to the workers,
+    learn the collection order from them."""
+
+    def pytest_xdist_node_collection_finished(self, node: Any, ids: Any) -> None:
+        node.config.stash[controller_key].note_order(ids)  # the summary lists tests in this order
 
     def pytest_configure_node(self, node: Any) -> None:
         node.workerinput["avs_seed"] = node.config.stash[settings_key].seed

@@ -37,6 +37,7 @@ __all__ = [
     "format_table",
     "format_pointer",
     "format_rejections",
+    "short_names",
     "suite_properties",
     "summary_to_json",
     "metric_columns",
@@ -59,6 +60,7 @@ class TestInfo:
 
     metrics: tuple[str, ...] = ()
     space: Any = None
+    samplers: tuple[str, ...] = ()  # in the order the test declares them
 
 
 @dataclass(frozen=True)
@@ -135,8 +137,12 @@ def summarize(
     for r in map(CaseRow.coerce, rows):
         groups.setdefault((r.test, r.sampler), []).append(r)
     order = {t: i for i, t in enumerate(tests)}
-    keys = sorted(groups, key=lambda k: (order.get(k[0], len(order)), 0))
-    # sorted() is stable, so within a test the samplers keep their first-appearance order.
+    def declared(test: str, sampler: str) -> int:
+        samplers = tests[test].samplers if test in tests else ()
+        return samplers.index(sampler) if sampler in samplers else len(samplers)
+
+    keys = sorted(groups, key=lambda k: (order.get(k[0], len(order)), declared(*k)))
+    # sorted() is stable: undeclared samplers keep their first-appearance order.
 
     out = []
     for test, sampler in keys:
@@ -250,26 +256,64 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     return header, body
 
 
-def format_table(summary: Sequence[SummaryRow]) -> str:
+LEGEND = "ε: coverage of the continuous parameters (smaller: better) · cex: counterexamples · min: minimized"
+
+
+def short_names(tests: Sequence[str]) -> dict[str, str]:
+    """Test ids as short as they all stay unique: the function names, else ``module::function``,
+    else the whole ids."""
+    tests = list(dict.fromkeys(tests))
+    for shorten in (lambda t: t.rpartition("::")[2], lambda t: t.rpartition("/")[2], lambda t: t):
+        names = {t: shorten(t) for t in tests}
+        if len(set(names.values())) == len(tests):
+            return names
+    return {t: t for t in tests}
+
+
+def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str:
     """The terminal table: aligned columns, text left, numbers right; "—" where not
-    applicable. Returns "" for an empty summary (the caller then prints nothing)."""
+    applicable; columns that are "—" on every row left out; test ids as short as they stay
+    unique; a one-line legend. When it is wider than ``width`` (the terminal's), each campaign
+    takes two lines instead: its figures, then its violations per metric. Returns "" for an
+    empty summary (the caller then prints nothing)."""
     if not summary:
         return ""
     header, body = table_cells(summary)
+    names = short_names([s.test for s in summary])
+    body = [[names[s.test], *line[1:]] for s, line in zip(summary, body)]
+    keep = [i for i in range(len(header)) if i < 2 or any(line[i] != DASH for line in body)]
+    header, body = [header[i] for i in keep], [[line[i] for i in keep] for line in body]
     widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
     left = {0, 1} | ({len(header) - 1} if header[-1] == "verdict" else set())  # text columns
 
-    def line(cells: Sequence[str]) -> str:
+    def line(cells: Sequence[str], widths: Sequence[int]) -> str:
         parts = [c.ljust(w) if i in left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))]
         return "  ".join(parts).rstrip()
 
     rule = "  ".join("-" * w for w in widths)
-    return "\n".join([line(header), rule, *(line(r) for r in body)])
+    if width is None or len(rule) <= width:
+        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), LEGEND])
+    # too wide: the figures on one line, the violations per metric on the next
+    metrics = [h for h in header if h not in ("test", "sampler", "samples", "ε", "cex", "min",
+                                              "errors", "sim s", "verdict")]
+    fixed = [i for i, h in enumerate(header) if h not in metrics]
+    fheader = [header[i] for i in fixed]
+    fbody = [[r[i] for i in fixed] for r in body]
+    fwidths = [max(len(r[i]) for r in [fheader, *fbody]) for i in range(len(fheader))]
+    left = {0, 1} | ({len(fheader) - 1} if fheader[-1] == "verdict" else set())
+    out = [line(fheader, fwidths), "  ".join("-" * w for w in fwidths)]
+    for r, full in zip(fbody, body):
+        out.append(line(r, fwidths))
+        counts = [f"{h} {full[header.index(h)]}" for h in metrics
+                  if full[header.index(h)] not in (DASH, "0")]
+        out.append("    violations: " + (", ".join(counts) or "none"))
+    return "\n".join([*out, LEGEND])
 
 
 def format_rejections(summary: Sequence[SummaryRow]) -> list[str]:
     """One line per rejected campaign, saying why (for the terminal, after the table)."""
-    return [f"REJECTED {s.test} [{s.sampler}]: {'; '.join(s.reasons)}" for s in summary if s.reasons]
+    names = short_names([s.test for s in summary])
+    return [f"REJECTED {names[s.test]} [{s.sampler}]: {'; '.join(s.reasons)}" for s in summary if s.reasons]
 
 
 def format_pointer(directory: Any) -> str:
