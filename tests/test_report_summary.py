@@ -107,7 +107,7 @@ def test_terminal_table_text(rows, tests_info):
     assert header == ["test", "sampler", "samples", "Progress", "Distance", "TTC", "Lane",
                       "Collision", "ε", "cex", "min", "sim", "s"]
     assert set(lines[1]) == {"-", " "}
-    assert lines[-1].startswith("ε: ε-coverage")  # the legend
+    assert lines[-1].startswith("ε: coverage")  # the legend
     halton, mab, park = (line.split() for line in lines[2:-1])
     assert halton == [FOLLOW.rpartition("::")[2], "halton", "6", "0", "1", "1", "1", "—", halton[8], "3", "1", "4.0"]
     assert float(halton[8]) == pytest.approx(summarize(rows, tests_info)[0].epsilon, abs=5e-4)
