@@ -44,6 +44,15 @@ def cluster_address():
     finally:
         cluster.close(timeout=20)
 
+def _wait_for_both_workers(address: str) -> None:
+    """A worker killed by an earlier test of this file is restarted by its nanny; on a loaded
+    machine that takes seconds, and a one-worker cluster asks nothing ahead."""
+    import distributed
+
+    with distributed.Client(address, timeout=30) as client:
+        client.wait_for_workers(2, timeout=60)
+
+
 # Passive (halton) and active (mab) cases; with --avs-seed=5 some violate a monitor and some
 # fail the body's assert: both kinds of failure must come back with the same properties.
 COMPARED = """
@@ -398,6 +407,7 @@ def test_search(case, world):
 def test_active_sampler_asks_ahead_on_the_cluster_reproducibly(pytester, cluster_address,
                                                                monkeypatch):
     pytester.makepyfile(test_search=ACTIVE)
+    _wait_for_both_workers(cluster_address)  # asking ahead needs a second worker to run on
     runs = []
     for k in range(2):
         stats = pytester.path / f"stats-{k}.json"
