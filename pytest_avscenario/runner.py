@@ -27,13 +27,24 @@ class CaseTimeout(BaseException):
     """
 
 
+#: seconds a case may go on past its time limit before ``on_stuck`` ends it the hard way
+GRACE_S = 3.0
+#: after the limit, CaseTimeout is raised again this often (a body or driver that swallows it
+#: with a bare ``except:`` meets it again at once)
+RETRY_S = 0.25
+
+
 @contextmanager
-def time_limit(seconds: float | None):
+def time_limit(seconds: float | None, on_stuck: Callable[[float], None] | None = None):
     """End the enclosed code with :class:`CaseTimeout` after ``seconds`` of wall time.
 
     Uses SIGALRM (it interrupts pure-Python loops and sleeps alike) in the main thread of a
-    POSIX process — where pytest, and pytest-xdist's workers, run tests. Elsewhere the limit
-    is not enforced here; executors that run cases in threads or remotely bound them themselves.
+    POSIX process — where pytest, and pytest-xdist's workers, run tests — and raises again
+    every :data:`RETRY_S` until the code ends. Code that still does not end (it swallows every
+    interrupt, or is stuck in one long C call that no signal handler can enter) is handed to
+    ``on_stuck(ran_s)`` from a watchdog thread :data:`GRACE_S` seconds after the limit; the
+    plugin's ``on_stuck`` records the case and ends the process. Elsewhere the limit is not
+    enforced here; executors that run cases in threads or remotely bound them themselves.
     """
     usable = (seconds is not None and hasattr(signal, "setitimer")
               and threading.current_thread() is threading.main_thread())
@@ -41,15 +52,35 @@ def time_limit(seconds: float | None):
         yield
         return
 
-    def expire(signum: int, frame: Any) -> None:
-        raise CaseTimeout(f"the case ran longer than its time limit of {seconds:g} s")
+    t0 = time.monotonic()
 
+    live = [True]  # False once the code ended: a signal still pending then raises nothing
+
+    def expire(signum: int, frame: Any) -> None:
+        if live[0]:
+            raise CaseTimeout(f"the case ran longer than its time limit of {seconds:g} s")
+
+    watchdog = None
+    if on_stuck is not None:
+        watchdog = threading.Timer(float(seconds) + GRACE_S, 
+                                   lambda: live[0] and on_stuck(time.monotonic() - t0))
+        watchdog.daemon = True
+        watchdog.name = "avscenario-case-watchdog"
     previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, float(seconds))
+    signal.setitimer(signal.ITIMER_REAL, float(seconds), RETRY_S)
+    if watchdog is not None:
+        watchdog.start()
     try:
         yield
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
+        while live[0]:
+            try:  # the repeating timer may still raise until it is off
+                live[0] = False
+                signal.setitimer(signal.ITIMER_REAL, 0)
+            except CaseTimeout:
+                live[0] = True
+        if watchdog is not None:
+            watchdog.cancel()
         signal.signal(signal.SIGALRM, previous)
 
 
@@ -61,13 +92,20 @@ def run_case(
     monitor_set: Any,
     make_world: Callable[[Case], Any] | None,
     timeout_s: float | None = None,
+    on_stuck: Callable[[float], None] | None = None,
 ) -> CaseOutcome:
     """Call the test body for ``case`` and judge what it recorded.
 
     ``fixtures`` holds the values of the test's other fixtures; ``case`` replaces the
     ``case`` argument and, when the test requests ``world``, ``make_world(case)`` builds a
     fresh one (``None`` means: use ``fixtures["world"]`` as it is). ``timeout_s`` bounds the
-    body (see :func:`time_limit`); a case that runs past it is an error saying how long it ran.
+    body (see :func:`time_limit`, which hands a case that will not stop to ``on_stuck``); a
+    case that runs past it is an error saying how long it ran.
+
+    Whatever the body raises becomes the outcome, except what must end the run or belongs to
+    pytest's own flow: ``KeyboardInterrupt``, ``pytest.exit()``, ``pytest.skip()`` and
+    ``pytest.xfail()`` go on up. ``pytest.fail()`` is a failure like ``AssertionError``;
+    ``sys.exit()`` in the body or the driver is an error that says so.
     """
     from .trajectory import Trajectory
 
@@ -81,7 +119,7 @@ def run_case(
     t0 = time.perf_counter()
     ret = None
     try:
-        with time_limit(timeout_s):
+        with time_limit(timeout_s, on_stuck):
             ret = func(**{a: args[a] for a in argnames})
     except CaseTimeout as exc:
         ran = time.perf_counter() - t0
@@ -90,9 +128,22 @@ def run_case(
     except AssertionError as exc:
         outcome.verdict, outcome.exc = "fail", exc
         outcome.error = _one_line(exc)
-    except Exception as exc:  # the body, the driver or the scene failed: an error, not a pass
-        outcome.verdict, outcome.exc = "error", exc
-        outcome.error = f"{type(exc).__name__}: {_one_line(exc)}"
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # the body, the driver or the scene failed: an error, not a pass
+        kind = _pytest_outcome(exc)
+        if kind in ("Exit", "Skipped", "XFailed"):
+            raise
+        if kind == "Failed":  # pytest.fail(...): the body judged the case a failure
+            outcome.verdict, outcome.exc = "fail", exc
+            outcome.error = _one_line(exc)
+        elif isinstance(exc, SystemExit):
+            outcome.verdict, outcome.exc = "error", exc
+            outcome.error = (f"SystemExit: the test body or its driver called sys.exit({exc.code!r}); "
+                             "a scenario case cannot end the test run")
+        else:
+            outcome.verdict, outcome.exc = "error", exc
+            outcome.error = f"{type(exc).__name__}: {_one_line(exc)}"
     finally:
         outcome.sim_time_s = time.perf_counter() - t0
 
@@ -124,6 +175,19 @@ def run_case(
     if outcome.verdict == "pass" and outcome.violated:
         outcome.verdict = "fail"
     return outcome
+
+
+def _pytest_outcome(exc: BaseException) -> str | None:
+    """``Failed``, ``Skipped``, ``XFailed`` or ``Exit`` for pytest's flow-control exceptions
+    (``pytest.fail()`` and friends), else None. Known by their module (nothing below the
+    plugin imports pytest); pytest shows some of them as ``builtins``, but their base is its own."""
+    mro = type(exc).__mro__
+    if not any(cls.__module__ == "_pytest.outcomes" for cls in mro):
+        return None
+    for name in ("Exit", "XFailed", "Skipped", "Failed"):
+        if any(cls.__name__ == name for cls in mro):
+            return name
+    return None
 
 
 def _one_line(exc: BaseException) -> str:

@@ -34,6 +34,9 @@ class CaseJob:
     fresh_world: bool = True  # build a new world for the case (False: use fixtures["world"])
     timeout_s: float | None = None  # wall-time limit of the body (None: none)
     make_world: Callable[[Case], Any] | None = field(default=None, repr=False)
+    #: in-process: called from a watchdog thread when the case passed its time limit and
+    #: does not stop (see :func:`pytest_avscenario.runner.time_limit`)
+    on_stuck: Callable[[float], None] | None = field(default=None, repr=False)
 
 
 class Executor:
@@ -59,4 +62,4 @@ class InProcessExecutor(Executor):
     def run(self, job: CaseJob) -> CaseOutcome:
         return run_case(job.func, job.argnames, job.fixtures, job.case, job.monitor_set,
                         make_world=job.make_world if job.fresh_world else None,
-                        timeout_s=job.timeout_s)
+                        timeout_s=job.timeout_s, on_stuck=job.on_stuck)

@@ -28,6 +28,7 @@ from ..outcome import CaseOutcome, CaseRow
 from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
 from .failure import failure_message
+from .stopping import stuck_case_handler
 from .stash import (
     campaigns_key,
     controller_key,
@@ -470,6 +471,8 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
         function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
         case=case, monitor_set=plan.monitor_set, driver=driver, fresh_world=fresh_world,
         timeout_s=plan.case_timeout_s, make_world=lambda c: build_world(c, driver, item.nodeid),
+        on_stuck=None if prefetch else stuck_case_handler(
+            item, plan.case_timeout_s, lambda o: make_row(item, item.funcargs.get("case", case), o), plan.info()),
     )
 
 
@@ -482,7 +485,8 @@ def attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]
     attached = list(getattr(report, "extras", []))
     for caption, path in pictures.items():
         try:
-            data = base64.b64encode(open(path, "rb").read()).decode()
+            with open(path, "rb") as f:
+                data = base64.b64encode(f.read()).decode()
         except OSError:
             continue
         kind = "gif" if str(path).endswith(".gif") else "png"

@@ -31,11 +31,13 @@ from .campaign import (
 from .collect import CaseSlot, plan_of, plan_scenario
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
+from .stopping import TermGuard, end_workers, unknown_test_info
 from .stash import (
     campaigns_key,
     controller_key,
     db_key,
     executor_key,
+    guard_key,
     pictures_key,
     plans_key,
     result_key,
@@ -60,12 +62,13 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[settings_key] = settings = read_settings(config)
     config.stash[plans_key] = {}
     config.stash[campaigns_key] = {}
-    _terminate_like_ctrl_c()
+    config.stash[guard_key] = guard = TermGuard()
+    config.pluginmanager.register(guard, "avscenario-sigterm")
     config.stash[db_key] = _open_db(config, settings.db_path)
     config.stash[controller_key] = state = RunState(config)
     config.pluginmanager.register(state, "avscenario-run")
     if config.pluginmanager.hasplugin("xdist"):
-        config.pluginmanager.register(_XdistHooks(), "avscenario-xdist")
+        config.pluginmanager.register(_XdistHooks(config), "avscenario-xdist")
 
 
 def _open_db(config: pytest.Config, path: Any) -> Any:
@@ -87,32 +90,37 @@ def _open_db(config: pytest.Config, path: Any) -> Any:
     return db
 
 
-def _terminate_like_ctrl_c() -> None:
-    """Let SIGTERM end a run the way Ctrl-C does: pytest then still finishes the session, so
-    the error table is closed and the partial summary and index are written.
-
-    Only when nobody installed a handler of their own, and only in the main thread."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return
-    if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
-        return
-
-    def terminate(signum: int, frame: Any) -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM kills at once
-        raise KeyboardInterrupt("SIGTERM")
-
-    signal.signal(signal.SIGTERM, terminate)
-
-
 class _XdistHooks:
     """Registered only when pytest-xdist is installed: ship seed and database to the workers,
-    learn the collection order from them."""
+    learn the collection order from them, give the case of a crashed worker its row, end the
+    workers of an interrupted run."""
+
+    def __init__(self, config: pytest.Config):
+        self.config = config
 
     def pytest_xdist_node_collection_finished(self, node: Any, ids: Any) -> None:
         node.config.stash[controller_key].note_order(ids)  # the summary lists tests in this order
+
+    def pytest_handlecrashitem(self, crashitem: str, report: Any, sched: Any) -> None:
+        """A worker died running ``crashitem``: a scenario case still gets its (error) row."""
+        state = self.config.stash[controller_key]
+        if any(row.item == crashitem for row in state.rows):
+            return  # its row came before the worker died (a case that would not stop)
+        from ..samplers.base import available
+        from .stopping import crash_row
+
+        row = crash_row(crashitem, set(available()) | {"replay", "example"})
+        if row is not None:
+            state.add(row, state.tests.get(row.test) or unknown_test_info(row.sampler))
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        if getattr(report, "avs_row", None) is not None and not hasattr(self.config, "workerinput"):
+            # the controller runs no item itself: its scenario work starts with the first row
+            self.config.stash[guard_key].install()
+
+    def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        if not hasattr(self.config, "workerinput"):
+            end_workers(self.config)
 
     def pytest_configure_node(self, node: Any) -> None:
         node.workerinput["avs_seed"] = node.config.stash[settings_key].seed
@@ -188,7 +196,15 @@ def pytest_runtest_setup(item: pytest.Item) -> Any:
     config = item.config
     if not _is_scenario_case(item) or config.option.setuponly or config.option.setupplan:
         return result
-    outcome = item.stash[result_key] = run_item(item)
+    try:
+        outcome = item.stash[result_key] = run_item(item)
+    except pytest.exit.Exception:
+        raise  # pytest.exit() in the body: the run ends here, this case has no verdict
+    except Exception as exc:
+        # whatever went wrong around the case (shrinking, storing, drawing), the item keeps
+        # its row: an error naming the cause
+        record_error_row(item, f"{type(exc).__name__}: {exc}")
+        raise
     if outcome.outcome.verdict == "error":
         _raise_for(item, outcome, "setup")
     return result
@@ -251,6 +267,18 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     keep_drawn_values(session.config)
+
+
+def record_error_row(item: pytest.Item, error: str) -> None:
+    """Give ``item`` an error row, unless it has its row already."""
+    from ..outcome import CaseOutcome
+    from .campaign import make_row
+
+    if row_key in item.stash:
+        return
+    case_obj: Case = item.funcargs["case"]
+    item.stash[row_key] = make_row(item, case_obj, CaseOutcome(params=dict(case_obj.params),
+                                                               verdict="error", error=error))
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

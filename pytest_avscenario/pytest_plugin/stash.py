@@ -17,3 +17,4 @@ shrink_rows_key = pytest.StashKey[list]()  # item -> its shrinking candidates' r
 pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
 result_key = pytest.StashKey[Any]()  # item -> its campaign.ItemResult (set during setup)
 sent_key = pytest.StashKey[bool]()  # item -> its row went out with a report already
+guard_key = pytest.StashKey[Any]()  # the stopping.TermGuard of this process

@@ -1,0 +1,298 @@
+"""Ending the run when a case will not end, or when the run is told to stop.
+
+* :func:`stuck_case_handler` — what happens to a case that ran past its time limit and did not
+  stop when told to (it swallows every interrupt, or sits in one long C call): its row is
+  reported through pytest's own report hook — the error table writes and flushes it, an
+  xdist worker sends it to the controller — and the process ends. Under pytest-xdist the
+  controller replaces the worker and the run goes on; alone, the run ends with status 1.
+* :class:`TermGuard` — SIGTERM read as Ctrl-C while scenario work runs (from the first
+  scenario item to the last one of a row of them, and the report at the end), so pytest
+  finishes the session and the partial report is written; while the report is written, a
+  SIGTERM waits for it. Outside that work — a run with no scenario test, plain tests after the
+  scenario ones — SIGTERM is left as it was. A watcher thread sees every
+  SIGTERM at once, even while the main thread is stuck in C where no Python handler can run:
+  a second SIGTERM, or the first one unanswered for :data:`TERM_GRACE_S`, ends the process
+  as the default action would.
+* :func:`crash_row` — the row of an item whose xdist worker died while running it.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import sys
+import threading
+from typing import Any, Callable
+
+import pytest
+
+from ..outcome import CaseRow
+
+#: seconds the main thread has to answer a SIGTERM before the watcher ends the process
+TERM_GRACE_S = 5.0
+
+
+def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Callable[[Any], CaseRow],
+                       info: dict[str, Any]) -> Callable[[float], None]:
+    """``on_stuck`` for the runner's time limit of ``item``'s cases (called from a thread).
+
+    ``make_row(outcome)`` is the item's row for an outcome; ``info`` its test's summary data."""
+
+    def on_stuck(ran_s: float) -> None:
+        from ..outcome import CaseOutcome
+        from .stash import row_key
+
+        message = (f"CaseTimeout: the case ran past its time limit of {limit_s:g} s and did not "
+                   f"stop when interrupted (it swallows the interrupt, or is stuck in a long C "
+                   f"call); the process running it was ended after {ran_s:.1f} s")
+        capman = item.config.pluginmanager.getplugin("capturemanager")
+        try:
+            if capman is not None:  # what follows is for the terminal, not the test's capture
+                capman.suspend_global_capture(in_=False)
+        except Exception:  # noqa: BLE001 - capture in an odd state: write where we can
+            pass
+        try:
+            if row_key not in item.stash:
+                row = make_row(CaseOutcome(params={}, verdict="error", error=message, sim_time_s=ran_s))
+                report = pytest.TestReport(
+                    nodeid=item.nodeid, location=item.location, keywords={}, outcome="failed",
+                    longrepr=f"{item.nodeid}: {message}", when="setup", duration=ran_s)
+                report.avs_row = row.to_json()
+                report.avs_shrink_rows = []
+                report.avs_pictures = {}
+                report.avs_test = info
+                item.ihook.pytest_runtest_logreport(report=report)
+        finally:
+            where = "this xdist worker" if hasattr(item.config, "workerinput") else "the test run"
+            sys.stderr.write(f"\navscenario: {item.nodeid}: the case ran past its time limit of "
+                             f"{limit_s:g} s and would not stop (ran {ran_s:.1f} s): its error "
+                             f"row is reported; ending {where}\n")
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except Exception:  # noqa: BLE001 - a closed stream: nothing left to flush
+                    pass
+            os._exit(1)
+
+    return on_stuck
+
+
+class TermGuard:
+    """SIGTERM as KeyboardInterrupt while scenario work runs (see the module's text)."""
+
+    def __init__(self) -> None:
+        try:  # the terminal, for a last word while pytest captures the test's output
+            self.terminal_fd = os.dup(2)
+        except OSError:
+            self.terminal_fd = None
+        self.installed = False
+        self.used = False  # scenario work ran in this process
+        self.terminated = False  # a SIGTERM ended the run: the next one ends the process
+        self.previous: Any = None
+        self.deferred = False  # while the report is written: remember, raise nothing
+        self.pending = False  # a SIGTERM arrived while deferred
+        self.answered = threading.Event()
+        self.seen = 0
+        self._wakeup: tuple[int, int] | None = None
+
+    def usable(self) -> bool:
+        return threading.current_thread() is threading.main_thread() and hasattr(signal, "SIGTERM")
+
+    def install(self, deferred: bool = False) -> None:
+        """Scenario work runs (only in the main thread, only over SIGTERM's default action)."""
+        self.deferred = deferred
+        if self.installed or self.terminated or not self.usable():
+            return
+        if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+            return  # somebody else handles SIGTERM: leave it to them
+        self.previous = signal.signal(signal.SIGTERM, self._handle)
+        self.installed = self.used = True
+        self._watch()
+
+    def uninstall(self) -> None:
+        """Scenario work is over: SIGTERM is what it was before."""
+        self.deferred = False
+        if not self.installed or not self.usable():
+            return
+        self.installed = False
+        signal.signal(signal.SIGTERM, self.previous)
+        self._unwatch()
+
+    # -- hooks (this object is registered as a plugin of its config) ------------------------
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+        if item.get_closest_marker("scenario") is None:
+            return (yield)
+        self.install()
+        try:
+            return (yield)
+        finally:
+            if nextitem is not None and nextitem.get_closest_marker("scenario") is None:
+                self.uninstall()  # plain tests next: SIGTERM is theirs again
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> Any:
+        # the report is written whole: a SIGTERM meanwhile waits for it, then the run ends
+        # as interrupted (a second SIGTERM still ends the process at once)
+        if self.used:
+            self.install(deferred=True)
+        try:
+            return (yield)
+        finally:
+            self.uninstall()
+            if self.pending:
+                session.exitstatus = pytest.ExitCode.INTERRUPTED
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        self.answered.set()
+        if self.deferred:
+            self.pending = True
+            return
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process
+        self.installed, self.terminated = False, True
+        self._unwatch()
+        raise KeyboardInterrupt("SIGTERM")
+
+    # -- the watcher: sees each SIGTERM through the wakeup fd, whatever the main thread does
+    def _watch(self) -> None:
+        if self._wakeup is not None:
+            return
+        read, write = os.pipe()
+        os.set_blocking(write, False)
+        try:
+            old = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+        except (ValueError, OSError):
+            os.close(read)
+            os.close(write)
+            return
+        if old != -1:  # somebody else's wakeup fd (an event loop): keep theirs, no watcher
+            signal.set_wakeup_fd(old)
+            os.close(read)
+            os.close(write)
+            return
+        self._wakeup = (read, write)
+        self.answered.clear()
+        self.seen = 0
+        threading.Thread(target=self._watcher, args=(read,), name="avscenario-sigterm",
+                         daemon=True).start()
+
+    def _unwatch(self) -> None:
+        if self._wakeup is None:
+            return
+        read, write = self._wakeup
+        self._wakeup = None
+        try:
+            signal.set_wakeup_fd(-1)
+        except ValueError:  # not the main thread: cannot happen here, keep it harmless
+            pass
+        os.close(write)  # the watcher's read returns b"" and it ends; it closes `read`
+
+    def _watcher(self, read: int) -> None:
+        try:
+            while True:
+                data = os.read(read, 64)
+                if not data:
+                    return
+                if signal.SIGTERM in data:
+                    self.seen += data.count(signal.SIGTERM)
+                    if self.seen >= 2:
+                        _die_by_sigterm()
+                    threading.Thread(target=self._await_answer, daemon=True).start()
+        except OSError:
+            return
+        finally:
+            try:
+                os.close(read)
+            except OSError:
+                pass
+
+    def _await_answer(self) -> None:
+        if not self.answered.wait(TERM_GRACE_S):
+            text = (f"\navscenario: SIGTERM not answered for {TERM_GRACE_S:g} s (the test is stuck "
+                    "in a call that cannot be interrupted); ending the process: the rows of the "
+                    "finished cases are on disk\n")
+            try:
+                os.write(self.terminal_fd if self.terminal_fd is not None else 2, text.encode())
+            except OSError:
+                pass
+            _die_by_sigterm()
+
+
+def _die_by_sigterm() -> None:
+    """End the process as SIGTERM's default action would (status 143 to a shell); every
+    finished row is on disk already (the error table is flushed per row)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:  # noqa: BLE001 - a closed stream: nothing left to flush
+            pass
+    os._exit(128 + signal.SIGTERM)
+
+
+def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
+    """An interrupted xdist controller ends its workers at once — SIGTERM reaches each as it
+    reaches a run of its own, so none goes on running, and storing counterexamples for, cases
+    this run will not report — and then reports what they had sent and it had not read yet."""
+    import queue
+    import time
+
+    dsession = config.pluginmanager.getplugin("dsession")
+    group = getattr(getattr(dsession, "nodemanager", None), "group", None)
+    popens = [getattr(getattr(gw, "_io", None), "popen", None) for gw in getattr(group, "_gateways", ()) or ()]
+    popens = [p for p in popens if p is not None and p.poll() is None]
+    for popen in popens:
+        try:
+            popen.send_signal(signal.SIGTERM)
+        except OSError:
+            pass
+    deadline = time.monotonic() + wait_s
+    for popen in popens:
+        try:
+            popen.wait(max(0.0, deadline - time.monotonic()))
+        except Exception:  # noqa: BLE001 - still running: xdist's teardown kills it
+            pass
+    events = getattr(dsession, "queue", None)
+    report = getattr(dsession, "worker_testreport", None)
+    while events is not None and report is not None:
+        try:
+            name, kwargs = events.get_nowait()
+        except queue.Empty:
+            break
+        if name == "testreport":
+            try:
+                report(**kwargs)
+            except Exception:  # noqa: BLE001 - one report we cannot read: the others still count
+                pass
+
+
+_CASE_ID = re.compile(r"(?:^|-)([A-Za-z_][A-Za-z0-9_]*)-(\d+)(?=-|$)")
+
+
+def crash_row(nodeid: str, names: set[str]) -> CaseRow | None:
+    """The error row of scenario item ``nodeid`` whose xdist worker died running it, or None
+    when the id names no case (``names``: sampler names and case origins)."""
+    test, bracket, rest = nodeid.partition("[")
+    if not bracket or not rest.endswith("]"):
+        return None
+    for match in _CASE_ID.finditer(rest[:-1]):
+        name, index = match.group(1), int(match.group(2))
+        if name in names:
+            origin = name if name in ("replay", "example") else "sampled"
+            return CaseRow(
+                test=test, item=nodeid, sampler=name, index=index, seed=None, origin=origin,
+                params={}, rho={}, verdict="error",
+                error="the xdist worker running this case died (it crashed, or was ended by a "
+                      "signal or os._exit); its parameters were not reported — run the item "
+                      "alone to see them")
+    return None
+
+
+def unknown_test_info(sampler: str) -> dict[str, Any]:
+    """What the summary needs of a test none of whose cases reported (every worker running
+    one died): no metrics, no parameters known."""
+    from ..acceptance import Criteria
+    from ..space import FeatureSpace
+
+    return {"metrics": [], "space": FeatureSpace({}).describe(), "accept": Criteria().to_json(),
+            "samplers": [sampler]}
