@@ -119,6 +119,8 @@ class ReplayDB:
         # file name -> ((mtime_ns, size), Entry or None when invalid)
         self._cache: dict[str, tuple[tuple[int, int], Entry | None]] = {}
         self._snapshot: list[Entry] | None = None
+        #: saves and deletes that failed this run (the plugin warns on the first one only)
+        self.write_failures = 0
         self._check_directory()
 
     # ------------------------------------------------------------------ reading

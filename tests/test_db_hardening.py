@@ -5,7 +5,9 @@ failure."""
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -140,4 +142,106 @@ def test_a_stored_entry_with_a_bad_seed_is_skipped_naming_test_and_seed(pytester
     result.assert_outcomes(passed=1)
     line = the_line(result, path)
     assert TEST in line and "'seed'" in line and why in line and "2**63" in line
+    assert path.exists()
+
+
+# ----------------------------------------------------------------- a database that cannot be written
+
+FAILING = """
+from pytest_avscenario import scenario, Uniform, Choice
+from pytest_avscenario.trajectory import Trajectory
+
+def margin(traj):
+    return float(traj.meta["margin"])
+
+@scenario(gap=Uniform(10, 40, nominal=30), road=Choice(["dry", "wet"]), samples=8,
+          monitors=[margin], shrink_budget=4)
+def test_gap(case):
+    return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0, 1], "y": [0, 0]}},
+                                  meta={"margin": case.gap - 20.0})
+"""
+
+
+def assert_failures_shown_and_one_warning(result, reason: str) -> None:
+    out = result.stdout.str()
+    outcomes = result.parseoutcomes()
+    failed = outcomes["failed"]
+    assert failed >= 2 and "errors" not in outcomes and "error" not in outcomes
+    assert "DatabaseError" not in out and "Traceback" not in out and "INTERNALERROR" not in out
+    # every failure keeps its normal text, plus one line saying it was not stored
+    assert result.outlines.count("scenario violated: margin") == failed
+    assert out.count("pin it as a regression above the test: @example(") == failed
+    notes = [line for line in result.outlines if "could not store for replay: " in line]
+    assert len(notes) == failed and all(reason in line for line in notes)
+    # one warning for the run, not one per case
+    warned = [line for line in result.outlines if "PytestWarning" in line and "replay database" in line]
+    assert len(warned) == 1 and reason in warned[0] and "test_gap[" in warned[0]
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="needs /proc/self/fd to find the file")
+def test_a_full_disk_does_not_hide_the_failures(pytester, monkeypatch):
+    real_fsync = os.fsync
+
+    def full_disk(fd):
+        if ".avscenario" in os.readlink(f"/proc/self/fd/{fd}"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", full_disk)
+    pytester.makepyfile(test_gap=FAILING)
+    result = pytester.runpytest("--avs-seed=1")
+    assert_failures_shown_and_one_warning(result, os.strerror(errno.ENOSPC))
+    assert list((pytester.path / ".avscenario").iterdir()) == []  # no half-written file
+
+
+def test_a_database_that_becomes_unwritable_does_not_hide_the_failures(pytester):
+    # what even root cannot write through: the database's parent turns into a file after start-up
+    pytester.makeconftest("""
+from pathlib import Path
+
+def pytest_collection_finish(session):
+    Path("store").write_text("a file now")
+""")
+    pytester.makepyfile(test_gap=FAILING)
+    result = pytester.runpytest("--avs-seed=1", "--avs-db=store/db")
+    assert_failures_shown_and_one_warning(result, "is a file")
+    assert (pytester.path / "store").read_text() == "a file now"  # never removed
+
+
+def test_a_read_only_database_does_not_hide_the_failures(pytester):
+    db = pytester.path / ".avscenario"
+    db.mkdir()
+    db.chmod(0o555)
+    try:
+        try:
+            (db / "probe").touch()
+        except PermissionError:
+            pass
+        else:  # root (with CAP_DAC_OVERRIDE) writes anyway: the test above shows this case
+            (db / "probe").unlink()
+            pytest.skip("this user writes into read-only directories (root)")
+        pytester.makepyfile(test_gap=FAILING)
+        result = pytester.runpytest("--avs-seed=1")
+    finally:
+        db.chmod(0o755)
+    assert_failures_shown_and_one_warning(result, os.strerror(errno.EACCES))
+
+
+def test_a_fixed_entry_that_cannot_be_removed_only_warns(pytester, monkeypatch):
+    pytester.makepyfile(test_gap=GUARDED)
+    path = store(pytester)
+    real_unlink = os.unlink
+
+    def refuse(p, *args, **kwargs):
+        if ".avscenario" in str(p):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(p))
+        return real_unlink(p, *args, **kwargs)
+
+    monkeypatch.setattr(os, "unlink", refuse)
+    result = pytester.runpytest("-v", "--avs-seed=1")
+    result.assert_outcomes(passed=2)
+    assert "test_gap.py::test_gap[replay-0] PASSED" in result.stdout.str()
+    warned = [line for line in result.outlines if "PytestWarning" in line and "replay database" in line]
+    assert len(warned) == 1 and path.name in warned[0] and "test_gap[replay-0]" in warned[0]
+    assert os.strerror(errno.EACCES) in warned[0]
     assert path.exists()
