@@ -10,6 +10,13 @@ file in the same directory, then ``os.replace``), so concurrent pytest-xdist wor
 CI cache merged from several jobs never show a half-written entry. File names are a hash
 of (test, parameters) — never user text — and file contents are only ever parsed as
 strict JSON: nothing read is executed, and no path is taken from a file's content.
+
+A file is data anyone may have edited, so it is checked before anything uses it: one that
+cannot be parsed (huge integers, deep nesting, wrong types, a seed that is no case seed) is
+skipped with one warning, and at collection :func:`replay_params` checks each stored value
+against its test's declared space. A skipped file is left on disk for the user to fix or
+delete. Saving or deleting that fails raises :class:`DatabaseError`; the plugin turns it
+into a line of the case's failure text and one warning, never a hidden failure.
 """
 
 from __future__ import annotations
