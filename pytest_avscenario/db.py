@@ -10,6 +10,13 @@ file in the same directory, then ``os.replace``), so concurrent pytest-xdist wor
 CI cache merged from several jobs never show a half-written entry. File names are a hash
 of (test, parameters) — never user text — and file contents are only ever parsed as
 strict JSON: nothing read is executed, and no path is taken from a file's content.
+
+A file is data anyone may have edited, so it is checked before anything uses it: one that
+cannot be parsed (huge integers, deep nesting, wrong types, a seed that is no case seed) is
+skipped with one warning, and at collection :func:`replay_params` checks each stored value
+against its test's declared space. A skipped file is left on disk for the user to fix or
+delete. Saving or deleting that fails raises :class:`DatabaseError`; the plugin turns it
+into a line of the case's failure text and one warning, never a hidden failure.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ import math
 import os
 import re
 import stat
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -31,7 +39,7 @@ import numpy as np
 from .codec import rho_from_json, rho_to_json
 from .space import FeatureSpace
 
-__all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "space_changes"]
+__all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "replay_params", "space_changes"]
 
 #: version of the entry format this module writes and reads
 FORMAT = 1
@@ -41,6 +49,13 @@ _KIND = "pytest-avscenario counterexample"
 _NAME = re.compile(r"^([0-9a-f]{12})-([0-9a-f]{20})\.json$")
 #: entries are a few kB; anything far larger is not ours and is not read into memory
 _MAX_BYTES = 4 * 1024 * 1024
+#: JSON nesting an entry may have: an entry is 3 levels deep plus a parameter's own value (a
+#: Choice option may be a list or an object); deeper content is not ours, and refusing it
+#: here keeps every later step (hashing, comparing) far from Python's recursion limit
+_MAX_DEPTH = 32
+#: case seeds are 63-bit (``case.stable_seed``); anything else is not a seed the plugin wrote
+SEED_RANGE = "an integer from 0 to 2**63-1"
+_SEED_END = 2**63
 
 
 class DatabaseError(OSError):
@@ -111,6 +126,8 @@ class ReplayDB:
         # file name -> ((mtime_ns, size), Entry or None when invalid)
         self._cache: dict[str, tuple[tuple[int, int], Entry | None]] = {}
         self._snapshot: list[Entry] | None = None
+        #: saves and deletes that failed this run (the plugin warns on the first one only)
+        self.write_failures = 0
         self._check_directory()
 
     # ------------------------------------------------------------------ reading
@@ -179,7 +196,8 @@ class ReplayDB:
         if path.name in self._warned:
             return
         self._warned.add(path.name)
-        self.warnings.append(f"skipped {path}: {why}")
+        self.warnings.append(f"skipped {path}: {why}; not replayed, left on disk for you to "
+                             "fix or delete")
 
     # ------------------------------------------------------------------ writing
     def save(self, test: str, params: Mapping[str, Any], rho: Mapping[str, float], seed: int,
@@ -281,8 +299,10 @@ class ReplayDB:
                     raise _Invalid("is not a JSON object")
                 name = entry_name(str(item.get("test")), item.get("params") or {})
                 entries.append(_entry_from_json(dict(item), db.directory / name))
-            except (_Invalid, ValueError, TypeError) as exc:
+            except _Invalid as exc:
                 db.warnings.append(f"skipped snapshot item {i}: {exc}")
+            except (ValueError, TypeError, OverflowError, RecursionError, MemoryError) as exc:
+                db.warnings.append(f"skipped snapshot item {i}: {_unreadable(exc)}")
         db._snapshot = entries
         return db
 
@@ -298,7 +318,8 @@ class ReplayDB:
             if parent.exists():
                 if not parent.is_dir():
                     raise DatabaseError(
-                        f"the replay database {d} cannot be created: {parent} is a file"
+                        f"the replay database {d} cannot be created: {parent} is a file; "
+                        "move that file or pass another path with --avs-db"
                     )
                 break
 
@@ -323,6 +344,11 @@ def _reject_constant(name: str) -> Any:
     raise _Invalid(f"contains {name}, which is not JSON")
 
 
+#: what parsing untrusted bytes may raise besides a decode error: Python's limit on integer
+#: digits (ValueError), deep nesting (RecursionError), numbers beyond a float (OverflowError)
+_UNREADABLE = (ValueError, TypeError, OverflowError, RecursionError, MemoryError)
+
+
 def _parse(raw: bytes, path: Path) -> Entry:
     if len(raw) > _MAX_BYTES:
         raise _Invalid("is too large to be an entry")
@@ -335,10 +361,47 @@ def _parse(raw: bytes, path: Path) -> Entry:
     except json.JSONDecodeError as exc:
         raise _Invalid(f"is not valid JSON (truncated or corrupt: {exc.msg} at "
                        f"line {exc.lineno} column {exc.colno})") from None
-    entry = _entry_from_json(data, path)
-    if entry_name(entry.test, entry.params) != path.name:
-        raise _Invalid("its name does not match its test and parameters (renamed or edited)")
+    except _Invalid:
+        raise
+    except _UNREADABLE as exc:
+        raise _Invalid(_unreadable(exc)) from None
+    try:
+        _check_depth(data)
+        entry = _entry_from_json(data, path)
+        name = entry_name(entry.test, entry.params)
+    except _Invalid:
+        raise
+    except _UNREADABLE as exc:
+        raise _Invalid(_unreadable(exc)) from None
+    if name != path.name:
+        raise _Invalid(f"the entry of {_shown_test(entry.test)}: its name does not match its "
+                       "test and parameters (renamed or edited)")
     return entry
+
+
+def _unreadable(exc: BaseException) -> str:
+    """Why parsed-but-unusable content is not an entry, in the user's terms."""
+    if isinstance(exc, RecursionError):
+        return "is nested too deeply to be an entry"
+    if isinstance(exc, MemoryError):
+        return "is too large to read into memory"
+    if isinstance(exc, ValueError) and "digits" in str(exc):
+        return (f"holds an integer of more than {sys.get_int_max_str_digits()} digits, "
+                "more than Python reads")
+    if isinstance(exc, OverflowError):
+        return "holds a number too large for a float"
+    return f"is not a readable entry ({type(exc).__name__}: {str(exc)[:120]})"
+
+
+def _check_depth(data: Any) -> None:
+    """Refuse JSON nested deeper than any entry (iteratively: no recursion on hostile input)."""
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, (dict, list)):
+            if depth > _MAX_DEPTH:
+                raise _Invalid(f"is nested more than {_MAX_DEPTH} levels deep, deeper than any entry")
+            stack.extend((v, depth + 1) for v in (value.values() if isinstance(value, dict) else value))
 
 
 def _entry_from_json(data: Any, path: Path) -> Entry:
@@ -346,36 +409,134 @@ def _entry_from_json(data: Any, path: Path) -> Entry:
         raise _Invalid("is not a pytest-avscenario entry (foreign JSON)")
     fmt = data.get("format")
     if fmt != FORMAT:
-        raise _Invalid(f"has entry format version {fmt!r}; this pytest-avscenario reads "
+        raise _Invalid(f"has entry format version {_short(fmt)}; this pytest-avscenario reads "
                        f"version {FORMAT}")
+    test = data.get("test")
+    if not isinstance(test, str) or not test:
+        raise _Invalid("has a missing or malformed 'test' field")
+    of = f"the entry of {_shown_test(test)}"
 
     def field(name: str, kinds: type | tuple[type, ...]) -> Any:
         value = data.get(name)
         # bool is an int in Python, but a seed of `true` is a malformed file
         if not isinstance(value, kinds) or (isinstance(value, bool) and kinds is not bool):
-            raise _Invalid(f"has a missing or malformed {name!r} field")
+            what = "a missing" if name not in data else f"a malformed ({_short(value)})"
+            raise _Invalid(f"{of} has {what} {name!r} field")
         return value
 
-    test = field("test", str)
     params = field("params", dict)
     rho_raw = field("rho", dict)
     try:
         rho = {str(k): rho_from_json(v) for k, v in rho_raw.items()}
-    except (TypeError, ValueError):
-        raise _Invalid("has a malformed 'rho' field") from None
-    seed = field("seed", int)
+    except (TypeError, ValueError, OverflowError):
+        raise _Invalid(f"{of} has a malformed 'rho' field (robustness values are numbers, "
+                       "'inf' or '-inf')") from None
+    seed = data.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < _SEED_END:
+        what = "no 'seed'" if "seed" not in data else f"'seed' {_short(seed)}"
+        raise _Invalid(f"{of} has {what}, not a case seed ({SEED_RANGE})")
     fingerprint = field("fingerprint", str)
     space = field("space", dict)
     minimized = field("minimized", bool)
     versions = field("versions", dict)
     if not all(isinstance(v, str) for v in versions.values()):
-        raise _Invalid("has a malformed 'versions' field")
+        raise _Invalid(f"{of} has a malformed 'versions' field")
     created = field("created", (int, float))
+    try:
+        created = float(created)
+    except OverflowError:
+        created = math.inf
     if not math.isfinite(created):
-        raise _Invalid("has a malformed 'created' field")
+        raise _Invalid(f"{of} has a malformed 'created' field (not a Unix time)")
     return Entry(test=test, params=params, rho=rho, seed=seed, fingerprint=fingerprint,
                  space=space, minimized=minimized, versions=dict(versions), format=fmt,
-                 path=path, created=float(created))
+                 path=path, created=created)
+
+
+def replay_params(space: FeatureSpace, stored: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters to replay for an entry's stored ``params`` in the declared ``space``.
+
+    Each value becomes the space's own value — a float for a continuous parameter, an int for
+    an integer one, the declared object for a Choice option or a constant — and missing
+    constants are filled in, so a test body receives exactly what a sampler would give it.
+    Raises ValueError naming the first parameter that is undeclared, missing, of the wrong
+    type or outside its distribution (a hand-edited entry, or one from another version)."""
+    unknown = [n for n in stored if n not in space.parameters]
+    if unknown:
+        names = ", ".join(_short(n) for n in unknown)
+        raise ValueError(f"parameter {names} is not declared (declared: {', '.join(space.names)})")
+    out: dict[str, Any] = {}
+    for name, dist in space.parameters.items():
+        if name in stored:
+            out[name] = _declared_value(name, dist, stored[name])
+        elif dist.kind == "constant":
+            out[name] = dist.nominal
+        else:
+            raise ValueError(f"parameter {name!r} is missing")
+    try:
+        space.validate(out)  # whatever else the space itself checks
+    except (ValueError, TypeError, OverflowError) as exc:
+        raise ValueError(str(exc)) from None
+    return out
+
+
+def _declared_value(name: str, dist: Any, value: Any) -> Any:
+    shown = f"parameter {name!r}={_short(value)}"
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if dist.kind == "continuous":
+        if not number:
+            raise ValueError(f"{shown} is not a number ({dist!r} declares numbers)")
+        try:
+            v = float(value)
+        except OverflowError:
+            v = math.inf
+        if not (math.isfinite(v) and dist.contains(v)):
+            raise ValueError(f"{shown} lies outside {dist!r}")
+        return v
+    if dist.kind == "integer":
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        elif not number or isinstance(value, float):
+            raise ValueError(f"{shown} is not an integer ({dist!r} declares integers)")
+        if not dist.contains(value):
+            raise ValueError(f"{shown} lies outside {dist!r}")
+        return value
+    if dist.kind == "categorical":
+        options = tuple(getattr(dist, "options", ()))
+        for option in options:
+            if _same_value(option, value):
+                return option
+        raise ValueError(f"{shown} is not one of the options {_short(list(options))}")
+    if dist.kind == "constant":
+        if _same_value(dist.nominal, value):
+            return dist.nominal
+        raise ValueError(f"{shown} is not the declared constant {_short(dist.nominal)}")
+    if not dist.contains(value):
+        raise ValueError(f"{shown} lies outside {dist!r}")
+    return value
+
+
+def _same_value(declared: Any, stored: Any) -> bool:
+    """Whether a stored JSON value is a declared one: numbers by value (1 is 1.0, but True is
+    not 1), anything else by its JSON form (a tuple option is stored as a list)."""
+    def number(v: Any) -> bool:
+        return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+    if number(declared) or number(stored):
+        return number(declared) and number(stored) and declared == stored
+    return _canon(declared) == _canon(stored)
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """``repr`` of a value read from a file, cut to ``limit`` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _shown_test(test: str) -> str:
+    """A test id read from a file, printable whatever it holds (lone surrogates included)."""
+    text = test.encode("utf-8", "backslashreplace").decode("utf-8")
+    return text if len(text) <= 200 else text[:199] + "…"
 
 
 def _plain(value: Any) -> Any:

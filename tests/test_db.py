@@ -7,6 +7,7 @@ import json
 import math
 import multiprocessing
 import os
+import re
 import sys
 
 import numpy as np
@@ -272,3 +273,37 @@ def test_space_changes_names_the_changed_parameter():
     fewer = FeatureSpace({"gap": Uniform(10.0, 40.0, nominal=30.0), "lanes": IntRange(1, 4),
                           "road": Choice(["dry", "wet"])})
     assert space_changes(old, fewer) == ["length"]
+
+
+def test_replayed_values_are_the_declared_ones():
+    from pytest_avscenario.db import replay_params
+
+    sp = FeatureSpace({"gap": Uniform(10.0, 40.0), "lanes": IntRange(1, 4),
+                       "pair": Choice([(1, 2), (3, 4)]), "speed": Choice([5.0, 10.0]),
+                       "length": 400})
+    # as JSON gives them back: ints for floats, a list for a tuple option, the constant dropped
+    got = replay_params(sp, {"gap": 12, "lanes": 3.0, "pair": [3, 4], "speed": 10})
+    assert got == {"gap": 12.0, "lanes": 3, "pair": (3, 4), "speed": 10.0, "length": 400}
+    assert [type(v) for v in got.values()] == [float, int, tuple, float, int]
+    assert list(got) == list(sp.names)  # declaration order
+    for bad, why in [({"lanes": 2.5}, "'lanes'=2.5 is not an integer"),
+                     ({"lanes": 9}, "'lanes'=9 lies outside IntRange"),
+                     ({"pair": [4, 3]}, "'pair'=[4, 3] is not one of the options"),
+                     ({"speed": True}, "'speed'=True is not one of the options"),
+                     ({"length": 401}, "'length'=401 is not the declared constant 400"),
+                     ({"gap": float("inf")}, "'gap'=inf lies outside")]:
+        stored = {"gap": 12.0, "lanes": 3, "pair": [3, 4], "speed": 10.0, **bad}
+        with pytest.raises(ValueError, match=re.escape(why)):
+            replay_params(sp, stored)
+
+
+def test_hostile_snapshot_items_are_skipped(tmp_path):
+    good = save(ReplayDB(tmp_path)).to_json()
+    deep: list = []
+    for _ in range(5000):
+        deep = [deep]
+    worker = ReplayDB.from_snapshot(tmp_path, [dict(good, params={"gap": deep}),
+                                               dict(good, seed=-1), dict(good, created=10**400)])
+    assert worker.entries() == []
+    assert len(worker.warnings) == 3
+    assert "nested too deeply" in worker.warnings[0] and "'seed' -1" in worker.warnings[1]

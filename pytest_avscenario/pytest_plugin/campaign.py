@@ -500,9 +500,26 @@ def update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
     db = item.config.stash[db_key]
     if db is None:
         return None
+    from ..db import DatabaseError
+
+    def trouble(what: str, exc: DatabaseError) -> None:
+        # a database that cannot be written (read-only, disk full) must not hide the failure
+        # itself: the item keeps its message and says it was not stored; the run warns once
+        db.write_failures += 1
+        if db.write_failures == 1:
+            warnings.warn(pytest.PytestWarning(
+                f"avscenario replay database: {item.nodeid}: {what}: {exc} (warned once; "
+                "the run goes on, and each failure says whether it was stored)"))
+
     if case.origin == "replay":
         if outcome.verdict == "pass":
-            db.delete(plan.replays[slot.index])
+            entry = plan.replays[slot.index]
+            try:
+                db.delete(entry)
+            except DatabaseError as exc:
+                trouble(f"the fixed counterexample {entry.path.name} passes now but could not be "
+                        "removed", exc)
+                return f"fixed, but not removed from the database: {exc}"
             return "fixed: this stored counterexample passes now and was removed from the database"
         return None
     if case.origin != "sampled" or not outcome.failed or (shrink is not None and shrink.flaky):
@@ -512,8 +529,12 @@ def update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
     rho = shrink.outcome.rho if minimized and shrink.outcome is not None else outcome.rho
     from .controller import versions
 
-    entry = db.save(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
-                    versions=versions())
+    try:
+        entry = db.save(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
+                        versions=versions())
+    except DatabaseError as exc:
+        trouble("could not store a counterexample for replay", exc)
+        return f"could not store for replay: {exc}"
     return f"stored for replay in {entry.path}"
 
 

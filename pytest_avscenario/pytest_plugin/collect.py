@@ -146,7 +146,7 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         slots.append(CaseSlot("example", k, stable_seed(seed, "example", k), "example", params))
     replays: dict[int, Any] = {}
     if db is not None and pinned is None:
-        from ..db import space_changes
+        from ..db import replay_params, space_changes
 
         for entry in db.entries(test):
             if entry.fingerprint != space.fingerprint():
@@ -155,9 +155,17 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
                     f"{test}: stored counterexample {entry.path.name} skipped: parameter "
                     f"{changed} changed since it was found"))
                 continue
+            try:
+                # the file is data anyone may have edited: only declared values reach the body
+                params = replay_params(space, entry.params)
+            except ValueError as exc:
+                warnings.warn(pytest.PytestWarning(
+                    f"{test}: stored counterexample {entry.path} skipped: {exc}; not replayed, "
+                    "left on disk for you to fix or delete"))
+                continue
             k = len(replays)
             replays[k] = entry
-            slots.append(CaseSlot("replay", k, entry.seed, "replay", space.complete(entry.params)))
+            slots.append(CaseSlot("replay", k, entry.seed, "replay", params))
 
     plan = ScenarioPlan(
         test=test, space=space, samplers=own.samplers, samples=own.samples, seed=seed,
