@@ -128,7 +128,8 @@ def test_close(case, world):
     world.run(seconds=2)
 """)
     result = pytester.runpytest("--avs-seed=1", "--avs-db=none", "--avs-driver=idm",
-                                "--html=page.html", "--self-contained-html")
+                                "--html=page.html", "--self-contained-html", "-W", "error::ResourceWarning")
     assert result.parseoutcomes()["failed"] == 2  # gaps 23 m and 14.5 m are both under 25 m
+    assert "ResourceWarning" not in result.stdout.str()  # every picture file read is closed
     page = (pytester.path / "page.html").read_text()
     assert "worst moment" in page and "data:image/png;base64," in page and "image/gif" in page
