@@ -320,3 +320,47 @@ def test_many(case):
     # each failure is stored as found (no shrinking); at most the one case each of the two
     # workers was finishing when the controller stopped listening is stored but not reported
     assert failing <= stored <= failing + 2, (failing, stored)
+
+
+def test_an_error_around_the_case_still_gives_the_item_its_row(pytester):
+    # a user's active sampler whose tell() raises: the case ran, the plugin failed after it;
+    # a user's fixture that raises: the case never ran
+    pytester.makeconftest("""
+import numpy as np
+import pytest
+from pytest_avscenario.samplers import Sampler, register
+
+@pytest.fixture
+def broken():
+    raise RuntimeError("no map server")
+
+@register("clumsy")
+class Clumsy(Sampler):
+    name = "clumsy"
+    active = True
+
+    def ask_unit(self):
+        return np.full(self.d, 0.5)
+
+    def tell_unit(self, u, rho):
+        raise ValueError("clumsy sampler cannot learn")
+""")
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=2, sampler="clumsy")
+def test_x(case):
+    pass
+
+@scenario(x=Uniform(0, 1), samples=2, sampler="halton")
+def test_y(case, broken):
+    pass
+""")
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist")
+    result.assert_outcomes(errors=4)
+    rows = rows_of(pytester.path)
+    assert [(r["test"][-6:], r["index"], r["verdict"]) for r in rows] == [
+        ("test_x", 0, "error"), ("test_x", 1, "error"), ("test_y", 0, "error"), ("test_y", 1, "error")]
+    assert all("ValueError: clumsy sampler cannot learn" in r["error"] for r in rows[:2])
+    assert all("RuntimeError: no map server" in r["error"] for r in rows[2:])
+    assert [r["params"] for r in rows[2:]] == [{"x": 0.5}, {"x": 0.25}]

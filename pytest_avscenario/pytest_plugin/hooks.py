@@ -28,7 +28,7 @@ from .campaign import (
     prefetch_passive_cases,
     run_item,
 )
-from .collect import CaseSlot, plan_of, plan_scenario
+from .collect import CaseSlot, plan_of, plan_scenario, slot_of
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
 from .stopping import TermGuard, end_workers, unknown_test_info
@@ -191,8 +191,20 @@ def pytest_runtest_setup(item: pytest.Item) -> Any:
 
     A case that cannot be judged (the body or the driver raised, a scenario mistake, a time
     limit) is an *error* of the setup, as pytest and JUnit count errors; a counterexample
-    fails the call that follows (:func:`pytest_pyfunc_call`)."""
-    result = yield
+    fails the call that follows (:func:`pytest_pyfunc_call`).
+
+    Every scenario item that gets this far keeps a row: one whose fixtures failed (a user's
+    fixture, an active sampler that raised while its earlier cases were drawn) gets an error
+    row naming the cause, as does one where something around its case went wrong."""
+    try:
+        result = yield
+    except pytest.exit.Exception:
+        raise
+    except (Exception, pytest.fail.Exception) as exc:
+        if slot_of(item) is not None and item.get_closest_marker("scenario") is not None:
+            record_error_row(item, f"the item's setup failed before its case ran: "
+                                   f"{type(exc).__name__}: {exc}")
+        raise
     config = item.config
     if not _is_scenario_case(item) or config.option.setuponly or config.option.setupplan:
         return result
@@ -276,7 +288,10 @@ def record_error_row(item: pytest.Item, error: str) -> None:
 
     if row_key in item.stash:
         return
-    case_obj: Case = item.funcargs["case"]
+    case_obj = item.funcargs.get("case")
+    if not isinstance(case_obj, Case):  # its fixtures failed: the slot's values, if known
+        slot = slot_of(item)
+        case_obj = slot.case(item.nodeid, slot.params if slot.params is not None else {})
     item.stash[row_key] = make_row(item, case_obj, CaseOutcome(params=dict(case_obj.params),
                                                                verdict="error", error=error))
 
