@@ -144,6 +144,12 @@ class TermGuard:
             if self.pending:
                 session.exitstatus = pytest.ExitCode.INTERRUPTED
 
+    def pytest_unconfigure(self, config: pytest.Config) -> None:
+        self.uninstall()
+        if self.terminal_fd is not None:
+            os.close(self.terminal_fd)
+            self.terminal_fd = None
+
     def _handle(self, signum: int, frame: Any) -> None:
         self.answered.set()
         if self.deferred:
