@@ -295,7 +295,8 @@ def test_x(case):
     assert (report / "index.html").exists() and junit_cases(pytester.path / "out.xml") == 4
 
 
-def test_sigterm_to_an_xdist_controller_ends_its_workers_and_every_reported_row_is_on_disk(pytester):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_stopping_an_xdist_controller_ends_its_workers_and_every_reported_row_is_on_disk(pytester, sig):
     pytester.makepyfile("""
 import time
 from pytest_avscenario import scenario, Uniform
@@ -307,7 +308,7 @@ def test_many(case):
 """)
     proc = start(pytester, "-n", "2", "--avs-shrink-budget=0", "--junitxml=out.xml")
     wait_for_rows(pytester, proc, 30)
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(sig)
     out = proc.communicate(timeout=60)[0].decode()
     assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
     time.sleep(1.0)  # a worker that went on would store more meanwhile
