@@ -11,6 +11,8 @@ Layout under the report directory (``--avs-report``, default ``avs-report/``)::
     shrink.jsonl            shrinking candidates, kept apart so errors.jsonl counts samples
     tables/<slug>.csv       the same rows for one test, one column per parameter and metric
     tables/<slug>.shrink.csv
+    .avs-manifest.json      every file a run of ours wrote here (see :mod:`.folder`)
+    .avs-lock               held by the run writing here
 
 Why one CSV per test plus a combined JSONL: tests have different parameters and metrics,
 and a CSV has one header. A CSV per test gives real columns (``param.gap``,
@@ -133,38 +135,20 @@ def file_slug(test: str, max_len: int = 80) -> str:
     return f"{readable[:max_len]}-{digest}"
 
 
-# What a run of ours writes in tables/ and plots/: "<readable>-<8 hex>" plus our suffixes.
-_OWN_FILES = {
-    TABLES_DIR: re.compile(r".+-[0-9a-f]{8}(\.shrink)?\.csv$"),
-    "plots": re.compile(r".+-[0-9a-f]{8}\.(space|rho)\.png$"),
-}
-
-
 def prepare_report_dir(directory: str | os.PathLike) -> Path:
     """Create the report directory and remove what a previous run of ours left in it.
 
-    Only files we write are deleted (by name pattern), and ``tables/`` / ``plots/`` only when
-    that leaves them empty: pointing ``--avs-report`` at a directory that holds other things
-    (even the project root) never deletes them.
+    Only the files listed in the directory's manifest (:mod:`.folder`: the files an earlier
+    run wrote there) are deleted, and ``tables/`` / ``plots/`` / ``cases/`` only when that
+    leaves them empty: pointing ``--avs-report`` at a directory that holds other things (even
+    the project root) never deletes them. The plugin itself claims the directory with
+    :func:`.folder.claim_report_dir`, which also locks it and checks nothing is in the way.
     """
+    from .folder import ReportFolder
+
     root = Path(directory)
     root.mkdir(parents=True, exist_ok=True)
-    for name in (MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"):
-        try:
-            (root / name).unlink()
-        except FileNotFoundError:
-            pass
-    for sub, pattern in _OWN_FILES.items():
-        folder = root / sub
-        if not folder.is_dir():
-            continue
-        for f in folder.iterdir():
-            if f.is_file() and pattern.match(f.name):
-                f.unlink()
-        try:
-            folder.rmdir()
-        except OSError:
-            pass  # not empty: somebody else's files live there too
+    ReportFolder(root).clear()
     return root
 
 
@@ -251,17 +235,21 @@ class ErrorTable:
     Rows with ``origin == "shrink"`` go to the shrink table. Thread-safe; meant for one
     writing process (under xdist: the controller, fed by the workers' reports). Opening
     truncates the tables of a previous run (use :func:`prepare_report_dir` to clear plots and
-    pages too). Use as a context manager or call :meth:`close`.
+    pages too). Every file is recorded in ``folder``'s manifest before it is written (default:
+    the directory's own, see :mod:`.folder`). Use as a context manager or call :meth:`close`.
     """
 
-    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False):
+    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False, folder: Any = None):
+        from .folder import ReportFolder
+
         self.directory = Path(directory)
         self.fsync = fsync
+        self.folder = folder if folder is not None else ReportFolder(self.directory)
         (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
         self._jsonl = {
-            False: open(self.directory / MAIN_JSONL, "w", encoding="utf-8"),
-            True: open(self.directory / SHRINK_JSONL, "w", encoding="utf-8"),
+            False: open(self.folder.add(self.directory / MAIN_JSONL), "w", encoding="utf-8"),
+            True: open(self.folder.add(self.directory / SHRINK_JSONL), "w", encoding="utf-8"),
         }
         self._csv: dict[tuple[str, bool], _CsvFile] = {}
         self.counts = {"main": 0, "shrink": 0}
@@ -302,7 +290,7 @@ class ErrorTable:
             f = self._csv.get(key)
             if f is None:
                 f = self._csv[key] = _CsvFile(
-                    self.csv_path(row.test, shrink), _order_columns(cells), self.fsync
+                    self.folder.add(self.csv_path(row.test, shrink)), _order_columns(cells), self.fsync
                 )
             f.write(cells)
             self.counts["shrink" if shrink else "main"] += 1
