@@ -53,7 +53,7 @@ def _samples(directory):
 
 def _wait_for(path, proc):
     # not a timing assertion: only how long to wait for the other process before giving up
-    for _ in range(1200):
+    for _ in range(3000):
         if path.exists():
             return
         if proc.poll() is not None:

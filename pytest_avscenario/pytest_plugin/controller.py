@@ -120,12 +120,16 @@ class RunState:
         infos = self.guarded("the scenario declarations", None, self.test_infos) or {}
         settings = self.config.stash[settings_key]
         if self.folder is not None and self.table is not None:
-            from ..report.build import finish_report
-
             self.guarded("the error table (closing it)", None, self.table.close)
-            self.summary_rows = self.guarded("the report", None, lambda: finish_report(
-                self.folder.path, infos, rows=self.rows, folder=self.folder, on_error=self.part_failed,
-                seed=settings.seed, versions=versions(), case_images=self.pictures, verdicts=verdicts))
+
+            def report() -> list[Any]:
+                from ..report.build import finish_report
+
+                return finish_report(self.folder.path, infos, rows=self.rows, folder=self.folder,
+                                     on_error=self.part_failed, seed=settings.seed, versions=versions(),
+                                     case_images=self.pictures, verdicts=verdicts)
+
+            self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
             self.summary_rows = self.guarded("the summary", None, lambda: self.summary(verdicts, infos)) or []
         self.guarded("the JUnit suite properties", None, self.add_suite_properties)
@@ -147,8 +151,6 @@ class RunState:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if self.is_worker or not self.rows:
             return
-        from ..report.summary import format_pointer, format_rejections, format_table
-
         summary = self.summary_rows
         if summary is None:
             summary = self.guarded("the summary", None, lambda: self.summary(self.verdicts())) or []
@@ -156,6 +158,8 @@ class RunState:
         width = shutil.get_terminal_size(fallback=(120, 24)).columns  # COLUMNS, if set
 
         def table() -> None:
+            from ..report.summary import format_rejections, format_table
+
             for line in format_table(summary, width=width).splitlines():
                 terminalreporter.write_line(line)
             for line in format_rejections(summary):
@@ -163,6 +167,8 @@ class RunState:
 
         self.guarded("the terminal table", None, table)
         if self.folder is not None:
+            from ..report.summary import format_pointer
+
             terminalreporter.write_line(format_pointer(self.folder.path))
 
     # -- state ----------------------------------------------------------------------------
