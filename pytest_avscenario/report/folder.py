@@ -16,7 +16,8 @@ the directory before it writes there (:func:`claim_report_dir`):
   overwrite it, and neither do we touch a directory another live run holds. The run then
   uses the first free sibling ``DIR-2``, ``DIR-3``, … and the caller warns with the reasons.
 
-Nothing here imports pytest.
+Every file of the report is written atomically (:func:`atomic_write_bytes`), except the
+error tables, which grow row by row. Nothing here imports pytest.
 """
 
 from __future__ import annotations
@@ -25,13 +26,18 @@ import errno
 import json
 import os
 import re
+import tempfile
 from pathlib import Path
 from typing import IO
 
-from .table import MAIN_JSONL, SHRINK_JSONL, TABLES_DIR, atomic_write_text
 
 __all__ = ["ReportFolder", "ReportDirBusy", "claim_report_dir", "describe_fallback", "is_own_name",
-           "MANIFEST", "LOCK", "MAX_SIBLINGS"]
+           "atomic_write_bytes", "atomic_write_text", "MANIFEST", "LOCK", "MAX_SIBLINGS",
+           "MAIN_JSONL", "SHRINK_JSONL", "TABLES_DIR"]
+
+MAIN_JSONL = "errors.jsonl"
+SHRINK_JSONL = "shrink.jsonl"
+TABLES_DIR = "tables"
 
 MANIFEST = ".avs-manifest.json"
 LOCK = ".avs-lock"
@@ -48,6 +54,58 @@ _SUB = {
     "plots": re.compile(r"[^/]+-[0-9a-f]{8}\.(space|rho)\.png"),
     "cases": re.compile(r"[^/]+-[0-9a-f]{8}\.(png|gif)"),
 }
+
+
+def _fsync_dir(directory: Path) -> None:
+    # Makes the rename itself durable; not possible (nor needed) on every platform.
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
+
+    Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
+    the target (atomic on POSIX and Windows within one file system).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        # mkstemp makes the file private (0600); a report is read by CI artifact servers and
+        # colleagues, so give it the mode a plain open() would have
+        os.fchmod(fd, 0o666 & ~_umask())
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    _fsync_dir(path.parent)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
+    """:func:`atomic_write_bytes` for text."""
+    atomic_write_bytes(path, text.encode(encoding))
 
 
 def is_own_name(rel: str) -> bool:

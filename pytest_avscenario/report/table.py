@@ -38,7 +38,6 @@ import json
 import math
 import os
 import re
-import tempfile
 import threading
 import warnings
 from pathlib import Path
@@ -46,6 +45,7 @@ from typing import Any, Iterable, Iterator, Mapping
 
 from ..codec import jsonable, rho_from_json, rho_to_str
 from ..outcome import CaseRow
+from .folder import MAIN_JSONL, SHRINK_JSONL, TABLES_DIR, ReportFolder, atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "ErrorTable",
@@ -60,67 +60,12 @@ __all__ = [
     "TABLES_DIR",
 ]
 
-MAIN_JSONL = "errors.jsonl"
-SHRINK_JSONL = "shrink.jsonl"
-TABLES_DIR = "tables"
 
 # Fixed leading CSV columns, in the order an engineer scans them.
 _CSV_FIXED = ("test", "item", "sampler", "index", "seed", "origin", "verdict", "sim_time_s", "error")
 
 
 # --------------------------------------------------------------------------- files
-
-
-def _fsync_dir(directory: Path) -> None:
-    # Makes the rename itself durable; not possible (nor needed) on every platform.
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
-
-    Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
-    the target (atomic on POSIX and Windows within one file system).
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        # mkstemp makes the file private (0600); a report is read by CI artifact servers and
-        # colleagues, so give it the mode a plain open() would have
-        os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    _fsync_dir(path.parent)
-
-
-def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
-    """:func:`atomic_write_bytes` for text."""
-    atomic_write_bytes(path, text.encode(encoding))
 
 
 def file_slug(test: str, max_len: int = 80) -> str:
@@ -144,8 +89,6 @@ def prepare_report_dir(directory: str | os.PathLike) -> Path:
     the project root) never deletes them. The plugin itself claims the directory with
     :func:`.folder.claim_report_dir`, which also locks it and checks nothing is in the way.
     """
-    from .folder import ReportFolder
-
     root = Path(directory)
     root.mkdir(parents=True, exist_ok=True)
     ReportFolder(root).clear()
@@ -239,9 +182,7 @@ class ErrorTable:
     the directory's own, see :mod:`.folder`). Use as a context manager or call :meth:`close`.
     """
 
-    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False, folder: Any = None):
-        from .folder import ReportFolder
-
+    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False, folder: ReportFolder | None = None):
         self.directory = Path(directory)
         self.fsync = fsync
         self.folder = folder if folder is not None else ReportFolder(self.directory)
