@@ -247,3 +247,19 @@ def test_rows_already_in_json_form_are_accepted(tmp_path):
         back = table.append(wire)
     assert back.rho == {"ttc": math.inf, "distance": -2.0}
     assert read_rows(tmp_path)[0].rho["ttc"] == math.inf
+
+
+def test_only_our_names_listed_in_the_manifest_are_ever_deleted(tmp_path):
+    report = tmp_path / "rep"
+    with ErrorTable(report) as table:
+        table.append(make_row())
+    (report / "notes.txt").write_text("mine")
+    (tmp_path / "outside.txt").write_text("mine")
+    manifest = json.loads((report / ".avs-manifest.json").read_text())
+    assert sorted(manifest["files"]) == ["errors.jsonl", "shrink.jsonl", f"tables/{file_slug(make_row()['test'])}.csv"]
+    # a hand-edited manifest cannot make a run delete somebody else's file
+    manifest["files"] += ["notes.txt", "../outside.txt", "/etc/hostname"]
+    (report / ".avs-manifest.json").write_text(json.dumps(manifest))
+    prepare_report_dir(report)
+    assert not (report / "errors.jsonl").exists() and not (report / "tables").exists()
+    assert (report / "notes.txt").read_text() == "mine" and (tmp_path / "outside.txt").read_text() == "mine"

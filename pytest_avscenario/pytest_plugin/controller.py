@@ -3,22 +3,33 @@
 :class:`RunState` is registered as a plugin object of its config. Rows reach it through
 ``pytest_runtest_logreport`` — from this process, or from pytest-xdist's workers, whose
 reports carry them as JSON (:meth:`~pytest_avscenario.outcome.CaseRow.to_json`) — and are
-written to the error table at once. At the end of the session
-it builds the report (summary, plots, index page), adds the suite properties to the JUnit
-file, and prints the paper's table.
+written to the error table at once. The first row (or the first case picture) claims the
+report directory (:func:`~pytest_avscenario.report.folder.claim_report_dir`: a lock, and a
+manifest of our files, so another run's or a user's files are never lost; a run that finds
+the directory taken writes to a sibling ``DIR-2`` and says so). Workers draw case pictures
+in a private temporary folder, and the controller moves them into the directory it claimed.
+At the end of the session it builds the report (summary, plots, index page) from the rows it
+holds, adds the suite properties to the JUnit file, and prints the paper's table; each of
+those parts is guarded on its own, so a failing one is a warning and never changes the
+run's exit status.
 """
 
 from __future__ import annotations
 
 import shutil
-import time
-from typing import Any, Mapping
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any, Callable, Mapping
 
 import pytest
 
 from ..outcome import CaseRow
 from ..space import FeatureSpace
 from .stash import settings_key
+
+#: the prefix of a worker's temporary picture folder (the controller moves what is inside)
+STAGING_PREFIX = "avs-cases-"
 
 
 class RunState:
@@ -27,14 +38,52 @@ class RunState:
     def __init__(self, config: pytest.Config):
         self.config = config
         self.is_worker = hasattr(config, "workerinput")
-        self.directory = config.stash[settings_key].report_dir
+        self.requested: Path | None = config.stash[settings_key].report_dir
+        self.folder: Any = None  # the claimed report.folder.ReportFolder, while it is usable
+        self._claimed: Any = None  # the same, kept to release its lock at the end
+        self._claim_tried = False
+        self._staging: Path | None = None  # a worker's temporary picture folder
+        self._staged: set[Path] = set()  # workers' picture folders the controller emptied
         self.table: Any = None
         self.rows: list[CaseRow] = []
         self.tests: dict[str, dict[str, Any]] = {}
         self.summary_rows: list[Any] | None = None
         self.pictures: dict[str, dict[str, str]] = {}
-        self.started = time.time()
         self.order: dict[str, None] = {}  # scenario tests in collection order
+
+    @property
+    def directory(self) -> Path | None:
+        """Where this process writes report files: on the controller the directory it claims
+        (claimed now, on first use); on an xdist worker a temporary folder of its own, whose
+        pictures the controller moves into its directory. None: no report."""
+        if self.requested is None:
+            return None
+        if self.is_worker:
+            if self._staging is None:
+                try:
+                    self._staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX))
+                except OSError:
+                    return None  # no temporary folder: no pictures, the cases still run
+            return self._staging
+        folder = self.claim()
+        return None if folder is None else folder.path
+
+    def claim(self) -> Any:
+        """The report folder of this run, claimed on first call (None: no report)."""
+        if self._claim_tried or self.requested is None or self.is_worker:
+            return self.folder
+        self._claim_tried = True
+        from ..report.folder import claim_report_dir, describe_fallback
+
+        try:
+            folder, passed_over = claim_report_dir(self.requested)
+        except OSError as exc:
+            self.report_failed(exc)
+            return None
+        self.folder = self._claimed = folder
+        if passed_over:
+            self.warn(describe_fallback(self.requested, folder.path, passed_over))
+        return folder
 
     def note_order(self, nodeids: Any) -> None:
         """The collection order (this process's items, or an xdist worker's ids)."""
@@ -54,39 +103,46 @@ class RunState:
             self.add(row, report.avs_test)
             pictures = getattr(report, "avs_pictures", None)
             if pictures:
-                self.pictures.setdefault(row.test, {}).update(pictures)
+                self.pictures.setdefault(row.test, {}).update(self.place_pictures(row.test, pictures))
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
         # tryfirst: the suite properties must reach pytest's JUnit writer before it writes
-        if self.is_worker or not self.rows:
+        if self.is_worker:
             return
-        from _pytest.junitxml import xml_key
-
-        from ..report.junit import add_suite_properties_to_logxml
-        from ..report.summary import suite_properties
-
+        self.remove_staging()
+        if not self.rows:
+            return
         self.summary_rows = None
-        verdicts = self.verdicts()
+        verdicts = self.guarded("the acceptance verdicts", None, self.verdicts)
         if verdicts and session.exitstatus == pytest.ExitCode.OK:
             session.exitstatus = pytest.ExitCode.TESTS_FAILED  # a rejected campaign fails the build
-        if self.directory is not None and self.table is not None:
-            from ..report.build import finish_report
-
-            try:
-                self.table.close()  # every row is on disk; the report is built from the files
-                self.summary_rows = finish_report(
-                    self.directory, self.test_infos(), seed=self.config.stash[settings_key].seed,
-                    versions=versions(), case_images=self.pictures, verdicts=verdicts)
-            except OSError as exc:
-                self.report_failed(exc)
-        if self.summary_rows is None:
-            self.summary_rows = self.summary(verdicts)
+        infos = self.guarded("the scenario declarations", None, self.test_infos) or {}
         settings = self.config.stash[settings_key]
-        props = suite_properties(self.summary_rows, seed=settings.seed, versions=versions())
-        if settings.junit == "strict":
-            from ..report.junit import case_suite_properties
+        if self.folder is not None and self.table is not None:
+            self.guarded("the error table (closing it)", None, self.table.close)
 
+            def report() -> list[Any]:
+                from ..report.build import finish_report
+
+                return finish_report(self.folder.path, infos, rows=self.rows, folder=self.folder,
+                                     on_error=self.part_failed, seed=settings.seed, versions=versions(),
+                                     case_images=self.pictures, verdicts=verdicts)
+
+            self.summary_rows = self.guarded("the report", None, report)
+        if self.summary_rows is None:
+            self.summary_rows = self.guarded("the summary", None, lambda: self.summary(verdicts, infos)) or []
+        self.guarded("the JUnit suite properties", None, self.add_suite_properties)
+
+    def add_suite_properties(self) -> None:
+        from _pytest.junitxml import xml_key
+
+        from ..report.junit import add_suite_properties_to_logxml, case_suite_properties
+        from ..report.summary import suite_properties
+
+        settings = self.config.stash[settings_key]
+        props = suite_properties(self.summary_rows or [], seed=settings.seed, versions=versions())
+        if settings.junit == "strict":
             for row in self.rows:
                 if row.origin != "shrink":
                     props.update(case_suite_properties(row))
@@ -95,69 +151,145 @@ class RunState:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if self.is_worker or not self.rows:
             return
-        from ..report.summary import format_pointer, format_rejections, format_table
-
-        summary = self.summary_rows if self.summary_rows is not None else self.summary(self.verdicts())
+        summary = self.summary_rows
+        if summary is None:
+            summary = self.guarded("the summary", None, lambda: self.summary(self.verdicts())) or []
         terminalreporter.write_sep("=", "avscenario")
         width = shutil.get_terminal_size(fallback=(120, 24)).columns  # COLUMNS, if set
-        for line in format_table(summary, width=width).splitlines():
-            terminalreporter.write_line(line)
-        for line in format_rejections(summary):
-            terminalreporter.write_line(line, red=True, bold=True)
-        if self.directory is not None:
-            terminalreporter.write_line(format_pointer(self.directory))
+
+        def table() -> None:
+            from ..report.summary import format_rejections, format_table
+
+            for line in format_table(summary, width=width).splitlines():
+                terminalreporter.write_line(line)
+            for line in format_rejections(summary):
+                terminalreporter.write_line(line, red=True, bold=True)
+
+        self.guarded("the terminal table", None, table)
+        if self.folder is not None:
+            from ..report.summary import format_pointer
+
+            terminalreporter.write_line(format_pointer(self.folder.path))
 
     # -- state ----------------------------------------------------------------------------
     def add(self, row: CaseRow, info: dict[str, Any]) -> None:
         self.tests.setdefault(row.test, info)
         self.rows.append(row)
-        if self.directory is None:
+        folder = self.claim()
+        if folder is None:
             return
         try:
             if self.table is None:
-                from ..report.table import ErrorTable, prepare_report_dir
+                from ..report.table import ErrorTable
 
-                prepare_report_dir(self.directory)
-                remove_stale_pictures(self.directory / "cases", self.started)
-                self.table = ErrorTable(self.directory)
+                self.table = ErrorTable(folder.path, folder=folder)
             self.table.append(row)
         except OSError as exc:
             # the run goes on (verdicts, the replay database and the terminal summary do not
             # depend on the report); say once what was lost and where
             self.report_failed(exc)
 
+    def place_pictures(self, test: str, pictures: Mapping[str, str]) -> dict[str, str]:
+        """The case pictures of a report, in this run's directory: recorded in its manifest,
+        and moved there from the worker's temporary folder that drew them."""
+        folder = self.claim()
+        out = {}
+        for caption, path in pictures.items():
+            p = Path(path)
+            staged = p.parent.name == "cases" and p.parent.parent.name.startswith(STAGING_PREFIX)
+            try:
+                if folder is not None and folder.owns(p):
+                    folder.add(p)
+                elif staged and folder is not None:
+                    target = folder.add(folder.path / "cases" / p.name)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    shutil.move(p, target)
+                    self._staged.add(p.parent.parent)
+                    p = target
+                elif staged:
+                    p.unlink(missing_ok=True)  # a worker's picture, and no report to put it in
+                    self._staged.add(p.parent.parent)
+                    continue
+            except OSError as exc:
+                self.part_failed("a case picture", test, exc)
+                continue
+            out[caption] = str(p)
+        return out
+
+    def remove_staging(self) -> None:
+        """Remove the workers' picture folders the controller emptied (and this worker's own,
+        if it stayed empty); folders with anything left in them stay."""
+        for folder in [*self._staged, *([self._staging] if self._staging else [])]:
+            for path in (folder / "cases", folder):
+                try:
+                    path.rmdir()
+                except OSError:
+                    pass
+
+    def part_failed(self, part: str, test: str | None, exc: Exception) -> None:
+        """One part of the report could not be made: say which and why; the rest goes on."""
+        where = f" of {test}" if test else ""
+        self.warn(f"avscenario: the report could not make {part}{where} ({type(exc).__name__}: {exc}); "
+                  "the other parts of the report are still written and the tests' outcomes stand. "
+                  "Please report this to pytest-avscenario with the scenario's declaration")
+
+    def guarded(self, part: str, test: str | None, make: Callable[[], Any]) -> Any:
+        try:
+            return make()
+        except Exception as exc:
+            self.part_failed(part, test, exc)
+            return None
+
+    def warn(self, message: str) -> None:
+        try:
+            self.config.issue_config_time_warning(pytest.PytestWarning(message), 3)
+        except Exception:  # -W error turned it into an exception: the message must still show
+            sys.stderr.write(f"{message}\n")
+
     def report_failed(self, exc: OSError) -> None:
-        directory, self.directory = self.directory, None
+        folder, self.folder = self.folder, None
+        directory = folder.path if folder is not None else self.requested
         if self.table is not None:
             try:
                 self.table.close()
             except OSError:
                 pass
         self.table = None
-        self.config.issue_config_time_warning(pytest.PytestWarning(
-            f"avscenario: cannot write the report under {directory} ({exc}); the rest of "
-            "this run is reported in the terminal only"), 2)
+        self.warn(f"avscenario: cannot write the report under {directory} ({exc}); the rest of "
+                  "this run is reported in the terminal only")
 
     def close(self) -> None:
-        if self.table is not None:
-            self.table.close()
+        try:
+            if self.table is not None:
+                self.table.close()
+        finally:
+            if self._claimed is not None:
+                self._claimed.release()
+            if self.is_worker:
+                self.remove_staging()
 
     def test_infos(self) -> dict[str, Any]:
+        """What the summary knows of each scenario test; a declaration whose space cannot be
+        rebuilt is reported and summarized without ε."""
         from ..report.summary import TestInfo
 
         ordered = sorted(self.tests, key=list(self.order).index) if set(self.tests) <= set(self.order) \
             else list(self.tests)
-        return {
-            test: TestInfo(metrics=tuple(self.tests[test]["metrics"]),
-                           space=FeatureSpace.from_description(self.tests[test]["space"]),
-                           samplers=tuple(self.tests[test]["samplers"]))
-            for test in ordered
-        }
+        infos = {}
+        for test in ordered:
+            info = self.tests[test]
+            space = self.guarded("the ε-coverage (rebuilding the parameter space)", test,
+                                 lambda: FeatureSpace.from_description(info["space"]))
+            infos[test] = TestInfo(metrics=tuple(info["metrics"]), space=space,
+                                   samplers=tuple(info["samplers"]))
+        return infos
 
-    def summary(self, verdicts: Mapping[tuple[str, str], list[str]] | None = None) -> list[Any]:
+    def summary(self, verdicts: Mapping[tuple[str, str], list[str]] | None = None,
+                infos: Mapping[str, Any] | None = None) -> list[Any]:
         from ..report.summary import summarize
 
-        return summarize(self.rows, self.test_infos(), verdicts=verdicts)
+        return summarize(self.rows, self.test_infos() if infos is None else infos, verdicts=verdicts,
+                         on_error=self.part_failed)
 
     def verdicts(self) -> dict[tuple[str, str], list[str]]:
         """The rejected campaigns, (test, sampler) -> reasons, by each test's criteria."""
@@ -184,15 +316,6 @@ class RunState:
             if reasons:
                 out[(test, sampler)] = reasons
         return out
-
-
-def remove_stale_pictures(folder: Any, since: float) -> None:
-    """Delete our case pictures left by earlier runs (workers may have drawn this run's already)."""
-    if not folder.is_dir():
-        return
-    for f in folder.iterdir():
-        if f.suffix in (".png", ".gif") and f.is_file() and f.stat().st_mtime < since - 1.0:
-            f.unlink()
 
 
 def versions() -> dict[str, str]:

@@ -3,12 +3,14 @@
 Everything here takes plain data (:class:`~pytest_avscenario.outcome.CaseRow` s, numpy arrays, summary rows) and produces files
 or strings; nothing imports pytest, and importing this package pulls in neither matplotlib
 nor scipy (they load inside the functions that draw or search). The plugin wires it into
-pytest's hooks: :mod:`.table` writes rows as cases finish, :mod:`.summary` computes the
+pytest's hooks: :mod:`.folder` claims the report directory (a lock, and a manifest of the
+files we wrote there), :mod:`.table` writes rows as cases finish, :mod:`.summary` computes the
 terminal table and JUnit suite properties, :mod:`.junit` adds properties to the XML,
 :mod:`.plots` and :mod:`.html` draw the pictures and the static ``index.html``.
 """
 
 from .build import finish_report
+from .folder import ReportFolder, claim_report_dir
 from .coverage import covering_radius, covering_radius_bounds, epsilon_coverage, fraction_within
 from .summary import SummaryRow, TestInfo, format_pointer, format_table, suite_properties, summarize
 from .table import (
@@ -31,6 +33,8 @@ __all__ = [
     "atomic_write_text",
     "atomic_write_bytes",
     "prepare_report_dir",
+    "claim_report_dir",
+    "ReportFolder",
     "file_slug",
     "TestInfo",
     "SummaryRow",

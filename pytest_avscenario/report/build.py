@@ -1,11 +1,16 @@
-"""The end-of-run step in one call: from the error table on disk to the finished report.
+"""The end-of-run step in one call: from the run's rows to the finished report.
 
 On the controller, once every case has ended (``pytest_sessionfinish``), the plugin calls
-:func:`finish_report` with the report directory and what it knows of each scenario test.
-It reads the rows back from the JSONL files the :class:`~.table.ErrorTable` wrote during
-the run (so under xdist it sees the merged table), computes the paper's summary, writes
-``summary.json``, the pictures and ``index.html``, and returns the summary rows for the
-terminal table and the JUnit suite properties.
+:func:`finish_report` with the report directory, the rows it holds in memory (every row of
+the run, the xdist workers' included) and what it knows of each scenario test. It computes
+the paper's summary, writes ``summary.json``, the pictures and ``index.html``, and returns
+the summary rows for the terminal table and the JUnit suite properties. The numbers come from
+those rows, never from re-reading ``errors.jsonl``, so nothing else writing in the directory
+can change them; without ``rows`` (a script on a finished report) the tables are read back.
+
+Each part (the summary, ``summary.json``, each test's plots, ``index.html``) is guarded on
+its own when ``on_error`` is given: a part that raises is reported there and the others are
+still written, so one test's odd data cannot cost the whole report.
 """
 
 from __future__ import annotations
@@ -13,8 +18,9 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
+from ..outcome import CaseRow
 from .coverage import DEFAULT_TOL
 from .summary import SummaryRow, TestInfo, summarize, summary_to_json
 from .table import MAIN_JSONL, SHRINK_JSONL, TABLES_DIR, atomic_write_text, file_slug, read_rows
@@ -23,11 +29,16 @@ __all__ = ["finish_report", "SUMMARY_JSON"]
 
 SUMMARY_JSON = "summary.json"
 
+OnError = Callable[[str, "str | None", Exception], None]
+
 
 def finish_report(
     directory: str | os.PathLike,
     tests: Mapping[str, TestInfo] | None = None,
     *,
+    rows: Iterable[CaseRow | Mapping[str, Any]] | None = None,
+    folder: Any = None,
+    on_error: OnError | None = None,
     seed: Any = None,
     versions: Mapping[str, Any] | None = None,
     pictures: bool = True,
@@ -36,24 +47,46 @@ def finish_report(
     within_radius: float | None = 0.1,
     verdicts: Mapping[tuple[str, str], Any] | None = None,
 ) -> list[SummaryRow]:
-    """Summarize the run's tables under ``directory`` and write the rest of the report.
+    """Summarize the run and write the rest of the report under ``directory``.
 
-    ``tests``: ``{test nodeid: TestInfo(metrics, space)}`` in collection order. ``pictures``
-    False skips the PNGs (and matplotlib's import) but still writes ``index.html``.
-    ``case_images``: ``{test: {caption: path}}`` pictures of single cases (e.g. the GIF and
-    worst-moment PNG of each minimized counterexample), listed after the test's plots.
-    ``verdicts``: the campaigns' rejection reasons (see :func:`.summary.summarize`).
-    Returns the summary rows (possibly empty).
+    ``tests``: ``{test nodeid: TestInfo(metrics, space)}`` in collection order. ``rows``: the
+    run's rows, main table and shrink candidates (default: read back from the directory's
+    JSONL tables). ``folder``: the :class:`~.folder.ReportFolder` whose manifest records each
+    file before it is written (default: the directory's own). ``on_error(part, test,
+    exception)``: guard each part and report a failing one there (default: raise).
+    ``pictures`` False skips the PNGs (and matplotlib's import) but still writes
+    ``index.html``. ``case_images``: ``{test: {caption: path}}`` pictures of single cases
+    (e.g. the GIF and worst-moment PNG of each minimized counterexample), listed after the
+    test's plots. ``verdicts``: the campaigns' rejection reasons (see
+    :func:`.summary.summarize`). Returns the summary rows (possibly empty).
     """
+    from .folder import ReportFolder
+
     root = Path(directory)
-    main = read_rows(root)
-    shrink = read_rows(root, shrink=True)
-    summary = summarize(main + shrink, tests, tol=tol, within_radius=within_radius, verdicts=verdicts)
-    atomic_write_text(
-        root / SUMMARY_JSON,
-        json.dumps({"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)},
-                   indent=2, allow_nan=False, default=str) + "\n",
-    )
+    folder = folder if folder is not None else ReportFolder(root)
+    if rows is None:
+        rows = read_rows(root) + read_rows(root, shrink=True)
+    rows = [CaseRow.coerce(r) for r in rows]
+    main = [r for r in rows if r.origin != "shrink"]
+
+    def part(name: str, test: str | None, make: Callable[[], Any]) -> Any:
+        try:
+            return make()
+        except Exception as exc:
+            if on_error is None:
+                raise
+            on_error(name, test, exc)
+            return None
+
+    summary = part("the summary", None, lambda: summarize(
+        rows, tests, tol=tol, within_radius=within_radius, verdicts=verdicts, on_error=on_error)) or []
+
+    def write_summary() -> None:
+        text = json.dumps({"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)},
+                          indent=2, allow_nan=False, default=str) + "\n"
+        atomic_write_text(folder.add(root / SUMMARY_JSON), text)
+
+    part(SUMMARY_JSON, None, write_summary)
     images: dict[str, Any] = {}
     tables: dict[str, list[Path]] = {"": [p for p in (root / MAIN_JSONL, root / SHRINK_JSONL, root / SUMMARY_JSON) if p.exists()]}
     by_test: dict[str, list[Any]] = {}
@@ -63,19 +96,32 @@ def finish_report(
         slug = file_slug(test)
         tables[test] = [p for p in (root / TABLES_DIR / f"{slug}.csv", root / TABLES_DIR / f"{slug}.shrink.csv") if p.exists()]
         if pictures and by_test.get(test):
-            from .plots import plot_test
-
-            info = (tests or {}).get(test)
-            images[test] = plot_test(root, test, by_test[test], metrics=(info.metrics or None) if info else None)
+            images[test] = part("the plots", test, lambda test=test: _plot(root, folder, test, by_test[test], tests))
     for test, extra in (case_images or {}).items():
         merged = dict(images.get(test) or {})
         merged.update({caption: path for caption, path in extra.items() if Path(path).exists()})
         images[test] = merged
-    from .html import write_index
+    images = {test: pics for test, pics in images.items() if pics}
 
-    meta = {}
-    if seed is not None:
-        meta["seed"] = seed
-    meta.update({k: v for k, v in (versions or {}).items()})
-    write_index(root, summary, images, tables, meta=meta)
+    def write_page() -> None:
+        from .html import INDEX, write_index
+
+        meta = {}
+        if seed is not None:
+            meta["seed"] = seed
+        meta.update({k: v for k, v in (versions or {}).items()})
+        folder.add(root / INDEX)
+        write_index(root, summary, images, tables, meta=meta)
+
+    part("index.html", None, write_page)
     return summary
+
+
+def _plot(root: Path, folder: Any, test: str, rows: list[CaseRow],
+          tests: Mapping[str, TestInfo] | None) -> dict[str, Path]:
+    from .plots import plot_paths, plot_test
+
+    for path in plot_paths(root, test).values():
+        folder.add(path)
+    info = (tests or {}).get(test)
+    return plot_test(root, test, rows, metrics=(info.metrics or None) if info else None)

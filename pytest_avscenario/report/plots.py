@@ -25,7 +25,7 @@ from ..outcome import CaseRow
 
 from .table import atomic_write_bytes, file_slug
 
-__all__ = ["plot_feature_space", "plot_rho_over_index", "plot_test", "PLOTS_DIR"]
+__all__ = ["plot_feature_space", "plot_rho_over_index", "plot_test", "plot_paths", "PLOTS_DIR"]
 
 PLOTS_DIR = "plots"
 
@@ -53,7 +53,22 @@ def _save(fig, path: str | os.PathLike) -> Path:
 
 
 def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:  # an int beyond float range (Choice([10**400, 1])): not drawable as a number
+        return False
+
+
+def _label(v: Any, max_len: int = 24) -> str:
+    text = str(v)
+    if len(text) <= max_len:
+        return text
+    if isinstance(v, int) and not isinstance(v, bool):
+        digits = text.lstrip("-")
+        return f"{text[:len(text) - len(digits)]}{digits[0]}.{digits[1:4]}e+{len(digits) - 1}"
+    return text[:max_len - 1] + "…"
 
 
 def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
@@ -62,13 +77,14 @@ def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
     if all(_is_number(v) for v in values):
         return [float(v) for v in values], None
     # Categorical (or mixed): position by first appearance, label with the value itself.
-    labels: list[str] = []
+    keys: list[str] = []
     for v in values:
-        if str(v) not in labels:
-            labels.append(str(v))
+        if str(v) not in keys:
+            keys.append(str(v))
+    labels = [_label(next(v for v in values if str(v) == k)) for k in keys]
     # A small deterministic jitter keeps cases with the same category from hiding each other.
     jitter = [((i * 0.6180339887) % 1.0 - 0.5) * 0.3 for i in range(len(values))]
-    return [labels.index(str(v)) + j for v, j in zip(values, jitter)], labels
+    return [keys.index(str(v)) + j for v, j in zip(values, jitter)], labels
 
 
 def _varying(rows: Sequence[Mapping[str, Any]], names: Sequence[str]) -> list[str]:
@@ -248,6 +264,12 @@ def _rho_legend(samplers, markers, rows, metrics):
     return out
 
 
+def plot_paths(directory: str | os.PathLike, test: str) -> dict[str, Path]:
+    """Where :func:`plot_test` draws the pictures of ``test``: ``{kind: path}``."""
+    base = Path(directory) / PLOTS_DIR / file_slug(test)
+    return {"space": Path(f"{base}.space.png"), "rho": Path(f"{base}.rho.png")}
+
+
 def plot_test(
     directory: str | os.PathLike,
     test: str,
@@ -259,12 +281,12 @@ def plot_test(
     """Both pictures of one test under ``<directory>/plots/``; returns ``{kind: path}``
     for the kinds written (``"space"``, ``"rho"``). Pass the test's main-table rows (not the
     shrink candidates, which crowd the failure region)."""
-    base = Path(directory) / PLOTS_DIR / file_slug(test)
+    paths = plot_paths(directory, test)
     out: dict[str, Path] = {}
-    space = plot_feature_space(f"{base}.space.png", rows, params, title=f"{test}: sampled cases")
+    space = plot_feature_space(paths["space"], rows, params, title=f"{test}: sampled cases")
     if space is not None:
         out["space"] = space
-    rho = plot_rho_over_index(f"{base}.rho.png", rows, metrics, title=f"{test}: ρ per metric")
+    rho = plot_rho_over_index(paths["rho"], rows, metrics, title=f"{test}: ρ per metric")
     if rho is not None:
         out["rho"] = rho
     return out

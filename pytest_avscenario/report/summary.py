@@ -95,6 +95,26 @@ class SummaryRow:
         return None if self.reasons is None else "rejected" if self.reasons else "accepted"
 
 
+def _unit_coordinate(dist: Any, value: Any) -> float:
+    lo, hi = getattr(dist, "lo", None), getattr(dist, "hi", None)
+    if type(dist).__name__ == "Uniform" and isinstance(lo, float) and isinstance(hi, float) \
+            and not math.isfinite(hi - lo):
+        # Uniform(-1e308, 1e308): hi - lo overflows, so the plain (x - lo) / (hi - lo) gives
+        # 0 or NaN; the same ratio of halved numbers is exact to a rounding and stays finite.
+        return (0.5 * float(value) - 0.5 * lo) / (0.5 * hi - 0.5 * lo)
+    return float(dist.to_unit(value))
+
+
+def _unit_row(space: Any, params: Mapping[str, Any]):
+    import numpy as np
+
+    parameters = getattr(space, "parameters", None)
+    dims = getattr(space, "dims", None)
+    if isinstance(parameters, Mapping) and dims is not None:
+        return np.array([_unit_coordinate(parameters[dim.name], params[dim.name]) for dim in dims], dtype=float)
+    return np.asarray(space.to_unit(dict(params)), dtype=float)
+
+
 def _unit_points(rows: Sequence[CaseRow], space: Any):
     import numpy as np
 
@@ -102,12 +122,13 @@ def _unit_points(rows: Sequence[CaseRow], space: Any):
     pts = []
     for r in rows:
         try:
-            u = np.asarray(space.to_unit(dict(r.params)), dtype=float)[mask]
-        except (KeyError, ValueError, TypeError):
+            u = _unit_row(space, r.params)[mask]
+        except (KeyError, ValueError, TypeError, ArithmeticError):
             # A row whose parameters do not fit the space (hand-written, or from an older
             # declaration) cannot be placed; it still counts as a sample, just not for ε.
             continue
-        pts.append(u)
+        if np.all(np.isfinite(u)):
+            pts.append(u)
     if not pts:
         return None
     return np.clip(np.vstack(pts), 0.0, 1.0)
@@ -121,6 +142,7 @@ def summarize(
     within_radius: float | None = 0.1,
     cross_check: bool = True,
     verdicts: Mapping[tuple[str, str], Sequence[str]] | None = None,
+    on_error: Callable[[str, str | None, Exception], None] | None = None,
 ) -> list[SummaryRow]:
     """Summary rows per (test, sampler), tests in the order of ``tests`` (collection order),
     then any others in order of first appearance; samplers in order of first appearance.
@@ -129,6 +151,9 @@ def summarize(
     ``within_radius`` the radius for the covered-fraction figure (None to skip);
     ``cross_check`` also computes the mesh covering radius; ``verdicts`` maps (test, sampler)
     to the reasons its campaign is rejected (see :mod:`pytest_avscenario.acceptance`).
+    ``on_error(part, test, exception)``: when given, a coverage computation that raises is
+    reported there and its figures are "—" (the other campaigns are still summarized);
+    without it the exception propagates.
     """
     from . import coverage
 
@@ -167,13 +192,19 @@ def summarize(
         continuous = tuple(getattr(space, "continuous", ()) or ()) if space is not None else ()
         eps = cover = frac = None
         if continuous and sampled:
-            pts = _unit_points(sampled, space)
-            if pts is not None and pts.shape[1] > 0:
-                eps = coverage.epsilon_coverage(pts, tol=tol)
-                if cross_check:
-                    cover = coverage.covering_radius(pts, _summary_resolution(pts.shape[1]))
-                if within_radius is not None:
-                    frac = coverage.fraction_within(pts, within_radius, n_probe=1 << 14)
+            try:
+                pts = _unit_points(sampled, space)
+                if pts is not None and pts.shape[1] > 0:
+                    eps = coverage.epsilon_coverage(pts, tol=tol)
+                    if cross_check:
+                        cover = coverage.covering_radius(pts, _summary_resolution(pts.shape[1]))
+                    if within_radius is not None:
+                        frac = coverage.fraction_within(pts, within_radius, n_probe=1 << 14)
+            except Exception as exc:  # e.g. scipy failing to load in a starved process
+                if on_error is None:
+                    raise
+                on_error(f"the ε-coverage [{sampler}]", test, exc)
+                eps = cover = frac = None
         out.append(
             SummaryRow(
                 test=test,

@@ -11,6 +11,8 @@ Layout under the report directory (``--avs-report``, default ``avs-report/``)::
     shrink.jsonl            shrinking candidates, kept apart so errors.jsonl counts samples
     tables/<slug>.csv       the same rows for one test, one column per parameter and metric
     tables/<slug>.shrink.csv
+    .avs-manifest.json      every file a run of ours wrote here (see :mod:`.folder`)
+    .avs-lock               held by the run writing here
 
 Why one CSV per test plus a combined JSONL: tests have different parameters and metrics,
 and a CSV has one header. A CSV per test gives real columns (``param.gap``,
@@ -36,7 +38,6 @@ import json
 import math
 import os
 import re
-import tempfile
 import threading
 import warnings
 from pathlib import Path
@@ -44,6 +45,7 @@ from typing import Any, Iterable, Iterator, Mapping
 
 from ..codec import jsonable, rho_from_json, rho_to_str
 from ..outcome import CaseRow
+from .folder import MAIN_JSONL, SHRINK_JSONL, TABLES_DIR, ReportFolder, atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "ErrorTable",
@@ -58,67 +60,12 @@ __all__ = [
     "TABLES_DIR",
 ]
 
-MAIN_JSONL = "errors.jsonl"
-SHRINK_JSONL = "shrink.jsonl"
-TABLES_DIR = "tables"
 
 # Fixed leading CSV columns, in the order an engineer scans them.
 _CSV_FIXED = ("test", "item", "sampler", "index", "seed", "origin", "verdict", "sim_time_s", "error")
 
 
 # --------------------------------------------------------------------------- files
-
-
-def _fsync_dir(directory: Path) -> None:
-    # Makes the rename itself durable; not possible (nor needed) on every platform.
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
-
-    Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
-    the target (atomic on POSIX and Windows within one file system).
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        # mkstemp makes the file private (0600); a report is read by CI artifact servers and
-        # colleagues, so give it the mode a plain open() would have
-        os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    _fsync_dir(path.parent)
-
-
-def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
-    """:func:`atomic_write_bytes` for text."""
-    atomic_write_bytes(path, text.encode(encoding))
 
 
 def file_slug(test: str, max_len: int = 80) -> str:
@@ -133,38 +80,18 @@ def file_slug(test: str, max_len: int = 80) -> str:
     return f"{readable[:max_len]}-{digest}"
 
 
-# What a run of ours writes in tables/ and plots/: "<readable>-<8 hex>" plus our suffixes.
-_OWN_FILES = {
-    TABLES_DIR: re.compile(r".+-[0-9a-f]{8}(\.shrink)?\.csv$"),
-    "plots": re.compile(r".+-[0-9a-f]{8}\.(space|rho)\.png$"),
-}
-
-
 def prepare_report_dir(directory: str | os.PathLike) -> Path:
     """Create the report directory and remove what a previous run of ours left in it.
 
-    Only files we write are deleted (by name pattern), and ``tables/`` / ``plots/`` only when
-    that leaves them empty: pointing ``--avs-report`` at a directory that holds other things
-    (even the project root) never deletes them.
+    Only the files listed in the directory's manifest (:mod:`.folder`: the files an earlier
+    run wrote there) are deleted, and ``tables/`` / ``plots/`` / ``cases/`` only when that
+    leaves them empty: pointing ``--avs-report`` at a directory that holds other things (even
+    the project root) never deletes them. The plugin itself claims the directory with
+    :func:`.folder.claim_report_dir`, which also locks it and checks nothing is in the way.
     """
     root = Path(directory)
     root.mkdir(parents=True, exist_ok=True)
-    for name in (MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"):
-        try:
-            (root / name).unlink()
-        except FileNotFoundError:
-            pass
-    for sub, pattern in _OWN_FILES.items():
-        folder = root / sub
-        if not folder.is_dir():
-            continue
-        for f in folder.iterdir():
-            if f.is_file() and pattern.match(f.name):
-                f.unlink()
-        try:
-            folder.rmdir()
-        except OSError:
-            pass  # not empty: somebody else's files live there too
+    ReportFolder(root).clear()
     return root
 
 
@@ -251,17 +178,19 @@ class ErrorTable:
     Rows with ``origin == "shrink"`` go to the shrink table. Thread-safe; meant for one
     writing process (under xdist: the controller, fed by the workers' reports). Opening
     truncates the tables of a previous run (use :func:`prepare_report_dir` to clear plots and
-    pages too). Use as a context manager or call :meth:`close`.
+    pages too). Every file is recorded in ``folder``'s manifest before it is written (default:
+    the directory's own, see :mod:`.folder`). Use as a context manager or call :meth:`close`.
     """
 
-    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False):
+    def __init__(self, directory: str | os.PathLike, *, fsync: bool = False, folder: ReportFolder | None = None):
         self.directory = Path(directory)
         self.fsync = fsync
+        self.folder = folder if folder is not None else ReportFolder(self.directory)
         (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
         self._jsonl = {
-            False: open(self.directory / MAIN_JSONL, "w", encoding="utf-8"),
-            True: open(self.directory / SHRINK_JSONL, "w", encoding="utf-8"),
+            False: open(self.folder.add(self.directory / MAIN_JSONL), "w", encoding="utf-8"),
+            True: open(self.folder.add(self.directory / SHRINK_JSONL), "w", encoding="utf-8"),
         }
         self._csv: dict[tuple[str, bool], _CsvFile] = {}
         self.counts = {"main": 0, "shrink": 0}
@@ -302,7 +231,7 @@ class ErrorTable:
             f = self._csv.get(key)
             if f is None:
                 f = self._csv[key] = _CsvFile(
-                    self.csv_path(row.test, shrink), _order_columns(cells), self.fsync
+                    self.folder.add(self.csv_path(row.test, shrink)), _order_columns(cells), self.fsync
                 )
             f.write(cells)
             self.counts["shrink" if shrink else "main"] += 1

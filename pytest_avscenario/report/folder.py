@@ -1,0 +1,306 @@
+"""The report directory one run owns: its lock, its manifest of our files, its fallback.
+
+``--avs-report DIR`` is a directory people share: two pytest runs of one checkout (a
+developer's and an editor's test runner), a CI job re-run in the same workspace, or a
+project folder that already holds an ``index.html`` of its own. A run therefore *claims*
+the directory before it writes there (:func:`claim_report_dir`):
+
+* it takes an exclusive OS lock on ``DIR/.avs-lock`` (``fcntl.flock``: released by the
+  kernel when the process ends, however it ends), and writes its pid there for the next
+  run's warning. Where ``fcntl`` is missing (Windows) there is no lock;
+* ``DIR/.avs-manifest.json`` lists every file a run of ours wrote in the directory; a new
+  run deletes exactly those (our files of the earlier run), and records each file it is
+  about to write *before* writing it, so a killed run's files are still known;
+* a file at one of the names we write (``index.html``, ``tables/<slug>-1a2b3c4d.csv`` …)
+  that the manifest does not list belongs to somebody else: we neither delete nor
+  overwrite it, and neither do we touch a directory another live run holds. The run then
+  uses the first free sibling ``DIR-2``, ``DIR-3``, … and the caller warns with the reasons.
+
+Every file of the report is written atomically (:func:`atomic_write_bytes`), except the
+error tables, which grow row by row. Nothing here imports pytest.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import re
+import tempfile
+from pathlib import Path
+from typing import IO
+
+
+__all__ = ["ReportFolder", "ReportDirBusy", "claim_report_dir", "describe_fallback", "is_own_name",
+           "atomic_write_bytes", "atomic_write_text", "MANIFEST", "LOCK", "MAX_SIBLINGS",
+           "MAIN_JSONL", "SHRINK_JSONL", "TABLES_DIR"]
+
+MAIN_JSONL = "errors.jsonl"
+SHRINK_JSONL = "shrink.jsonl"
+TABLES_DIR = "tables"
+
+MANIFEST = ".avs-manifest.json"
+LOCK = ".avs-lock"
+
+#: ``DIR``, then ``DIR-2`` … ``DIR-<MAX_SIBLINGS>``: more concurrent runs than this is a loop
+#: somewhere, not a workload, and the run is then reported in the terminal only
+MAX_SIBLINGS = 20
+
+# The names a run of ours writes: fixed names at the top, "<readable>-<8 hex>" + our suffixes
+# below. Only these can be in our way, and only these are ever deleted.
+_TOP = {MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"}
+_SUB = {
+    TABLES_DIR: re.compile(r"[^/]+-[0-9a-f]{8}(\.shrink)?\.csv"),
+    "plots": re.compile(r"[^/]+-[0-9a-f]{8}\.(space|rho)\.png"),
+    "cases": re.compile(r"[^/]+-[0-9a-f]{8}\.(png|gif)"),
+}
+
+
+def _fsync_dir(directory: Path) -> None:
+    # Makes the rename itself durable; not possible (nor needed) on every platform.
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
+
+    Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
+    the target (atomic on POSIX and Windows within one file system).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        # mkstemp makes the file private (0600); a report is read by CI artifact servers and
+        # colleagues, so give it the mode a plain open() would have
+        os.fchmod(fd, 0o666 & ~_umask())
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    _fsync_dir(path.parent)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
+    """:func:`atomic_write_bytes` for text."""
+    atomic_write_bytes(path, text.encode(encoding))
+
+
+def is_own_name(rel: str) -> bool:
+    """Whether ``rel`` (a path relative to the report directory, ``/``-separated) is a name
+    a run of ours writes."""
+    parts = rel.split("/")
+    if len(parts) == 1:
+        return rel in _TOP
+    return len(parts) == 2 and parts[0] in _SUB and bool(_SUB[parts[0]].fullmatch(parts[1]))
+
+
+class ReportDirBusy(OSError):
+    """No directory among ``DIR``, ``DIR-2`` … could be claimed."""
+
+
+class ReportFolder:
+    """One report directory and the manifest of the files we wrote in it.
+
+    Without :func:`claim_report_dir` (e.g. an :class:`~.table.ErrorTable` used on its own)
+    there is no lock, but files written through :meth:`add` are still recorded, so the next
+    run knows they are ours.
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self.files: set[str] = set()
+        self.manifest_unreadable = False
+        self._lock: IO[str] | None = None
+        manifest = self.path / MANIFEST
+        if manifest.exists():
+            try:
+                data = json.loads(manifest.read_text(encoding="utf-8"))
+                self.files = {f for f in data["files"] if isinstance(f, str)}
+            except (OSError, ValueError, KeyError, TypeError):
+                self.manifest_unreadable = True  # then no file counts as ours
+
+    def _rel(self, path: str | os.PathLike) -> str:
+        rel = Path(os.path.relpath(os.path.abspath(path), os.path.abspath(self.path))).as_posix()
+        if rel == ".." or rel.startswith("../"):
+            raise ValueError(f"{path} is not inside the report directory {self.path}")
+        return rel
+
+    def owns(self, path: str | os.PathLike) -> bool:
+        """Whether ``path`` lies inside this directory."""
+        try:
+            Path(path).resolve().relative_to(self.path.resolve())
+        except ValueError:
+            return False
+        return True
+
+    def add(self, path: str | os.PathLike) -> Path:
+        """Record ``path`` (a file inside the directory) as ours, before writing it."""
+        rel = self._rel(path)
+        if rel not in self.files:
+            self.files.add(rel)
+            self._save()
+        return Path(path)
+
+    def _save(self) -> None:
+        atomic_write_text(self.path / MANIFEST, json.dumps(
+            {"written_by": "pytest-avscenario", "files": sorted(self.files)}, indent=1) + "\n")
+
+    def foreign(self) -> list[str]:
+        """Files at names we write that the manifest does not list (somebody else's)."""
+        found = []
+        for name in sorted(_TOP):
+            if (self.path / name).is_file() and name not in self.files:
+                found.append(name)
+        for sub in _SUB:
+            folder = self.path / sub
+            if not folder.is_dir():
+                continue
+            for f in sorted(folder.iterdir()):
+                rel = f"{sub}/{f.name}"
+                if is_own_name(rel) and f.is_file() and rel not in self.files:
+                    found.append(rel)
+        return found
+
+    def clear(self) -> None:
+        """Delete the files an earlier run of ours wrote (as the manifest lists them), then
+        ``tables/``, ``plots/`` and ``cases/`` if that left them empty; start a new manifest."""
+        for rel in sorted(self.files):
+            if not is_own_name(rel):
+                continue  # the lock file, or a hand-edited entry: never deleted
+            try:
+                (self.path / rel).unlink()
+            except FileNotFoundError:
+                pass
+        for sub in _SUB:
+            try:
+                (self.path / sub).rmdir()
+            except OSError:
+                pass  # missing, or somebody else's files live there too
+        self.files = {LOCK} if self._lock is not None else set()
+        self._save()
+
+    # -- the lock --------------------------------------------------------------------------
+    def lock(self) -> tuple[bool, str]:
+        """Try to take the directory's lock without waiting: ``(taken, holder's pid or "")``.
+
+        True also where the platform has no ``flock`` or the file system refuses locks."""
+        try:
+            import fcntl
+        except ImportError:
+            return True, ""
+        fh = open(self.path / LOCK, "a+", encoding="utf-8")
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip()
+            fh.close()
+            return False, holder if holder.isdigit() else ""
+        except OSError:
+            fh.close()  # e.g. a network file system without locks: go on unlocked
+            return True, ""
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        self._lock = fh
+        return True, ""
+
+    def release(self) -> None:
+        """Give the lock back (the kernel does so too when the process ends)."""
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
+
+
+def _sibling(requested: Path, n: int) -> Path:
+    return requested if n == 1 else requested.with_name(f"{requested.name}-{n}")
+
+
+def claim_report_dir(requested: str | os.PathLike, *,
+                     max_siblings: int = MAX_SIBLINGS) -> tuple[ReportFolder, list[str]]:
+    """Claim ``requested`` or its first free sibling for this process's report.
+
+    Returns the locked, cleared :class:`ReportFolder` and, when it is not ``requested``, one
+    sentence per directory passed over saying why. Raises :class:`ReportDirBusy` when every
+    candidate is taken, OSError when ``requested`` is a file or a directory cannot be created
+    or cleared.
+    """
+    requested = Path(requested)
+    reasons: list[str] = []
+    for n in range(1, max_siblings + 1):
+        path = _sibling(requested, n)
+        if path.exists() and not path.is_dir():
+            if n == 1:  # a mistake in the option rather than a directory somebody uses
+                raise NotADirectoryError(errno.ENOTDIR, "a file, not a directory", str(path))
+            reasons.append(f"{path} is a file, not a directory")
+            continue
+        existed = path.is_dir()
+        lock_existed = (path / LOCK).exists()
+        folder = ReportFolder(path)
+        if existed and not lock_existed:
+            # Look before creating a lock file there: a folder of somebody else's stays as it was.
+            foreign = folder.foreign()
+            if foreign:
+                reasons.append(_foreign_reason(path, foreign, folder))
+                continue
+        path.mkdir(parents=True, exist_ok=True)
+        taken, holder = folder.lock()
+        if not taken:
+            pid = f" (pid {holder})" if holder else ""
+            reasons.append(f"{path} is in use by another pytest run{pid}")
+            continue
+        folder = _reread(folder)  # the manifest as the previous holder left it
+        foreign = folder.foreign()
+        if foreign:
+            folder.release()
+            reasons.append(_foreign_reason(path, foreign, folder))
+            continue
+        folder.clear()
+        return folder, reasons
+    raise ReportDirBusy("; ".join(reasons) + f"; no free directory among {requested} … "
+                        f"{_sibling(requested, max_siblings)}")
+
+
+def _reread(locked: ReportFolder) -> ReportFolder:
+    fresh = ReportFolder(locked.path)
+    fresh._lock, locked._lock = locked._lock, None
+    return fresh
+
+
+def _foreign_reason(path: Path, foreign: list[str], folder: ReportFolder) -> str:
+    shown = ", ".join(str(path / f) for f in foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+    why = (f"{path / MANIFEST} is unreadable" if folder.manifest_unreadable
+           else f"not listed in {path / MANIFEST}" if (path / MANIFEST).exists()
+           else "there is no manifest of ours")
+    return f"{path} holds files pytest-avscenario did not write ({shown}: {why})"
+
+
+def describe_fallback(requested: Path, used: Path, reasons: list[str]) -> str:
+    """The one warning of a run that writes its report to a sibling directory."""
+    return (f"avscenario: the report goes to {used} instead of {requested}: " + "; ".join(reasons)
+            + ". Nothing there was deleted or overwritten; give each concurrent run its own "
+            "--avs-report directory, or move those files away")
