@@ -95,6 +95,13 @@ def _key(value: Any) -> str | None:
         return None
 
 
+def _sums_to_one(w: np.ndarray) -> bool:
+    try:
+        return math.fsum(w) == 1.0
+    except OverflowError:  # 1e308 + 1e308
+        return False
+
+
 def _normalised(weights: Sequence[float]) -> np.ndarray:
     """Probabilities from non-negative weights with a positive sum, without overflow, and
     idempotent, so that a Choice rebuilt from its description has the same weights bit for
@@ -102,11 +109,12 @@ def _normalised(weights: Sequence[float]) -> np.ndarray:
     (``math.fsum``), which is kept as it is when normalised again."""
     w = np.array(weights, dtype=float)
     n = len(w)
-    if not (w == w[0]).all() and math.fsum(w) != 1.0:
-        total = float(w.sum())
+    if not (w == w[0]).all() and not _sums_to_one(w):
+        with np.errstate(over="ignore"):
+            total = float(w.sum())
         if math.isfinite(total):
             w = w / total
-        if math.fsum(w) != 1.0:
+        if not _sums_to_one(w):
             w = w / w.max()  # no overflow when summing 1e308s
             w = w / math.fsum(w)
             k = int(np.argmax(w))

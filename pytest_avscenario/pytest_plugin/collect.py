@@ -196,7 +196,13 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         elif sampler.active:
             values = [None] * plan.samples
         else:
-            values = [space.from_unit(p) for p in sampler.sample_unit(plan.samples)]
+            try:
+                points = sampler.sample_unit(plan.samples)
+            except (TypeError, ValueError, ArithmeticError) as exc:  # e.g. a huge skip=
+                raise DeclarationError(
+                    f"sampler {name!r} could not draw {plan.samples} cases with "
+                    f"sampler_options={_show(opts)}: {type(exc).__name__}: {exc}") from None
+            values = [space.from_unit(p) for p in points]
         for k, params in enumerate(values):
             slots.append(sampled_slot(plan, name, k, params))
     return plan, slots
@@ -356,20 +362,26 @@ def _in_package(path: Any) -> bool:
         return False
 
 
-def _decorated_at(source: str, line: int) -> str | None:
-    """The ``Class::function`` whose decorator list holds line ``line`` (1-based), or None."""
+def _decorated_at(source: str, line: int) -> tuple[str, bool] | None:
+    """The ``Class::function`` whose decorator list holds line ``line`` (1-based), and whether
+    one of its decorators is ``scenario(...)`` or ``example(...)``; None if no decorator does."""
     try:
         tree = ast.parse(source)
     except (SyntaxError, ValueError):
         return None
 
-    def visit(body: list[ast.stmt], prefix: str) -> str | None:
+    def ours(deco: ast.expr) -> bool:
+        func = deco.func if isinstance(deco, ast.Call) else deco
+        name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
+        return name in ("scenario", "example")
+
+    def visit(body: list[ast.stmt], prefix: str) -> tuple[str, bool] | None:
         for node in body:
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
                 name = f"{prefix}{node.name}"
                 for deco in node.decorator_list:
                     if deco.lineno <= line <= (deco.end_lineno or deco.lineno):
-                        return name
+                        return name, any(map(ours, node.decorator_list))
                 if isinstance(node, ast.ClassDef):
                     found = visit(node.body, f"{name}::")
                     if found is not None:
@@ -385,7 +397,9 @@ def import_error_message(module: pytest.Module, excinfo: pytest.ExceptionInfo[Ba
     say — naming the test whose decorator made the call; None for any other failure.
 
     The decorator's arguments run when the module is imported, before any test exists, so
-    pytest would show the package's own frames and no test name.
+    pytest would show the package's own frames and no test name. Also an exception raised by
+    the call itself in the decorator of a ``@scenario``/``@example`` test
+    (``scenario(**{1: 2})``).
     """
     entries = list(excinfo.traceback)
     here = [i for i, e in enumerate(entries) if Path(str(e.path)) == module.path]
@@ -393,14 +407,17 @@ def import_error_message(module: pytest.Module, excinfo: pytest.ExceptionInfo[Ba
         return None
     last = here[-1]
     callee = entries[last + 1:]
-    if not callee or not _in_package(callee[0].path):
-        return None
     line = entries[last].lineno + 1
     try:
         source = module.path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
         source = ""
-    test = _decorated_at(source, line)
+    decorated = _decorated_at(source, line)
+    if callee and not _in_package(callee[0].path):
+        return None
+    if not callee and (decorated is None or not decorated[1]):
+        return None
+    test = None if decorated is None else decorated[0]
     exc = excinfo.value
     try:
         text = str(exc)
@@ -411,7 +428,8 @@ def import_error_message(module: pytest.Module, excinfo: pytest.ExceptionInfo[Ba
     if not isinstance(exc, (MonitorError, SpaceError, DeclarationError)):
         text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
     where = f"{module.path.name}:{line}"
-    after = "the module could not be imported, so none of its tests were collected"
     if test is None:
-        return f"{module.nodeid}: {text} (raised at {where} while importing the module; {after})"
-    return f"{module.nodeid}::{test}: {text} (raised by its decorator at {where}; {after})"
+        return (f"{module.nodeid}: {text} (raised at {where} while the module was imported, so "
+                "none of its tests were collected)")
+    return (f"{module.nodeid}::{test}: {text} (raised by its decorator at {where} while the "
+            "module was imported, so none of the module's tests were collected)")
