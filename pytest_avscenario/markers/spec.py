@@ -71,7 +71,12 @@ def scenario(
 
     Every keyword that is not one of the settings below is a scenario parameter: a
     distribution (``Uniform``, ``Normal``, ``IntRange``, ``Choice``, ``Constant``) or a plain
-    constant. The test requests the ``case`` fixture to read the concrete values.
+    constant. The test requests the ``case`` fixture to read the concrete values. A plain
+    value under a name close to a setting's (``sample=100``, ``samplers=...``,
+    ``case_time_out=...``; see :func:`~pytest_avscenario.pytest_plugin.collect.likely_setting`)
+    is refused at collection as a likely misspelling: write ``Constant(...)`` for a constant
+    parameter that really has such a name. Parameter names must be Python identifiers that are
+    not keywords, ``__dunder__`` names or attributes of the case.
 
     :param samples: how many concrete cases to run (default 20; ``--avs-samples`` overrides).
     :param sampler: ``"halton"`` (default), ``"random"``, an active sampler (``"mab"``, ...), or

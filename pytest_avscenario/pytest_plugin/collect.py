@@ -425,11 +425,13 @@ def import_error_message(module: pytest.Module, excinfo: pytest.ExceptionInfo[Ba
         text = ""
     from ..monitors import MonitorError
 
+    hint = ""
     if not isinstance(exc, (MonitorError, SpaceError, DeclarationError)):
         text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+        hint = "; --fulltrace shows the traceback"
     where = f"{module.path.name}:{line}"
     if test is None:
         return (f"{module.nodeid}: {text} (raised at {where} while the module was imported, so "
-                "none of its tests were collected)")
+                f"none of its tests were collected{hint})")
     return (f"{module.nodeid}::{test}: {text} (raised by its decorator at {where} while the "
-            "module was imported, so none of the module's tests were collected)")
+            f"module was imported, so none of the module's tests were collected{hint})")
