@@ -9,8 +9,9 @@ the test; and every scenario item that ran has its row in ``errors.jsonl``. The 
 the last batch again, so stored counterexamples are replayed too.
 
 The batches are the same on every run; ``FUZZ_RANDOM=1`` draws new ones, and
-``FUZZ_DUMP=path`` appends each session's output to ``path``. The bodies build no world: they return a small trajectory from arrays (so monitors judge it)
-or raise, depending on the case's values.
+``FUZZ_DUMP=path`` appends each session's output to ``path``. The bodies build no world: they
+return a small trajectory from arrays (so monitors judge it), fail an assertion, or raise,
+depending on the case's values.
 """
 
 from __future__ import annotations
