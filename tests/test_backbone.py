@@ -248,6 +248,8 @@ BAD_DECLARATIONS = [
     ("road=Choice({'dry', 'wet'})", "case", "parameter 'road': Choice options must be a list, not a set*"),
     ("gap=Uniform(10, 40), case_timeout=1e20", "case", "case_timeout must be at most 86400 s (a day), got 1e+20*"),
     ("gap=Uniform(10, 40), sample=100", "case", "parameter 'sample'=100: did you mean samples=?*"),
+    ("gap=Uniform(10, 40), sampler_options={'skip': 10**30}", "case",
+     "sampler 'halton' could not draw 20 cases with sampler_options={'skip': 1000000000000000000000000000000}: OverflowError*"),
 ]
 
 
