@@ -10,6 +10,7 @@ Constants take no coordinate. Nothing here imports anything heavier than numpy.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import inspect
 import json
@@ -36,19 +37,101 @@ class SpaceError(ValueError):
     """A distribution or feature space was declared wrongly (the message says how)."""
 
 
+#: IntRange bounds: beyond 2**53 a float coordinate cannot pick every integer
+_INT_LIMIT = 2**53
+
+
+def _show(value: Any, limit: int = 80) -> str:
+    """``repr`` for a message: shortened, and safe for values whose repr fails (an int of
+    more than 4300 digits) or is huge."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 200:
+        return f"{'-' if value < 0 else ''}<an int of about {int(value.bit_length() * 0.30103) + 1} digits>"
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - a message must not fail
+        return f"<{type(value).__name__}>"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _finite_number(value: Any, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SpaceError(f"{what} must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise SpaceError(f"{what} must be finite, got {value!r}")
-    return value
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SpaceError(f"{what} must be a number, got {_show(value)}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise SpaceError(f"{what} must be finite, got {_show(value)}")
+    return number
+
+
+def _numpy_plain(value: Any) -> Any:
+    """``json.dumps``'s fallback: numpy scalars and arrays as the Python values they hold."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(type(value).__name__)
+
+
+def _plain(value: Any, what: str) -> Any:
+    """``value`` as the JSON data it is stored and replayed as (numpy scalars unwrapped,
+    tuples as lists), or SpaceError: a case that cannot be stored cannot be replayed."""
+    try:
+        text = json.dumps(value, allow_nan=False, default=_numpy_plain)
+        return json.loads(text)
+    except (TypeError, ValueError, RecursionError):
+        raise SpaceError(
+            f"{what} {_show(value)} is not a plain value (str, finite number, bool, None, or a "
+            "list/dict of them); cases must be storable and replayable"
+        ) from None
+
+
+def _key(value: Any) -> str | None:
+    """A canonical text of a plain value (equal for equal JSON data), None if there is none."""
+    try:
+        return json.dumps(value, sort_keys=True, allow_nan=False, default=_numpy_plain)
+    except (TypeError, ValueError, RecursionError):
+        return None
+
+
+def _sums_to_one(w: np.ndarray) -> bool:
+    try:
+        return math.fsum(w) == 1.0
+    except OverflowError:  # 1e308 + 1e308
+        return False
+
+
+def _normalised(weights: Sequence[float]) -> np.ndarray:
+    """Probabilities from non-negative weights with a positive sum, without overflow, and
+    idempotent, so that a Choice rebuilt from its description has the same weights bit for
+    bit: equal weights give exactly ``1/n`` each, and any other result sums to exactly 1
+    (``math.fsum``), which is kept as it is when normalised again."""
+    w = np.array(weights, dtype=float)
+    n = len(w)
+    if not (w == w[0]).all() and not _sums_to_one(w):
+        with np.errstate(over="ignore"):
+            total = float(w.sum())
+        if math.isfinite(total):
+            w = w / total
+        if not _sums_to_one(w):
+            w = w / w.max()  # no overflow when summing 1e308s
+            w = w / math.fsum(w)
+            k = int(np.argmax(w))
+            for _ in range(64):  # move the largest weight by ulps until the sum is exactly 1
+                total = math.fsum(w)
+                if total == 1.0:
+                    break
+                w[k] = np.nextafter(w[k], -math.inf if total > 1.0 else math.inf)
+    if (w == w[0]).all():
+        return np.full(n, 1.0 / n)
+    return w
 
 
 def _within(value: Any, lo: float, hi: float) -> bool:
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return False
     return lo <= v <= hi
 
@@ -76,15 +159,22 @@ class Distribution:
         # test, where a raise would become an import traceback without the test's name. The
         # feature space (and so the plugin, at collection) raises with the parameter's name.
         self._args = (args, kwargs)
+        name = type(self).__name__
+        if type(self)._setup is Distribution._setup:
+            self.error = (f"{name} is {'the abstract base class' if type(self) is Distribution else 'a subclass of Distribution without _setup'}; "
+                          "use one of Uniform, Normal, IntRange, Choice, Constant")
+            return
         try:
             inspect.signature(self._setup).bind(*args, **kwargs)
         except TypeError as exc:
-            self.error = f"{type(self).__name__}({_plain_signature(self._setup)}): {exc}"
+            self.error = f"{name}({_plain_signature(self._setup)}): {exc}"
             return
         try:
             self._setup(*args, **kwargs)
         except SpaceError as exc:
             self.error = str(exc)
+        except Exception as exc:  # noqa: BLE001 - an odd argument must not become an import traceback
+            self.error = f"{name}: bad arguments ({type(exc).__name__}: {exc})"
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -124,10 +214,10 @@ class Distribution:
 
     def __repr__(self) -> str:
         if self.error is not None:
-            a, kw = self._args
-            parts = [repr(x) for x in a] + [f"{k}={v!r}" for k, v in kw.items()]
+            a, kw = getattr(self, "_args", ((), {}))
+            parts = [_show(x) for x in a] + [f"{k}={_show(v)}" for k, v in kw.items()]
             return f"{type(self).__name__}({', '.join(parts)})"
-        args = ", ".join(f"{k}={v!r}" for k, v in self.describe().items() if k != "type")
+        args = ", ".join(f"{k}={_show(v)}" for k, v in self.describe().items() if k != "type")
         return f"{type(self).__name__}({args})"
 
 
@@ -140,14 +230,16 @@ class Uniform(Distribution):
         self.lo = _finite_number(lo, "Uniform lo")
         self.hi = _finite_number(hi, "Uniform hi")
         if not self.lo < self.hi:
-            raise SpaceError(f"Uniform needs lo < hi, got lo={lo!r}, hi={hi!r}")
+            raise SpaceError(f"Uniform needs lo < hi, got lo={_show(lo)}, hi={_show(hi)}")
+        if not math.isfinite(self.hi - self.lo):
+            raise SpaceError(f"Uniform [{self.lo!r}, {self.hi!r}] is wider than the largest float; narrow it")
         if nominal is None:
-            self._nominal = 0.5 * (self.lo + self.hi)
+            self._nominal = 0.5 * self.lo + 0.5 * self.hi
         else:
             self._nominal = _finite_number(nominal, "Uniform nominal")
             if not self.lo <= self._nominal <= self.hi:
                 raise SpaceError(
-                    f"Uniform nominal={nominal!r} lies outside [lo, hi] = [{lo!r}, {hi!r}]"
+                    f"Uniform nominal={_show(nominal)} lies outside [lo, hi] = [{_show(lo)}, {_show(hi)}]"
                 )
 
     @property
@@ -178,16 +270,16 @@ class Normal(Distribution):
         self.lo = _finite_number(lo, "Normal lo")
         self.hi = _finite_number(hi, "Normal hi")
         if self.sd <= 0:
-            raise SpaceError(f"Normal needs sd > 0, got sd={sd!r}")
+            raise SpaceError(f"Normal needs sd > 0, got sd={_show(sd)}")
         if not self.lo < self.hi:
-            raise SpaceError(f"Normal needs lo < hi, got lo={lo!r}, hi={hi!r}")
+            raise SpaceError(f"Normal needs lo < hi, got lo={_show(lo)}, hi={_show(hi)}")
         if not self.lo <= self.mean <= self.hi:
-            raise SpaceError(f"Normal mean={mean!r} lies outside [lo, hi] = [{lo!r}, {hi!r}]")
+            raise SpaceError(f"Normal mean={_show(mean)} lies outside [lo, hi] = [{_show(lo)}, {_show(hi)}]")
         self._dist = NormalDist(self.mean, self.sd)
         self._clo = self._dist.cdf(self.lo)
         self._chi = self._dist.cdf(self.hi)
         if not self._chi - self._clo > 1e-12:
-            raise SpaceError(f"Normal({mean}, {sd}) has no mass on [{lo}, {hi}]")
+            raise SpaceError(f"Normal({self.mean!r}, {self.sd!r}) has no mass on [{self.lo!r}, {self.hi!r}]")
 
     @property
     def nominal(self) -> float:
@@ -208,26 +300,33 @@ class Normal(Distribution):
         return {"type": "Normal", "mean": self.mean, "sd": self.sd, "lo": self.lo, "hi": self.hi}
 
 
+def _bounded_int(value: Any, what: str) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise SpaceError(f"{what} must be an int, got {_show(value)}")
+    value = int(value)
+    if abs(value) > _INT_LIMIT:
+        raise SpaceError(
+            f"{what} must lie within ±2**53 = ±{_INT_LIMIT} (a sampler's coordinate could not "
+            f"pick every integer beyond it), got {_show(value)}; use Uniform for such a range")
+    return value
+
+
 class IntRange(Distribution):
     """Integers ``lo..hi`` inclusive, equally likely; nominal defaults to the middle value."""
 
     kind = "integer"
 
     def _setup(self, lo: int, hi: int, nominal: int | None = None) -> None:
-        for name, v in (("lo", lo), ("hi", hi)):
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-                raise SpaceError(f"IntRange {name} must be an int, got {v!r}")
-        self.lo, self.hi = int(lo), int(hi)
+        self.lo, self.hi = _bounded_int(lo, "IntRange lo"), _bounded_int(hi, "IntRange hi")
         if not self.lo < self.hi:
-            raise SpaceError(f"IntRange needs lo < hi, got lo={lo!r}, hi={hi!r}")
+            raise SpaceError(f"IntRange needs lo < hi, got lo={_show(lo)}, hi={_show(hi)}")
         if nominal is None:
             self._nominal = (self.lo + self.hi) // 2
         else:
-            if isinstance(nominal, bool) or not isinstance(nominal, (int, np.integer)):
-                raise SpaceError(f"IntRange nominal must be an int, got {nominal!r}")
+            nominal = _bounded_int(nominal, "IntRange nominal")
             if not self.lo <= nominal <= self.hi:
-                raise SpaceError(f"IntRange nominal={nominal!r} lies outside [{lo}, {hi}]")
-            self._nominal = int(nominal)
+                raise SpaceError(f"IntRange nominal={nominal!r} lies outside [{self.lo}, {self.hi}]")
+            self._nominal = nominal
 
     @property
     def n_values(self) -> int:
@@ -262,36 +361,35 @@ class Choice(Distribution):
     kind = "categorical"
 
     def _setup(self, options: Sequence[Any], weights: Sequence[float] | None = None) -> None:
-        if isinstance(options, (str, bytes)) or not isinstance(options, Iterable):
-            raise SpaceError(f"Choice options must be a list of values, got {options!r}")
-        self.options = tuple(options)
+        if isinstance(options, (str, bytes, Mapping)) or not isinstance(options, Iterable):
+            raise SpaceError(f"Choice options must be a list of values, got {_show(options)}")
+        if isinstance(options, (set, frozenset)):
+            raise SpaceError(
+                f"Choice options must be a list, not a set: a set's order changes from run to "
+                f"run, and so would the cases; got {_show(options)}")
+        # stored as the JSON data a stored case replays as: numpy scalars unwrapped, tuples as lists
+        self.options = tuple(_plain(o, "Choice option") for o in options)
         if not self.options:
             raise SpaceError("Choice needs at least one option, got an empty list")
-        for o in self.options:
-            if isinstance(o, float) and not math.isfinite(o):
-                raise SpaceError(f"Choice option {o!r} is not finite; options must compare equal to themselves")
-            try:
-                json.dumps(o)
-            except (TypeError, ValueError):
+        self._keys = {}
+        for i, o in enumerate(self.options):
+            if self._keys.setdefault(_key(o), i) != i:
                 raise SpaceError(
-                    f"Choice option {o!r} is not a plain value (str, number, bool, None); "
-                    "cases must be storable and replayable"
-                ) from None
-        if len(set(map(repr, self.options))) != len(self.options):
-            raise SpaceError(f"Choice options must be distinct, got {list(self.options)!r}")
+                    f"Choice options must be distinct, got {_show(o)} twice in {_show(list(self.options))}")
         if weights is None:
-            w = np.full(len(self.options), 1.0 / len(self.options))
+            w = _normalised([1.0] * len(self.options))
         else:
-            if isinstance(weights, (str, bytes)) or not hasattr(weights, "__len__"):
-                raise SpaceError(f"Choice weights must be a list of numbers, one per option, got {weights!r}")
+            if isinstance(weights, (str, bytes, set, frozenset, Mapping)) or not hasattr(weights, "__len__") \
+                    or not isinstance(weights, Iterable):
+                raise SpaceError(f"Choice weights must be a list of numbers, one per option, got {_show(weights)}")
             if len(weights) != len(self.options):
                 raise SpaceError(
                     f"Choice has {len(self.options)} options but {len(weights)} weights"
                 )
-            w = np.array([_finite_number(x, "Choice weight") for x in weights], dtype=float)
-            if (w < 0).any() or w.sum() <= 0:
-                raise SpaceError(f"Choice weights must be >= 0 with a positive sum, got {weights!r}")
-            w = w / w.sum()
+            raw = [_finite_number(x, "Choice weight") for x in weights]
+            if any(x < 0 for x in raw) or not any(x > 0 for x in raw):
+                raise SpaceError(f"Choice weights must be >= 0 with a positive sum, got {_show(list(weights))}")
+            w = _normalised(raw)
         self.weights = tuple(float(x) for x in w)
         self._edges = np.concatenate([[0.0], np.cumsum(w)])
         self._edges[-1] = 1.0
@@ -302,16 +400,19 @@ class Choice(Distribution):
 
     @property
     def nominal(self) -> Any:
-        return self.options[0]
+        return copy.deepcopy(self.options[0])
 
     def index(self, value: Any) -> int:
+        k = self._keys.get(_key(value))
+        if k is not None:
+            return k
         for i, o in enumerate(self.options):
             if o == value and type(o) is type(value):
                 return i
         for i, o in enumerate(self.options):
             if o == value:
                 return i
-        raise SpaceError(f"{value!r} is not one of the options {list(self.options)!r}")
+        raise SpaceError(f"{_show(value)} is not one of the options {_show(list(self.options))}")
 
     def from_unit(self, u: float) -> Any:
         k = int(np.searchsorted(self._edges, float(u), side="right")) - 1
@@ -319,7 +420,8 @@ class Choice(Distribution):
         # skip zero-weight strata at the boundary
         while self.weights[k] == 0.0 and k + 1 < len(self.options):
             k += 1
-        return self.options[k]
+        # a copy: a test that appends to a list option must not change the next case's
+        return copy.deepcopy(self.options[k])
 
     def to_unit(self, value: Any) -> float:
         k = self.index(value)
@@ -333,38 +435,35 @@ class Choice(Distribution):
         return True
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "Choice", "options": list(self.options), "weights": list(self.weights)}
+        return {"type": "Choice", "options": copy.deepcopy(list(self.options)), "weights": list(self.weights)}
 
 
 class Constant(Distribution):
-    """A fixed value; it takes no sampler coordinate."""
+    """A fixed value; it takes no sampler coordinate. Write a constant whose name is close to a
+    setting's (``sample``, ``seeds``) as ``Constant(...)``: a plain value there is refused as a
+    likely misspelt setting."""
 
     kind = "constant"
 
     def _setup(self, value: Any) -> None:
-        try:
-            json.dumps(value)
-        except (TypeError, ValueError):
-            raise SpaceError(f"Constant value {value!r} is not a plain JSON value") from None
-        if isinstance(value, float) and not math.isfinite(value):
-            raise SpaceError(f"Constant value must be finite, got {value!r}")
-        self.value = value
+        self.value = _plain(value, "Constant value")
 
     @property
     def nominal(self) -> Any:
-        return self.value
+        return copy.deepcopy(self.value)
 
     def from_unit(self, u: float) -> Any:
-        return self.value
+        return copy.deepcopy(self.value)
 
     def to_unit(self, value: Any) -> float:
         return 0.5
 
     def contains(self, value: Any) -> bool:
-        return value == self.value
+        key = _key(value)
+        return (key is not None and key == _key(self.value)) or value == self.value
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "Constant", "value": self.value}
+        return {"type": "Constant", "value": copy.deepcopy(self.value)}
 
 
 def as_distribution(name: str, value: Any) -> Distribution:
@@ -376,7 +475,7 @@ def as_distribution(name: str, value: Any) -> Distribution:
     const = Constant(value)
     if const.error is not None:
         raise SpaceError(
-            f"parameter {name!r}: {value!r} is neither a distribution "
+            f"parameter {name!r}: {_show(value)} is neither a distribution "
             "(Uniform, Normal, IntRange, Choice, Constant) nor a plain constant"
         )
     return const
@@ -486,6 +585,23 @@ class FeatureSpace:
                 raise SpaceError(f"parameter {name!r}: unknown distribution in {desc!r}")
             params[name] = kind(**desc)
         return cls(params)
+
+    def check_description(self) -> None:
+        """Raise SpaceError naming the first parameter that its stored description (JSON, as
+        the report and the replay database keep it) does not rebuild exactly."""
+        for name, dist in self.parameters.items():
+            try:
+                desc = json.loads(json.dumps(dist.describe(), allow_nan=False))
+                again = FeatureSpace.from_description({name: desc}).parameters[name].describe()
+                same = _key(again) == _key(desc) and _key(desc) is not None
+                why = "it comes back as a different distribution"
+            except Exception as exc:  # noqa: BLE001 - any failure means: not storable
+                same, why = False, f"{type(exc).__name__}: {exc}"
+            if not same:
+                raise SpaceError(
+                    f"parameter {name!r}: a {type(dist).__name__} cannot be rebuilt from its "
+                    f"description ({why}); the report and the replay database need that — use "
+                    "Uniform, Normal, IntRange, Choice or Constant")
 
     def fingerprint(self) -> str:
         blob = json.dumps(self.describe(), sort_keys=True, default=repr).encode()

@@ -236,6 +236,20 @@ BAD_DECLARATIONS = [
     ("index=Uniform(10, 40)", "case", "parameter 'index' clashes with the case attribute*"),
     ("gap=object()", "case", "parameter 'gap':*neither a distribution*"),
     ("gap=Uniform", "case", "parameter 'gap': Uniform must be called with its arguments"),
+    # arguments that used to raise at import, as the plugin's own traceback without the test
+    ("gap=Uniform(2**2000, 1)", "case", "parameter 'gap': Uniform lo must be finite, got <an int of about 603 digits>"),
+    ("gap=Distribution()", "case", "parameter 'gap': Distribution is the abstract base class; use one of Uniform*"),
+    ("road=Choice(['a', 'b'], weights=5)", "case", "parameter 'road': Choice weights must be a list of numbers*"),
+    ("gap=Uniform(10, 40), monitors=5", "case", "monitors must be a list of monitors, e.g. monitors=[[]distance(5.0)*got 5"),
+    ("Uniform(10, 40), gap=Uniform(10, 40)", "case", "@scenario takes keyword arguments only*1 positional*"),
+    # accepted, then broken later
+    ("gap=Uniform(-1e308, 1e308)", "case", "parameter 'gap': Uniform [[]-1e+308, 1e+308[]] is wider than the largest float*"),
+    ("lanes=IntRange(0, 2**60)", "case", "parameter 'lanes': IntRange hi must lie within ±2**53*use Uniform*"),
+    ("road=Choice({'dry', 'wet'})", "case", "parameter 'road': Choice options must be a list, not a set*"),
+    ("gap=Uniform(10, 40), case_timeout=1e20", "case", "case_timeout must be at most 86400 s (a day), got 1e+20*"),
+    ("gap=Uniform(10, 40), sample=100", "case", "parameter 'sample'=100: did you mean samples=?*"),
+    ("gap=Uniform(10, 40), sampler_options={'skip': 10**30}", "case",
+     "sampler 'halton' could not draw 20 cases with sampler_options={'skip': 1000000000000000000000000000000}: OverflowError*"),
 ]
 
 
@@ -243,7 +257,7 @@ BAD_DECLARATIONS = [
 def test_bad_declarations_are_collection_errors_naming_test_and_parameter(pytester, decl, args, message):
     pytester.makepyfile(
         f"""
-        from pytest_avscenario import scenario, Uniform, Choice, IntRange, Normal
+        from pytest_avscenario import scenario, Uniform, Choice, IntRange, Normal, Distribution
         @scenario({decl})
         def test_broken({args}):
             pass

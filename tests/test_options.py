@@ -20,6 +20,7 @@ def test_s(case):
     ("avs_case_timeout = soon", [], "ini avs_case_timeout: case_timeout must be a positive number*'soon'"),
     ("avs_executor = ray", [], "ini avs_executor: unknown executor 'ray'; available: inprocess, dask"),
     ("", ["--avs-samples=abc"], "--avs-samples: samples must be an integer, got 'abc'"),
+    ("", ["--avs-case-timeout=1e20"], "--avs-case-timeout: case_timeout must be at most 86400 s (a day), got '1e20'*"),
     ("", ["--avs-samples=0"], "--avs-samples: samples must be >= 1, got 0"),
     ("", ["--avs-sampler=halton,nope"], "--avs-sampler: unknown sampler 'nope'; available:*"),
     ("", ["--avs-driver=tesla"], "--avs-driver: unknown driver 'tesla'*"),

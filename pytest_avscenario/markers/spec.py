@@ -47,9 +47,13 @@ class ScenarioSpec:
     accept: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
     given: frozenset[str] = field(default_factory=frozenset)
+    #: what was wrong with the call itself (positional arguments, a bare ``@scenario``), told
+    #: at collection where the test can be named; None when the call was fine
+    problem: str | None = None
 
 
 def scenario(
+    *args: Any,
     samples: int = _UNSET,
     sampler: str | Sequence[str] = _UNSET,
     seed: int | None = _UNSET,
@@ -67,7 +71,12 @@ def scenario(
 
     Every keyword that is not one of the settings below is a scenario parameter: a
     distribution (``Uniform``, ``Normal``, ``IntRange``, ``Choice``, ``Constant``) or a plain
-    constant. The test requests the ``case`` fixture to read the concrete values.
+    constant. The test requests the ``case`` fixture to read the concrete values. A plain
+    value under a name close to a setting's (``sample=100``, ``samplers=...``,
+    ``case_time_out=...``; see :func:`~pytest_avscenario.pytest_plugin.collect.likely_setting`)
+    is refused at collection as a likely misspelling: write ``Constant(...)`` for a constant
+    parameter that really has such a name. Parameter names must be Python identifiers that are
+    not keywords, ``__dunder__`` names or attributes of the case.
 
     :param samples: how many concrete cases to run (default 20; ``--avs-samples`` overrides).
     :param sampler: ``"halton"`` (default), ``"random"``, an active sampler (``"mab"``, ...), or
@@ -104,13 +113,25 @@ def scenario(
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
         ).items()
     }
-    spec = ScenarioSpec(parameters=dict(parameters), given=frozenset(given), **values)
+    problem = None
+    bare = len(args) == 1 and callable(args[0]) and not given and not parameters
+    if bare:
+        problem = ("@scenario is written without parentheses and declares nothing; write "
+                   "@scenario(...) with the parameters, e.g. @scenario(gap=Uniform(10, 40))")
+    elif args:
+        problem = (f"@scenario takes keyword arguments only (parameter=distribution or "
+                   f"setting=value), got {len(args)} positional argument(s); e.g. "
+                   "@scenario(gap=Uniform(10, 40), samples=20)")
+    spec = ScenarioSpec(parameters=dict(parameters), given=frozenset(given), problem=problem, **values)
     import pytest  # here, not at module level: importing the library loads no pytest
 
-    return pytest.mark.scenario.with_args(spec)
+    mark = pytest.mark.scenario.with_args(spec)
+    # bare @scenario: mark the function itself so that collection can name it (returning the
+    # mark would replace the test by a MarkDecorator that pytest silently does not collect)
+    return mark(args[0]) if bare else mark
 
 
-def example(**params: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+def example(*args: Any, **params: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """Pin a concrete case of a scenario test; pinned examples run first and are never shrunk.
 
     Paste the line a minimized failure prints above the test to keep it as a regression::
@@ -123,8 +144,19 @@ def example(**params: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]
     def deco(fn: Callable[..., Any]) -> Callable[..., Any]:
         pins = list(getattr(fn, "_avs_examples", ()))
         # decorators apply bottom-up; keep the order in which they are written
-        pins.insert(0, dict(params))
+        pins.insert(0, dict(params) if not args else BadExample(
+            "@example takes the parameter values as keywords, e.g. @example(gap=12.5)"
+            if not bare else "@example is written without parentheses; write @example(gap=12.5, ...)"))
         fn._avs_examples = pins  # type: ignore[attr-defined]
         return fn
 
-    return deco
+    # a bare @example would otherwise replace the test by `deco`, which pytest does not collect
+    bare = len(args) == 1 and callable(args[0]) and not params
+    return deco(args[0]) if bare else deco
+
+
+@dataclass(frozen=True)
+class BadExample:
+    """An ``@example`` written wrongly; collection reports ``problem`` naming the test."""
+
+    problem: str

@@ -10,17 +10,20 @@ seed; an active sampler's slots stay empty until the item runs.
 
 from __future__ import annotations
 
+import ast
+import keyword
 import types
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from ..case import RESERVED, Case, stable_seed
-from ..markers.spec import ScenarioSpec
-from ..space import FeatureSpace, SpaceError
+from ..markers.spec import SPEC_KEYWORDS, BadExample, ScenarioSpec
+from ..space import Distribution, FeatureSpace, SpaceError, _show
 from .options import DeclarationError, Settings
 from .stash import plans_key
 
@@ -96,6 +99,14 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
             "@pytest.mark.scenario"
         )
     spec: ScenarioSpec = marker.args[0]
+    if spec.problem is not None:
+        raise DeclarationError(spec.problem)
+    stacked = len(list(metafunc.definition.iter_markers("scenario")))
+    if stacked > 1:
+        raise DeclarationError(
+            f"{stacked} @scenario declarations apply to this test (stacked decorators, or one "
+            "on its class or module); keep one: a test is one scenario (to run it with several "
+            "samplers give sampler=[...])")
     if "case" not in metafunc.fixturenames:
         raise DeclarationError(
             "a @scenario test must request the `case` fixture (add `case` to its arguments) "
@@ -108,24 +119,17 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
 
     if spec.seed is not None:
         if isinstance(spec.seed, bool) or not isinstance(spec.seed, int) or spec.seed < 0:
-            raise DeclarationError(f"seed must be a non-negative int, got {spec.seed!r}")
+            raise DeclarationError(f"seed must be a non-negative int, got {_show(spec.seed)}")
         seed = stable_seed("marker", spec.seed)
     else:
         seed = stable_seed(settings.seed, test)
 
-    monitor_set = None
-    if spec.monitors:
-        from ..monitors import MonitorSet
-
-        try:
-            monitor_set = MonitorSet(list(spec.monitors), priority=spec.priority)
-        except ValueError as exc:
-            raise DeclarationError(f"monitors: {exc}") from None
-    elif spec.priority:
-        raise DeclarationError("priority= is given but no monitors= to order")
-    opts = spec.sampler_options or {}
-    if not isinstance(opts, dict):
-        raise DeclarationError(f"sampler_options must be a dict, got {opts!r}")
+    monitor_set = _monitor_set(spec)
+    opts = {} if spec.sampler_options is None else spec.sampler_options
+    if not isinstance(opts, dict) or not all(isinstance(k, str) for k in opts):
+        raise DeclarationError(
+            f"sampler_options must be a dict of keyword options, e.g. sampler_options={{'scramble': True}}, "
+            f"got {_show(opts)}")
 
     pinned = None
     if settings.params is not None:
@@ -138,6 +142,8 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
             "`from pytest_avscenario import example`")
     slots: list[CaseSlot] = []
     for k, pin in enumerate(getattr(metafunc.function, "_avs_examples", ())):
+        if isinstance(pin, BadExample):
+            raise DeclarationError(f"@example #{k}: {pin.problem}")
         params = space.complete(pin)
         try:
             space.validate(params)
@@ -188,12 +194,23 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
             sampler = plan.make_sampler(name)
         except SamplerError as exc:
             raise DeclarationError(str(exc)) from None
+        except (TypeError, ValueError, ArithmeticError) as exc:
+            # an unknown or ill-typed option reaches the sampler's constructor
+            raise DeclarationError(
+                f"sampler {name!r} cannot be made with sampler_options={_show(opts)}: "
+                f"{type(exc).__name__}: {exc}") from None
         if pinned is not None:
             values: list[Mapping[str, Any] | None] = [dict(pinned)] * plan.samples
         elif sampler.active:
             values = [None] * plan.samples
         else:
-            values = [space.from_unit(p) for p in sampler.sample_unit(plan.samples)]
+            try:
+                points = sampler.sample_unit(plan.samples)
+            except (TypeError, ValueError, ArithmeticError) as exc:  # e.g. a huge skip=
+                raise DeclarationError(
+                    f"sampler {name!r} could not draw {plan.samples} cases with "
+                    f"sampler_options={_show(opts)}: {type(exc).__name__}: {exc}") from None
+            values = [space.from_unit(p) for p in points]
         for k, params in enumerate(values):
             slots.append(sampled_slot(plan, name, k, params))
     return plan, slots
@@ -206,22 +223,106 @@ def sampled_slot(plan: ScenarioPlan, sampler: str, index: int,
     return CaseSlot(sampler, index, stable_seed(plan.seed, sampler, index), origin="sampled", params=params)
 
 
+#: attributes a Case finds on its class before falling back to its parameters
+_CASE_ATTRIBUTES = frozenset(name for klass in Case.__mro__ for name in vars(klass)) | RESERVED
+
+
 def _space(metafunc: pytest.Metafunc, spec: ScenarioSpec) -> FeatureSpace:
-    """The test's feature space, refusing parameter names that would shadow something."""
+    """The test's feature space, refusing parameter names that would shadow something or
+    that look like a misspelt setting."""
     if not spec.parameters:
         raise DeclarationError("@scenario declares no parameters; give at least one, e.g. gap=Uniform(10, 40)")
     fm = metafunc.definition.session._fixturemanager
-    for name in spec.parameters:
-        if name in RESERVED:
+    for name, value in spec.parameters.items():
+        if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
+            raise DeclarationError(
+                f"parameter {_show(name)} is not a valid Python name, so case.<name> cannot read "
+                "it; rename it (letters, digits and underscores, not a keyword)")
+        if name.startswith("__") and name.endswith("__"):
+            raise DeclarationError(
+                f"parameter {name!r}: names of the form __name__ are Python's own (case.{name} "
+                "would not read the parameter); rename it")
+        if name in _CASE_ATTRIBUTES:
             raise DeclarationError(
                 f"parameter {name!r} clashes with the case attribute of the same name; rename it"
             )
+        setting = likely_setting(name)
+        if setting is not None and not isinstance(value, Distribution):
+            raise DeclarationError(
+                f"parameter {name!r}={_show(value)}: did you mean {setting}=? A plain value "
+                f"under a name this close to the setting {setting!r} is taken for a misspelling; "
+                f"write {name}=Constant({_show(value)}) if it really is a constant parameter")
         if fm.getfixturedefs(name, metafunc.definition):
             raise DeclarationError(
                 f"parameter {name!r} clashes with the fixture {name!r}; rename the parameter "
                 "(read values as case.<name>, fixtures stay available as arguments)"
             )
-    return FeatureSpace(spec.parameters)
+    space = FeatureSpace(spec.parameters)
+    space.check_description()
+    return space
+
+
+def _normal_name(name: str) -> str:
+    return name.lower().replace("_", "")
+
+
+def _edits(a: str, b: str) -> int:
+    """Edit distance with swaps of neighbours (optimal string alignment)."""
+    prev2: list[int] = []
+    prev = list(range(len(b) + 1))
+    for i, ca in enumerate(a, 1):
+        cur = [i] + [0] * len(b)
+        for j, cb in enumerate(b, 1):
+            cur[j] = min(prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (ca != cb))
+            if i > 1 and j > 1 and ca == b[j - 2] and a[i - 2] == cb:
+                cur[j] = min(cur[j], prev2[j - 2] + 1)
+        prev2, prev = prev, cur
+    return prev[-1]
+
+
+def likely_setting(name: str) -> str | None:
+    """The @scenario setting that ``name`` probably misspells, or None.
+
+    Compared ignoring case and underscores: the setting's name itself, or with a trailing
+    ``s`` added or removed (``sample``, ``samplers``, ``case_time_out``); one edit (insert,
+    delete, replace, swap of neighbours) from a setting of 5 to 7 letters (``sampels``,
+    ``acept``); two edits from a longer one (``monitrs``, ``shrink_budjet``). ``seed`` only
+    by the first rule, so that ``speed`` stays a parameter.
+    """
+    n = _normal_name(name)
+    best: tuple[int, str] | None = None
+    for key in SPEC_KEYWORDS:
+        k = _normal_name(key)
+        if n in (k, k + "s") or (k.endswith("s") and n == k[:-1]):
+            return key
+        allowed = 0 if len(k) < 5 else 1 if len(k) <= 7 else 2
+        if abs(len(n) - len(k)) > allowed:
+            continue
+        d = _edits(n, k)
+        if d <= allowed and (best is None or d < best[0]):
+            best = (d, key)
+    return None if best is None else best[1]
+
+
+def _monitor_set(spec: ScenarioSpec) -> Any:
+    """The declared monitors as a MonitorSet (None when there are none)."""
+    monitors, priority = spec.monitors, spec.priority
+    if monitors is None or (isinstance(monitors, (list, tuple)) and not monitors):
+        if priority is not None and not (isinstance(priority, (list, tuple)) and not priority):
+            raise DeclarationError("priority= is given but no monitors= to order")
+        return None
+    from ..monitors import Monitor, MonitorSet
+
+    if isinstance(monitors, (str, bytes, Mapping)) or not (
+            isinstance(monitors, Monitor) or callable(monitors) or isinstance(monitors, Iterable)):
+        raise DeclarationError(
+            f"monitors must be a list of monitors, e.g. monitors=[distance(5.0), ttc(2.0)], "
+            f"got {_show(monitors)}")
+    try:
+        members = [monitors] if isinstance(monitors, Monitor) or callable(monitors) else list(monitors)
+        return MonitorSet(members, priority=priority)
+    except (ValueError, TypeError) as exc:
+        raise DeclarationError(f"monitors: {exc}") from None
 
 
 def _check_remote_fixtures(metafunc: pytest.Metafunc, executor: str) -> None:
@@ -256,3 +357,89 @@ def slot_of(item: pytest.Item) -> CaseSlot | None:
     """The item's slot, or None for an item that is not a scenario case."""
     slot = item.callspec.params.get("case") if hasattr(item, "callspec") else None
     return slot if isinstance(slot, CaseSlot) else None
+
+
+# ------------------------------------------------------------------ errors at import time
+_PACKAGE = Path(__file__).resolve().parent.parent
+
+
+def _in_package(path: Any) -> bool:
+    try:
+        return Path(path).resolve().is_relative_to(_PACKAGE)
+    except (TypeError, ValueError, OSError):
+        return False
+
+
+def _decorated_at(source: str, line: int) -> tuple[str, bool] | None:
+    """The ``Class::function`` whose decorator list holds line ``line`` (1-based), and whether
+    one of its decorators is ``scenario(...)`` or ``example(...)``; None if no decorator does."""
+    try:
+        tree = ast.parse(source)
+    except (SyntaxError, ValueError):
+        return None
+
+    def ours(deco: ast.expr) -> bool:
+        func = deco.func if isinstance(deco, ast.Call) else deco
+        name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
+        return name in ("scenario", "example")
+
+    def visit(body: list[ast.stmt], prefix: str) -> tuple[str, bool] | None:
+        for node in body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                name = f"{prefix}{node.name}"
+                for deco in node.decorator_list:
+                    if deco.lineno <= line <= (deco.end_lineno or deco.lineno):
+                        return name, any(map(ours, node.decorator_list))
+                if isinstance(node, ast.ClassDef):
+                    found = visit(node.body, f"{name}::")
+                    if found is not None:
+                        return found
+        return None
+
+    return visit(tree.body, "")
+
+
+def import_error_message(module: pytest.Module, excinfo: pytest.ExceptionInfo[BaseException]) -> str | None:
+    """A one-paragraph collection error for an exception that a call into this package raised
+    while ``module`` was imported — a bad monitor argument in ``@scenario(monitors=[...])``,
+    say — naming the test whose decorator made the call; None for any other failure.
+
+    The decorator's arguments run when the module is imported, before any test exists, so
+    pytest would show the package's own frames and no test name. Also an exception raised by
+    the call itself in the decorator of a ``@scenario``/``@example`` test
+    (``scenario(**{1: 2})``).
+    """
+    entries = list(excinfo.traceback)
+    here = [i for i, e in enumerate(entries) if Path(str(e.path)) == module.path]
+    if not here:
+        return None
+    last = here[-1]
+    callee = entries[last + 1:]
+    line = entries[last].lineno + 1
+    try:
+        source = module.path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        source = ""
+    decorated = _decorated_at(source, line)
+    if callee and not _in_package(callee[0].path):
+        return None
+    if not callee and (decorated is None or not decorated[1]):
+        return None
+    test = None if decorated is None else decorated[0]
+    exc = excinfo.value
+    try:
+        text = str(exc)
+    except Exception:  # noqa: BLE001 - a message must not fail
+        text = ""
+    from ..monitors import MonitorError
+
+    hint = ""
+    if not isinstance(exc, (MonitorError, SpaceError, DeclarationError)):
+        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+        hint = "; --fulltrace shows the traceback"
+    where = f"{module.path.name}:{line}"
+    if test is None:
+        return (f"{module.nodeid}: {text} (raised at {where} while the module was imported, so "
+                f"none of its tests were collected{hint})")
+    return (f"{module.nodeid}::{test}: {text} (raised by its decorator at {where} while the "
+            f"module was imported, so none of the module's tests were collected{hint})")

@@ -28,7 +28,7 @@ from .campaign import (
     prefetch_passive_cases,
     run_item,
 )
-from .collect import CaseSlot, plan_of, plan_scenario, slot_of
+from .collect import CaseSlot, import_error_message, plan_of, plan_scenario, slot_of
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
 from .stopping import TermGuard, end_workers, unknown_test_info
@@ -146,6 +146,21 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
         raise pytest.Collector.CollectError(f"{test}: {exc}") from None
     config.stash[plans_key][test] = plan
     metafunc.parametrize("case", slots, ids=[s.id for s in slots], indirect=True)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_make_collect_report(collector: pytest.Collector) -> Any:
+    """A test module whose import failed inside a call to this package (a decorator's bad
+    argument): a collection error naming the test, not the package's traceback."""
+    report = yield
+    call = report.__dict__.get("call")  # set by pytest's own implementation for this purpose
+    if report.failed and isinstance(collector, pytest.Module) and getattr(call, "excinfo", None) \
+            and not collector.config.getoption("fulltrace", False) \
+            and collector.config.getoption("verbose", 0) < 2:
+        message = import_error_message(collector, call.excinfo)
+        if message is not None:
+            report.longrepr = message
+    return report
 
 
 @pytest.fixture

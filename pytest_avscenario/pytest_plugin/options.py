@@ -31,6 +31,7 @@ DEFAULT_SAMPLER = "halton"
 DEFAULT_SHRINK_BUDGET = 20
 DEFAULT_GIFS = 3
 MAX_SAMPLES = 100_000
+MAX_CASE_TIMEOUT_S = 86_400.0  # one day: beyond, a timer overflows and nobody means it
 EXECUTORS = ("inprocess", "dask")
 
 
@@ -48,11 +49,11 @@ def _integer(minimum: int, maximum: int | None = None) -> Callable[[Any], int]:
                 raise ValueError
             value = int(str(raw).strip()) if isinstance(raw, str) else int(raw)
         except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"must be an integer, got {raw!r}") from None
+            raise ValueError(f"must be an integer, got {_show(raw)}") from None
         if value < minimum:
-            raise ValueError(f"must be >= {minimum}, got {value}")
+            raise ValueError(f"must be >= {minimum}, got {_show(value)}")
         if maximum is not None and value > maximum:
-            raise ValueError(f"must be at most {maximum}, got {value}")
+            raise ValueError(f"must be at most {maximum}, got {_show(value)}")
         return value
     return parse
 
@@ -61,7 +62,7 @@ def _samples(raw: Any) -> int:
     value = _integer(1)(raw)
     if value > MAX_SAMPLES:
         raise ValueError(
-            f"must be at most {MAX_SAMPLES} per test (got {value}): every case is a pytest "
+            f"must be at most {MAX_SAMPLES} per test (got {_show(value)}): every case is a pytest "
             "item; for a long campaign give time_budget= (e.g. '30m') with a large count")
     return value
 
@@ -81,13 +82,23 @@ def parse_duration(raw: Any) -> float:
     return seconds
 
 
-def _duration(what: str) -> Callable[[Any], float]:
+def _duration(what: str, maximum: float | None = None) -> Callable[[Any], float]:
     def parse(raw: Any) -> float:
         try:
-            return parse_duration(raw)
+            seconds = parse_duration(raw)
         except (TypeError, ValueError, OverflowError):
-            raise ValueError(f"must be {what}, got {raw!r}") from None
+            raise ValueError(f"must be {what}, got {_show(raw)}") from None
+        if maximum is not None and seconds > maximum:
+            raise ValueError(f"must be at most {maximum:g} s (a day), got {_show(raw)}; "
+                             "leave it unset for no limit")
+        return seconds
     return parse
+
+
+def _show(value: Any) -> str:
+    from ..space import _show as show
+
+    return show(value)
 
 
 def _positive_seconds(raw: Any) -> float:
@@ -96,7 +107,7 @@ def _positive_seconds(raw: Any) -> float:
     except (TypeError, ValueError):
         value = math.nan
     if isinstance(raw, bool) or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"must be a positive number of seconds, got {raw!r}")
+        raise ValueError(f"must be a positive number of seconds, got {_show(raw)}")
     return value
 
 
@@ -136,7 +147,7 @@ def _sampler_names(raw: Any) -> tuple[str, ...]:
     else:
         names = []
     if not names:
-        raise ValueError(f"must be a name or a list of names, got {raw!r}")
+        raise ValueError(f"must be a name or a list of names, got {_show(raw)}")
     for n in names:
         if n not in base.available():
             raise ValueError(f"unknown sampler {n!r}; available: {', '.join(base.available())}")
@@ -213,7 +224,7 @@ OPTIONS = (
            "end a scenario case that runs longer than SECONDS (reported as an error with the "
            "time it ran)",
            "seconds one scenario case may run before it is ended as an error",
-           _duration("a positive number of seconds (or 90s, 2m)"), per_test=True),
+           _duration("a positive number of seconds (or 90s, 2m)", MAX_CASE_TIMEOUT_S), per_test=True),
     Option("executor", "NAME",
            "where scenario cases are simulated: 'inprocess' (default) or 'dask'",
            "where scenario cases are simulated: inprocess (default) or dask",
@@ -458,7 +469,7 @@ def _session_seed(config: pytest.Config) -> int:
             seed = int(str(raw).strip())
         except ValueError:
             raise pytest.UsageError(
-                f"--avs-seed / avs_seed must be an integer or 'last', got {raw!r} (from {source})"
+                f"--avs-seed / avs_seed must be an integer or 'last', got {_show(raw)} (from {source})"
             ) from None
         if seed < 0:
             raise pytest.UsageError(f"--avs-seed / avs_seed must be >= 0, got {seed} (from {source})")

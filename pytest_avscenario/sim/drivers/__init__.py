@@ -129,17 +129,35 @@ def action_pair(raw: Any) -> tuple[float, float]:
     """``(acceleration, steering)`` as floats from a driver's answer; ``ValueError`` if malformed.
 
     Accepts a 2-sequence or an array of 2 numbers (any shape with 2 elements, e.g. ``(1, 2)``
-    from a batched policy) and a mapping with ``acceleration`` and ``steering``.
+    from a batched policy) and a mapping with ``acceleration`` and ``steering``. Text
+    (``"1"``) and booleans are not numbers here: a policy returning them has a bug.
     """
+    import numpy as np
+
+    def not_number(v: Any) -> bool:
+        return isinstance(v, (str, bytes, bool, np.bool_, np.str_, np.bytes_))
+
     if isinstance(raw, dict):
         try:
             vals = [raw["acceleration"], raw["steering"]]
         except KeyError as exc:
             raise ValueError(f"action dict lacks {exc.args[0]!r}: {raw!r}") from None
+        if any(not_number(v) for v in vals):
+            raise ValueError(f"expected two numbers, got {raw!r}")
     else:
+        not_numbers = ValueError(
+            f"expected (acceleration, steering) as two numbers, got {raw!r} (text, booleans "
+            "and complex numbers are not accepted)")
+        if isinstance(raw, (str, bytes)) or (isinstance(raw, (list, tuple)) and any(map(not_number, raw))):
+            raise not_numbers  # checked before numpy, which would turn (True, 1.5) into floats
         try:
-            import numpy as np
-
+            arr = np.asarray(raw)
+        except (TypeError, ValueError):
+            arr = None
+        if arr is not None and (arr.dtype.kind not in "iufO"
+                                or (arr.dtype.kind == "O" and any(map(not_number, arr.reshape(-1))))):
+            raise not_numbers
+        try:
             arr = np.asarray(raw, dtype=float)
         except (TypeError, ValueError):
             raise ValueError(
