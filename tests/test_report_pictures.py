@@ -180,3 +180,15 @@ def test_finish_report_builds_everything_from_the_tables_on_disk(tmp_path):
     page = (tmp_path / "index.html").read_text()
     assert page.count("<img ") == 2 and ".shrink.csv" in page and "errors.jsonl" in page
     assert len(list((tmp_path / "plots").glob("*.png"))) == 2
+
+
+def test_the_space_plot_draws_values_near_the_largest_float(tmp_path):
+    # Uniform(1e308, 1.7e308) is a valid declaration: its axis is drawn divided by 1e308
+    from pytest_avscenario.outcome import CaseRow
+    from pytest_avscenario.report.plots import _axis_name, plot_feature_space
+
+    rows = [CaseRow(test="t", item=f"t[halton-00{i}]", sampler="halton", index=i, seed=1,
+                    origin="sampled", params={"x": 1e308 + i * 1.5e307}, rho={}, verdict="pass")
+            for i in range(5)]
+    assert plot_feature_space(tmp_path / "space.png", rows) is not None
+    assert _axis_name(rows, "x") == "x (×1e+308)"

@@ -75,7 +75,8 @@ def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
     """Numbers to plot for one parameter, and tick labels when it is categorical."""
     values = [r.params.get(name) for r in rows]
     if all(_is_number(v) for v in values):
-        return [float(v) for v in values], None
+        numbers = [float(v) for v in values]
+        return [x / _axis_scale(numbers) for x in numbers], None
     # Categorical (or mixed): position by first appearance, label with the value itself.
     keys: list[str] = []
     for v in values:
@@ -85,6 +86,27 @@ def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
     # A small deterministic jitter keeps cases with the same category from hiding each other.
     jitter = [((i * 0.6180339887) % 1.0 - 0.5) * 0.3 for i in range(len(values))]
     return [keys.index(str(v)) + j for v, j in zip(values, jitter)], labels
+
+
+#: beyond this magnitude matplotlib cannot lay out ticks (their spacing overflows)
+_AXIS_MAX = 1e150
+
+
+def _axis_scale(numbers: Sequence[float]) -> float:
+    """1, or the power of ten the axis is divided by when its numbers are too large to draw."""
+    import math
+
+    finite = [abs(x) for x in numbers if math.isfinite(x)]
+    top = max(finite, default=0.0)
+    return 1.0 if top <= _AXIS_MAX else 10.0 ** math.floor(math.log10(top))
+
+
+def _axis_name(rows: Sequence[Mapping[str, Any]], name: str) -> str:
+    values = [r.params.get(name) for r in rows]
+    if not all(_is_number(v) for v in values):
+        return name
+    scale = _axis_scale([float(v) for v in values])
+    return name if scale == 1.0 else f"{name} (×{scale:.0e})"
 
 
 def _varying(rows: Sequence[Mapping[str, Any]], names: Sequence[str]) -> list[str]:
@@ -130,7 +152,7 @@ def plot_feature_space(
 
     def label_axis(ax, which: str, name: str):
         _, labels = cols[name]
-        getattr(ax, f"set_{which}label")(name)
+        getattr(ax, f"set_{which}label")(_axis_name(rows, name))
         if labels is not None:
             getattr(ax, f"set_{which}ticks")(range(len(labels)))
             getattr(ax, f"set_{which}ticklabels")(labels)
