@@ -148,6 +148,8 @@ def test_crash_rows_are_made_only_for_case_ids():
 
 
 def test_a_killed_xdist_worker_loses_only_its_running_case_and_that_case_keeps_a_row(pytester):
+    # with the replay database on: the worker that replaces the killed one must collect the
+    # same items as the others, not replay what this run stored meanwhile
     pytester.makepyfile("""
 import time
 from pytest_avscenario import scenario, Uniform
@@ -155,8 +157,9 @@ from pytest_avscenario import scenario, Uniform
 @scenario(x=Uniform(0, 1), samples=60, sampler="halton")
 def test_slow(case):
     time.sleep(0.1)
+    assert case.x < 0.5
 """)
-    proc = start(pytester, "--avs-db=none", "-n", "2", "--junitxml=out.xml")
+    proc = start(pytester, "--avs-shrink-budget=0", "-n", "2", "--junitxml=out.xml")
     wait_for_rows(pytester, proc, 8)
     children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
     assert children, "no xdist worker found"
@@ -164,8 +167,11 @@ def test_slow(case):
     out = proc.communicate(timeout=120)[0].decode()
     rows = rows_of(pytester.path)
     assert len(rows) == 60 == len({r["item"] for r in rows}) == junit_cases(pytester.path / "out.xml"), out
+    assert {r["origin"] for r in rows} == {"sampled"}
     died = [r for r in rows if r["verdict"] == "error"]
     assert len(died) <= 1 and all("worker running this case died" in r["error"] for r in died)
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["tests"][0]["samples"] == 60
 
 
 # -- cases that will not stop ---------------------------------------------------------------

@@ -97,6 +97,7 @@ class _XdistHooks:
 
     def __init__(self, config: pytest.Config):
         self.config = config
+        self.snapshot: list[dict] | None = None  # the replay database as the run began
 
     def pytest_xdist_node_collection_finished(self, node: Any, ids: Any) -> None:
         node.config.stash[controller_key].note_order(ids)  # the summary lists tests in this order
@@ -126,7 +127,12 @@ class _XdistHooks:
         node.workerinput["avs_seed"] = node.config.stash[settings_key].seed
         db = node.config.stash[db_key]
         if db is not None:
-            node.workerinput["avs_db"] = db.snapshot()
+            # one snapshot for every worker of the run, those that replace a crashed worker
+            # included: all must collect the same items (xdist schedules by item index), and
+            # counterexamples stored during this run replay in the next one
+            if self.snapshot is None:
+                self.snapshot = db.snapshot()
+            node.workerinput["avs_db"] = self.snapshot
 
 
 def pytest_report_header(config: pytest.Config) -> str:
