@@ -13,6 +13,11 @@ the simulator, and are vectorized over steps and agents.
 * signal temporal logic over signals of the trajectory: :func:`always`, :func:`eventually`,
   :func:`until`, :func:`and_`, :func:`or_`, :func:`not_`, :func:`implies` with signal
   builders such as :func:`ego_speed` and :func:`gap`;
+* Responsibility-Sensitive Safety (Shalev-Shwartz et al. 2017): :func:`rss`, a monitor of
+  the margin to the RSS-safe longitudinal and lateral distances, and :func:`rss_blame`, who
+  entered an RSS-unsafe state by their own responsibility first; the paper's formulas
+  :func:`safe_longitudinal_distance`, :func:`safe_opposite_distance`,
+  :func:`safe_lateral_distance` with their :class:`RSSParams`;
 * :func:`as_monitor` makes a plain function ``trajectory -> float`` a monitor;
 * :class:`MonitorSet` evaluates several into a :class:`Verdict` and carries their priority;
 * :func:`rho_to_json` / :func:`rho_from_json` / :func:`rho_to_str` / :func:`rho_from_str`
@@ -64,6 +69,17 @@ from .stl import (
     ttc_to,
     until,
 )
+from .rss import (
+    RSSBlame,
+    RSSEpisode,
+    RSSParams,
+    rss,
+    rss_blame,
+    rss_margins,
+    safe_lateral_distance,
+    safe_longitudinal_distance,
+    safe_opposite_distance,
+)
 from ..codec import rho_from_json, rho_from_str, rho_to_json, rho_to_str
 from .sets import MonitorSet, Verdict
 
@@ -71,6 +87,8 @@ __all__ = [
     "Monitor", "MonitorError", "MonitorResult", "FunctionMonitor", "as_monitor",
     "distance", "ttc", "progress", "lane_keeping",
     "collision", "time_headway", "off_road", "reaches",
+    "rss", "rss_blame", "rss_margins", "RSSParams", "RSSBlame", "RSSEpisode",
+    "safe_longitudinal_distance", "safe_opposite_distance", "safe_lateral_distance",
     "Formula", "Signal", "always", "eventually", "until", "and_", "or_", "not_", "implies",
     "ego_speed", "ego_acceleration", "lane_offset", "gap", "ttc_to", "headway_to", "signal",
     "predicate",

@@ -7,6 +7,8 @@
 * ``"idm"`` — highway-env's own ``IDMVehicle`` logic driving the ego: the world then builds
   the ego *as* an IDM vehicle following its route (the observation is not used), isolated from
   highway-env's mutable class constants;
+* ``"careful"`` — the careful and competent human driver of UN R157 (:class:`CarefulDriver`,
+  ``pytest_avscenario.sim.drivers.reference``): the reference a failure is judged against;
 * ``"package.module:Name"`` — a class (instantiated without arguments) or object found there;
 * a user object: anything with ``act(observation)``, a stable-baselines3-style object with
   ``predict(observation)`` returning ``(action, state)``, or a plain callable
@@ -24,10 +26,17 @@ import math
 from typing import Any, Callable
 
 from ..errors import SimError
+from .reference import CarefulDriver, CarefulDriverOptions, closing_distance, stopping_distance
 
-__all__ = ["resolve", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT"]
+__all__ = ["resolve", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
+           "CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance"]
 
 AUTOPILOT = "pytest_avscenario.sim.drivers.autopilot:Autopilot"
+CAREFUL = "pytest_avscenario.sim.drivers.reference:CarefulDriver"
+
+#: the built-in driver names :func:`resolve` accepts
+BUILTIN = ("autopilot", "idm", "careful")
+_PATHS = {"autopilot": AUTOPILOT, "careful": CAREFUL}
 
 
 class IDMDriver:
@@ -97,12 +106,11 @@ def resolve(driver: Any) -> Any:
         name = driver.strip()
         if name == "idm":
             return IDMDriver()
-        if name == "autopilot":
-            name = AUTOPILOT
+        name = _PATHS.get(name, name)
         if ":" not in name:
             raise SimError(
-                f"unknown driver {driver!r}: use 'autopilot', 'idm', 'package.module:Name', "
-                "or pass a policy object")
+                f"unknown driver {driver!r}: use 'autopilot', 'idm', 'careful', "
+                "'package.module:Name', or pass a policy object")
         mod_name, _, attr = name.partition(":")
         try:
             obj = getattr(importlib.import_module(mod_name), attr)
@@ -122,7 +130,7 @@ def resolve(driver: Any) -> Any:
         return PolicyDriver(driver, "callable")
     raise SimError(
         f"cannot drive with {driver!r} ({type(driver).__name__}): a driver is 'autopilot', "
-        "'idm', a callable policy(observation), or an object with act() or predict()")
+        "'idm', 'careful', a callable policy(observation), or an object with act() or predict()")
 
 
 def action_pair(raw: Any) -> tuple[float, float]:

@@ -1,0 +1,291 @@
+"""The careful and competent (C&C) human driver of UN Regulation No. 157 as an ego driver.
+
+It is the reference against which a failure of the AV under test is judged avoidable: put it
+in the ego's seat of the same case (``world.ego(..., driver="careful")``, or an ``avs_driver``
+fixture returning ``"careful"``) and see whether it, too, collides.
+
+Source: UN Regulation No. 157 (Automated Lane Keeping Systems), original series
+(ECE/TRANS/WP.29/2020/81, in force January 2021), Annex 4, Appendix 3 "Guidance on traffic
+disturbance critical scenarios for ALKS", the performance model of a careful and competent
+human driver (pages 43-45 of the consolidated text R157e.pdf). The facts carried over:
+
+* **risk perception time** 0.4 s: from the moment a hazard becomes perceivable (a vehicle
+  ahead that starts to brake hard, or that is revealed; a vehicle in the next lane that has
+  left its lateral wandering zone toward the ego's lane) until the driver has perceived it;
+* **reaction time** 0.75 s: from perceiving the risk until the brake starts to act (foot off
+  the accelerator onto the brake);
+* **braking**: the deceleration builds up linearly to its maximum of **0.774 g** in **0.6 s**
+  (a jerk of 0.774 x 9.80665 / 0.6 = 12.65 m/s^3), then holds until the hazard is resolved;
+* **lateral wandering distance** 0.375 m: how far a vehicle drifts from its lane centre in
+  ordinary driving; a vehicle of the next lane further toward the ego's lane than that,
+  moving toward it, is perceived as cutting in;
+* a perceived hazard is **critical** when the time to collision is below 2 s; only then does
+  the driver brake with the model's full response.
+
+So from speed ``v`` with a standing obstacle appearing ahead, the C&C driver stands still
+after (the closed form :func:`stopping_distance`; ``T`` = build-up time, ``a`` = maximum
+deceleration, ``t_p + t_r`` = 1.15 s)::
+
+    v (t_p + t_r)  +  v T / 2 - a T^2 / 24  +  v^2 / (2 a)
+
+the middle term being the jerk-limited build-up (the distance covered during the 0.6 s ramp
+less the speed it already takes off). For a cut-in at constant speed the same formula of the
+closing speed gives the gap the driver needs (:func:`closing_distance`).
+
+Simplifications (deliberate, documented so a reader can judge a verdict):
+
+* one delay ``t_p + t_r`` for every hazard: the driver sees the other agents as they were
+  1.15 s ago, dead-reckoned along the lane at their speed then (a hard-braking lead is noticed
+  1.15 s late, a revealed obstacle 1.15 s after it appears, a cut-in 1.15 s after it leaves
+  its wandering zone); its own speed it knows at once. The regulation's distinction of gentle
+  lead deceleration (reaction time only) is not made;
+* ordinary driving between hazards (keeping the lane, cruise speed, following) is the
+  Intelligent Driver Model with the highway parameters of Treiber, Hennecke and Helbing
+  (2000): a = 1.0 m/s^2, b = 1.5 m/s^2, T = 1.6 s, s0 = 2 m, delta = 4 — the regulation
+  describes only the response to a critical event; every braking ramps at the model's jerk
+  and stops at 0.774 g;
+* no automatic emergency braking, no evasive steering, no reaction to crossing traffic,
+  pedestrians off its lane or vehicles behind: the regulation's model is a lane-keeping
+  motorway driver, and so is this one (straight or gently curved lanes).
+
+Deterministic: no randomness, no clock; one instance drives one case.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+from ..control import lane_steering
+
+__all__ = ["CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance",
+           "STANDARD_GRAVITY"]
+
+#: [m/s^2] the "g" of the regulation's 0.774 g (standard gravity, ISO 80000-3)
+STANDARD_GRAVITY = 9.80665
+
+
+@dataclass(frozen=True)
+class CarefulDriverOptions:
+    """Parameters of the C&C driver; every field can be passed to ``CarefulDriver(**options)``.
+
+    The first six are the regulation's (R157 Annex 4 Appendix 3); the rest shape ordinary
+    driving between critical events (IDM, Treiber et al. 2000).
+    """
+
+    risk_perception_time: float = 0.4  # [s] R157: hazard perceivable -> risk perceived
+    reaction_time: float = 0.75  # [s] R157: risk perceived -> brake acts
+    max_decel_g: float = 0.774  # [g] R157: maximum deceleration
+    brake_buildup_time: float = 0.6  # [s] R157: time to reach the maximum deceleration
+    lateral_wandering: float = 0.375  # [m] R157: lateral wandering distance in the lane
+    critical_ttc: float = 2.0  # [s] R157: a perceived hazard is critical below this TTC
+    cruise_speed: float | None = None  # [m/s] overrides observation.target_speed / speed_limit
+    max_accel: float = 1.0  # [m/s^2] IDM acceleration
+    comfort_decel: float = 1.5  # [m/s^2] IDM comfortable deceleration
+    time_headway: float = 1.6  # [s] IDM desired time gap
+    min_gap: float = 2.0  # [m] IDM standstill gap, bumper to bumper
+    idm_delta: float = 4.0  # IDM acceleration exponent
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None:
+                continue
+            if not isinstance(value, (int, float)) or isinstance(value, bool) \
+                    or not math.isfinite(value):
+                raise TypeError(f"CarefulDriver option {f.name}={value!r}: expected a finite number")
+            if value < 0:
+                raise ValueError(f"CarefulDriver option {f.name}={value!r}: must be >= 0")
+        for name in ("max_decel_g", "max_accel", "comfort_decel", "idm_delta"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"CarefulDriver option {name}={getattr(self, name)!r}: must be > 0")
+
+    @property
+    def delay(self) -> float:
+        """[s] from a hazard becoming perceivable to the brake acting: perception + reaction."""
+        return self.risk_perception_time + self.reaction_time
+
+    @property
+    def max_decel(self) -> float:
+        """[m/s^2] the maximum deceleration, 0.774 g by default."""
+        return self.max_decel_g * STANDARD_GRAVITY
+
+    @property
+    def brake_jerk(self) -> float:
+        """[m/s^3] how fast braking builds up (infinite with a zero build-up time)."""
+        if self.brake_buildup_time <= 0:
+            return math.inf
+        return self.max_decel / self.brake_buildup_time
+
+
+def closing_distance(closing_speed: float, options: CarefulDriverOptions | None = None) -> float:
+    """Distance [m] a gap shrinks from the moment a hazard that keeps its speed becomes
+    perceivable until the C&C driver has matched that speed, closing at ``closing_speed``
+    [m/s] and not accelerating before it reacts: delay, jerk-limited build-up, full braking.
+
+    A standing hazard makes it the stopping distance (:func:`stopping_distance`). 0 when not
+    closing.
+    """
+    o = options if options is not None else CarefulDriverOptions()
+    v = float(closing_speed)
+    if not v > 0:
+        return 0.0
+    a, T = o.max_decel, o.brake_buildup_time
+    d = v * o.delay
+    if T > 0 and v <= a * T / 2:
+        # matched during the build-up: j t^2 / 2 = v
+        j = a / T
+        t = math.sqrt(2 * v / j)
+        return d + v * t - j * t ** 3 / 6
+    return d + v * T / 2 - a * T * T / 24 + v * v / (2 * a)
+
+
+def stopping_distance(speed: float, options: CarefulDriverOptions | None = None) -> float:
+    """Distance [m] the C&C driver travels from ``speed`` [m/s] between a standing obstacle
+    becoming perceivable and standing still (see the module doc for the closed form)."""
+    return closing_distance(speed, options)
+
+
+class CarefulDriver:
+    """The careful and competent driver of UN R157 (see the module doc for the model).
+
+    ``CarefulDriver(**options)`` takes the fields of :class:`CarefulDriverOptions`;
+    ``act(observation) -> (acceleration [m/s^2], steering [rad])``. It keeps its lane (the
+    route's current lane), cruises at ``cruise_speed`` (else the scenario's target speed, else
+    the speed limit), follows what it has perceived in its path with IDM, and brakes with the
+    regulation's response — ramp at 12.65 m/s^3 to 0.774 g, hold — once a perceived hazard is
+    critical (TTC below 2 s), until it no longer closes in on it. ``last_reason`` names what
+    decided the last command ("cruise", "follow", "critical", "stopped").
+    """
+
+    name = "careful"
+
+    def __init__(self, **options: Any) -> None:
+        try:
+            self.options = CarefulDriverOptions(**options)
+        except TypeError as exc:
+            known = ", ".join(f.name for f in fields(CarefulDriverOptions))
+            raise TypeError(f"{exc}. Known CarefulDriver options: {known}") from None
+        self._seen: deque = deque()  # (t [s], agents) observations, oldest first
+        self._accel = 0.0  # [m/s^2] last command
+        self._critical: tuple[float, float] | None = None  # (onset t [s], command then)
+        self.last_reason = "cruise"
+
+    def __repr__(self) -> str:
+        changed = {k: v for k, v in asdict(self.options).items()
+                   if v != getattr(CarefulDriverOptions, k)}
+        return f"CarefulDriver({', '.join(f'{k}={v!r}' for k, v in changed.items())})"
+
+    # -- perception -------------------------------------------------------------------------
+    def _view(self, obs: Any) -> tuple[float, tuple]:
+        """The newest observation at least ``delay`` old: (its time, its agents); before one
+        exists, nothing has been perceived yet."""
+        self._seen.append((obs.t, obs.agents))
+        cutoff = obs.t - self.options.delay + 1e-9
+        while len(self._seen) > 1 and self._seen[1][0] <= cutoff:
+            self._seen.popleft()
+        t0, agents = self._seen[0]
+        return (t0, agents) if t0 <= cutoff else (obs.t, ())
+
+    def _hazards(self, obs: Any, lane: Any, t_seen: float, agents: tuple) -> list:
+        """Perceived agents in the ego's path ahead: (bumper gap now [m], speed along the
+        lane [m/s], name), the gap dead-reckoned from when they were seen."""
+        o = self.options
+        ego = obs.ego
+        s_e, r_e = obs.s, obs.r
+        hdg = lane.heading_at(s_e)
+        tx, ty = math.cos(hdg), math.sin(hdg)
+        width = lane.width_at(s_e) if hasattr(lane, "width_at") else 3.5
+        age = obs.t - t_seen
+        out = []
+        for a in agents:
+            s_a, r_a = lane.local_coordinates((a.x, a.y))
+            v_lon = a.vx * tx + a.vy * ty
+            v_lat = a.vy * tx - a.vx * ty  # + toward the left
+            s_now = s_a + v_lon * age
+            if s_now <= s_e:
+                continue  # behind the ego's centre: not its hazard
+            in_path = abs(r_a - r_e) < 0.5 * (ego.width + a.width)
+            # out of its wandering zone in the next lane, moving toward the ego's lane
+            cutting_in = (abs(r_a) < 1.5 * width and abs(r_a) < width - o.lateral_wandering
+                          and r_a * v_lat < 0.0)
+            if in_path or cutting_in:
+                gap = s_now - s_e - 0.5 * (ego.length + a.length)
+                out.append((gap, v_lon, a.name))
+        return out
+
+    # -- the step -----------------------------------------------------------------------------
+    def act(self, obs: Any) -> tuple[float, float]:
+        """Acceleration [m/s^2] and front-wheel angle [rad] for one observation."""
+        o = self.options
+        ego = obs.ego
+        dt = obs.dt if obs.dt > 0 else 0.1
+        v = ego.speed
+        t_seen, agents = self._view(obs)
+        lane = obs.route[obs.route_index] if obs.route else None
+        if lane is None:
+            self.last_reason = "no route"
+            return self._finish(-o.comfort_decel, 0.0, v, dt)
+        hazards = self._hazards(obs, lane, t_seen, agents) if agents else []
+
+        v0 = o.cruise_speed if o.cruise_speed is not None else (
+            obs.target_speed if obs.target_speed is not None else obs.speed_limit)
+        accel = o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else -o.comfort_decel
+        reason = "cruise"
+        critical = False
+        if hazards:
+            gap, v_lead, _ = min(hazards)
+            s_star = o.min_gap + max(0.0, v * o.time_headway + v * (v - v_lead)
+                                     / (2.0 * math.sqrt(o.max_accel * o.comfort_decel)))
+            accel -= o.max_accel * (s_star / max(gap, 0.1)) ** 2
+            reason = "follow"
+            for gap_h, v_h, _ in hazards:
+                closing = v - v_h
+                if closing > 0.0 and gap_h < o.critical_ttc * closing:
+                    critical = True
+        if self._critical is not None and not any(v > v_h for _, v_h, _ in hazards):
+            self._critical = None  # no longer closing in on anything: the hazard is resolved
+        if critical and self._critical is None:
+            self._critical = (obs.t, min(self._accel, 0.0))
+        if self._critical is not None:
+            accel = self._response(obs.t, dt)
+            reason = "critical"
+        lookahead = max(v, 0.0) * 0.1
+        steer = lane_steering(v, ego.heading, obs.r, lane.heading_at(obs.s + lookahead),
+                              ego.length)
+        self.last_reason = "stopped" if v <= 0.0 and accel <= 0.0 else reason
+        return self._finish(accel, steer, v, dt, ramp=self._critical is None)
+
+    def _response(self, t: float, dt: float) -> float:
+        """The regulation's braking, averaged over the step [t, t + dt] so the speed follows
+        the continuous profile exactly at every sample: from the command at onset down at
+        the model's jerk to the maximum deceleration, then held."""
+        o = self.options
+        t_on, a_on = self._critical
+        a_max, jerk = o.max_decel, o.brake_jerk
+
+        def integral(u: float) -> float:  # of the profile from the onset to u seconds after
+            if math.isinf(jerk):
+                return -a_max * u
+            t_full = (a_on + a_max) / jerk  # when the ramp reaches -a_max
+            if u <= t_full:
+                return a_on * u - 0.5 * jerk * u * u
+            return a_on * t_full - 0.5 * jerk * t_full * t_full - a_max * (u - t_full)
+
+        u0 = max(t - t_on, 0.0)
+        return (integral(u0 + dt) - integral(u0)) / dt
+
+    def _finish(self, accel: float, steer: float, v: float, dt: float,
+                ramp: bool = True) -> tuple[float, float]:
+        """Human limits: braking builds up at the model's jerk and stops at its maximum;
+        braking never reverses the car."""
+        o = self.options
+        if ramp and accel < self._accel:
+            accel = max(accel, min(self._accel, 0.0) - o.brake_jerk * dt)
+        accel = max(-o.max_decel, min(o.max_accel, accel))
+        if v >= 0.0:
+            accel = max(accel, -v / dt)
+        self._accel = accel
+        return accel, steer
