@@ -67,3 +67,21 @@ def test_bad(case):
 """)
     result = pytester.runpytest("--avs-db=none", "--avs-report=none")
     result.stdout.fnmatch_lines(["*::test_bad: shrink_max must be >= 0, got -1 (from @scenario(shrink_max=...))*"])
+
+
+def test_the_built_in_driver_names_are_the_simulators(pytester):
+    from pytest_avscenario.pytest_plugin.options import BUILTIN_DRIVERS
+    from pytest_avscenario.sim.drivers import BUILTIN
+
+    assert BUILTIN_DRIVERS == BUILTIN
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(30, 60), samples=2)
+def test_follow(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=15.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0)
+    world.run(seconds=2)
+""")
+    pytester.runpytest("--avs-driver=careful", "--avs-db=none", "-p", "no:xdist").assert_outcomes(passed=2)

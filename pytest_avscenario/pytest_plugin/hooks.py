@@ -190,7 +190,7 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
 
     Return a callable ``policy(observation) -> (acceleration, steering)``, an object with
     ``act(observation)`` or ``predict(observation)``, or a built-in name (``"autopilot"``,
-    ``"idm"``). The default is ``--avs-driver`` / ini ``avs_driver`` or ``"autopilot"``.
+    ``"idm"``, ``"careful"``). The default is ``--avs-driver`` / ini ``avs_driver`` or ``"autopilot"``.
     """
     return request.config.stash[settings_key].driver
 

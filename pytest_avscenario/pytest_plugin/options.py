@@ -120,10 +120,16 @@ def _one_of(what: str, *names: str) -> Callable[[Any], str]:
     return parse
 
 
+#: the built-in drivers' names (``sim.drivers.BUILTIN``, kept here so that loading the plugin
+#: imports no simulator; tests/test_options.py checks the two agree)
+BUILTIN_DRIVERS = ("autopilot", "idm", "careful")
+
+
 def _driver(raw: Any) -> str:
     value = str(raw).strip()
-    if value not in ("autopilot", "idm") and ":" not in value:
-        raise ValueError(f"unknown driver {value!r}; use 'autopilot', 'idm' or 'package.module:Name'")
+    if value not in BUILTIN_DRIVERS and ":" not in value:
+        names = ", ".join(repr(n) for n in BUILTIN_DRIVERS)
+        raise ValueError(f"unknown driver {value!r}; use {names} or 'package.module:Name'")
     return value
 
 
@@ -192,9 +198,10 @@ OPTIONS = (
            "sampler for scenario tests whose marker does not name one",
            _sampler_names, per_test=True, cli_first=True),
     Option("driver", "NAME",
-           "driver of the ego: 'autopilot' (default), 'idm' or 'package.module:Name'; a "
-           "conftest `avs_driver` fixture overrides this",
-           "built-in driver of the ego (autopilot or idm) when avs_driver is not overridden",
+           "driver of the ego: 'autopilot' (default), 'idm', 'careful' (UN R157's careful and "
+           "competent driver) or 'package.module:Name'; a conftest `avs_driver` fixture "
+           "overrides this",
+           "built-in driver of the ego (autopilot, idm or careful) when avs_driver is not overridden",
            _driver),
     Option("report", "DIR",
            "write the scenario report under DIR (default avs-report; 'none' disables)",
