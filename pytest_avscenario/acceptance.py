@@ -9,6 +9,10 @@ otherwise, with any combination of:
   them reject it; every other one is an expected failure (still minimized, stored, reported);
 * ``"regressions"`` — only a stored counterexample (replayed) or a pinned ``@example`` that
   fails again rejects it; new counterexamples are expected failures;
+* ``"avoidable"`` — with the terms above (alone it means ``"any"``): a violated metric that
+  the reference driver violates too (``CaseRow.avoidable[metric]`` is false) does not count,
+  so a counterexample no careful driver survives is an expected failure; a metric whose
+  avoidability is unknown still counts;
 * :func:`rate` bounds, e.g. ``rate("collision", at_most=0.01, confidence=0.95)`` — judged on
   the whole campaign's sampled cases: the one-sided Clopper–Pearson upper bound of the
   violation rate must not exceed ``at_most`` (needs a passive sampler: an active one's cases
@@ -36,7 +40,7 @@ from .outcome import CaseRow
 __all__ = ["Criteria", "RateBound", "rate", "parse_accept", "Baseline", "load_baseline",
            "case_verdict", "campaign_verdict", "clopper_pearson_upper"]
 
-KEYWORDS = ("any", "regressions")
+KEYWORDS = ("any", "regressions", "avoidable")
 
 
 @dataclass(frozen=True)
@@ -72,20 +76,24 @@ class Criteria:
     metrics: tuple[str, ...] = ()
     regressions: bool = False
     rates: tuple[RateBound, ...] = field(default=())
+    avoidable: bool = False  # violations the reference driver commits too do not count
 
     def text(self) -> str:
         terms = (["any"] if self.any else []) + list(self.metrics) + \
-            (["regressions"] if self.regressions else []) + [r.text() for r in self.rates]
+            (["regressions"] if self.regressions else []) + [r.text() for r in self.rates] + \
+            (["avoidable"] if self.avoidable else [])
         return ",".join(terms)
 
     def to_json(self) -> dict[str, Any]:
         return {"any": self.any, "metrics": list(self.metrics), "regressions": self.regressions,
-                "rates": [[r.metric, r.at_most, r.confidence] for r in self.rates]}
+                "rates": [[r.metric, r.at_most, r.confidence] for r in self.rates],
+                "avoidable": self.avoidable}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> "Criteria":
         return cls(bool(data["any"]), tuple(data["metrics"]), bool(data["regressions"]),
-                   tuple(RateBound(m, a, c) for m, a, c in data["rates"]))
+                   tuple(RateBound(m, a, c) for m, a, c in data["rates"]),
+                   bool(data.get("avoidable", False)))
 
     def check(self, metrics: Sequence[str], active: bool) -> None:
         """ValueError when a criterion names an undeclared metric, or bounds the rate of an
@@ -125,10 +133,11 @@ def parse_accept(value: Any) -> Criteria:
     elif isinstance(value, (list, tuple)):
         terms = list(value)
     else:
-        raise ValueError(f"must be 'any', 'regressions', metric names or rate(...) bounds, got {value!r}")
+        raise ValueError(f"must be 'any', 'regressions', 'avoidable', metric names or rate(...) "
+                         f"bounds, got {value!r}")
     if not terms:
         raise ValueError(f"must name at least one criterion, got {value!r}")
-    any_, regressions, metrics, rates = False, False, [], []
+    any_, regressions, avoidable, metrics, rates = False, False, False, [], []
     for term in terms:
         if isinstance(term, RateBound):
             rates.append(term)
@@ -143,12 +152,16 @@ def parse_accept(value: Any) -> Criteria:
             any_ = True
         elif term == "regressions":
             regressions = True
+        elif term == "avoidable":
+            avoidable = True
         elif isinstance(term, str) and term.isidentifier():
             metrics.append(term)
         else:
-            raise ValueError(f"unknown criterion {term!r}: use 'any', 'regressions', a metric "
-                             "name or rate(...)")
-    return Criteria(any_, tuple(dict.fromkeys(metrics)), regressions, tuple(rates))
+            raise ValueError(f"unknown criterion {term!r}: use 'any', 'regressions', "
+                             "'avoidable', a metric name or rate(...)")
+    if avoidable and not (any_ or metrics or regressions or rates):
+        any_ = True  # "avoidable" alone: every avoidable counterexample rejects
+    return Criteria(any_, tuple(dict.fromkeys(metrics)), regressions, tuple(rates), avoidable)
 
 
 DEFAULT = Criteria()
@@ -159,6 +172,14 @@ def case_verdict(criteria: Criteria, row: CaseRow, violated: Iterable[str]) -> s
     expected failure). ``violated``: its violated metrics (empty for a failed assertion)."""
     violated = list(violated)
     what = ", ".join(violated) or "the test's assertion"
+    if criteria.avoidable and violated:
+        known = row.avoidable or {}
+        unavoidable = [m for m in violated if known.get(m) is False]
+        violated = [m for m in violated if known.get(m) is not False]
+        if not violated:
+            return None  # the reference driver violates all of them too
+        if unavoidable:
+            what = f"{', '.join(violated)}; unavoidable: {', '.join(unavoidable)}"
     if criteria.any:
         return f"counterexample ({what})"
     hit = [m for m in violated if m in criteria.metrics]
@@ -169,8 +190,13 @@ def case_verdict(criteria: Criteria, row: CaseRow, violated: Iterable[str]) -> s
     return None
 
 
-def accepted_reason(criteria: Criteria, violated: Iterable[str]) -> str:
+def accepted_reason(criteria: Criteria, violated: Iterable[str], row: CaseRow | None = None) -> str:
     """The xfail reason of an accepted counterexample."""
+    violated = list(violated)
+    known = (row.avoidable or {}) if row is not None else {}
+    if criteria.avoidable and violated and all(known.get(m) is False for m in violated):
+        return (f"violated {', '.join(violated)}, unavoidable: the reference driver violates "
+                f"{'it' if len(violated) == 1 else 'them'} too; accepted by accept={criteria.text()}")
     return f"violated {', '.join(violated) or 'the assertion'}; accepted by accept={criteria.text()}"
 
 

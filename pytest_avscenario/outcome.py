@@ -158,6 +158,12 @@ class CaseRow:
     minimized: Mapping[str, Any] | None = None
     shrink_sims: int | None = None
     flaky: bool = False  # a replay with the same seed did not fail the same way
+    #: violated metric -> whether the reference driver avoids it (True: avoidable; False: it
+    #: violates it too; None: unknown — the reference run failed); None: not judged
+    avoidable: Mapping[str, bool | None] | None = None
+    #: the agent that entered an RSS-unsafe state first by its own responsibility, and when
+    #: ({"agent": name or "both", "t": seconds}); None: not judged or nobody did
+    unsafe_first: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -184,6 +190,10 @@ class CaseRow:
             out["shrink_sims"] = self.shrink_sims
         if self.flaky:
             out["flaky"] = True
+        if self.avoidable is not None:
+            out["avoidable"] = dict(self.avoidable)
+        if self.unsafe_first is not None:
+            out["unsafe_first"] = dict(self.unsafe_first)
         return out
 
     @classmethod
@@ -208,9 +218,23 @@ class CaseRow:
             minimized=data.get("minimized"),
             shrink_sims=None if data.get("shrink_sims") is None else int(data["shrink_sims"]),
             flaky=bool(data.get("flaky", False)),
+            avoidable=_avoidable(data.get("avoidable")),
+            unsafe_first=data.get("unsafe_first") if isinstance(data.get("unsafe_first"), Mapping) else None,
         )
+
+    @property
+    def unavoidable(self) -> list[str]:
+        """The violated metrics the reference driver violates too."""
+        return [m for m, v in (self.avoidable or {}).items() if v is False]
 
     @classmethod
     def coerce(cls, row: "CaseRow | Mapping[str, Any]") -> "CaseRow":
         """``row`` itself, or a row read from JSON data or written by hand."""
         return row if isinstance(row, CaseRow) else cls.from_json(row)
+
+
+def _avoidable(data: Any) -> dict[str, bool | None] | None:
+    if not isinstance(data, Mapping):
+        return None
+    return {str(k): v if isinstance(v, bool) else None for k, v in data.items()}
+

@@ -24,6 +24,8 @@ SPEC_KEYWORDS = (
     "time_budget",
     "case_timeout",
     "accept",
+    "reference_driver",
+    "reference_max",
 )
 
 _UNSET: Any = object()
@@ -45,6 +47,8 @@ class ScenarioSpec:
     time_budget: Any = None
     case_timeout: Any = None
     accept: Any = None
+    reference_driver: Any = None
+    reference_max: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
     given: frozenset[str] = field(default_factory=frozenset)
     #: what was wrong with the call itself (positional arguments, a bare ``@scenario``), told
@@ -65,6 +69,8 @@ def scenario(
     time_budget: str | float | None = _UNSET,
     case_timeout: float | None = _UNSET,
     accept: Any = _UNSET,
+    reference_driver: str | None = _UNSET,
+    reference_max: int | None = _UNSET,
     **parameters: Any,
 ) -> pytest.MarkDecorator:
     """Declare an abstract scenario on a test; returns a ``pytest.mark.scenario`` mark.
@@ -94,7 +100,12 @@ def scenario(
     :param accept: when the campaign may ship (see :mod:`pytest_avscenario.acceptance`):
         ``"any"`` counterexample rejects it (default), metric names (only their violations
         reject it), ``"regressions"`` (only stored or pinned cases failing again), or
-        ``rate(metric, at_most=..., confidence=...)`` bounds; a list combines them.
+        ``rate(metric, at_most=..., confidence=...)`` bounds; a list combines them;
+        ``"avoidable"`` counts only counterexamples the reference driver avoids.
+    :param reference_driver: the driver each counterexample is simulated again with, to judge
+        whether its violations were avoidable (default ``"careful"``, UN R157's careful and
+        competent driver; ``"none"`` turns the check off).
+    :param reference_max: judge only the first N counterexamples per sampler (default: all).
     """
     given = {
         k
@@ -102,6 +113,7 @@ def scenario(
             samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
+            reference_driver=reference_driver, reference_max=reference_max,
         ).items()
         if v is not _UNSET
     }
@@ -111,6 +123,7 @@ def scenario(
             samples=samples, sampler=sampler, seed=seed, monitors=monitors, priority=priority,
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
+            reference_driver=reference_driver, reference_max=reference_max,
         ).items()
     }
     problem = None

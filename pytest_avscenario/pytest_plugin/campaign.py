@@ -27,7 +27,7 @@ from ..case import Case
 from ..outcome import CaseOutcome, CaseRow
 from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
-from .failure import failure_message
+from .failure import failure_message, fmt_rho
 from .stopping import stuck_case_handler
 from .stash import (
     campaigns_key,
@@ -69,6 +69,7 @@ class Campaign:
     gifs: int = 0  # GIFs rendered so far for this test
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
+    judged: dict[str, int] = field(default_factory=dict)  # sampler -> avoidability checks run
     # asking ahead on a cluster: (sampler, index) -> the item
     items: dict[tuple[str, int], Any] = field(default_factory=dict)
 
@@ -238,10 +239,14 @@ def run_item(item: pytest.Function) -> ItemResult:
             campaign.shrunk[slot.sampler] = done + 1
             shrink = shrink_case(item, plan, case_obj, outcome)
     minimized = shrink is not None and shrink.minimized is not None
+    judged = judge_avoidability(item, campaign, case_obj, outcome) \
+        if not (shrink is not None and shrink.flaky) else None
     row = make_row(item, case_obj, outcome,
                    minimized=shrink.minimized if minimized else None,
                    shrink_sims=shrink.sims if minimized else None,
-                   flaky=shrink is not None and shrink.flaky)
+                   flaky=shrink is not None and shrink.flaky,
+                   avoidable=judged.avoidable if judged else None,
+                   unsafe_first=judged.unsafe_first if judged else None)
     item.stash[row_key] = row
     item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
     if item.config.stash[settings_key].junit == "properties":
@@ -257,12 +262,13 @@ def run_item(item: pytest.Function) -> ItemResult:
         item.stash[pictures_key] = render_case(item, campaign, outcome, shrink)
     if outcome.verdict == "pass":
         return ItemResult(outcome)
-    message = failure_message(item, case_obj, outcome, shrink, note)
+    message = failure_message(item, case_obj, outcome, shrink, note,
+                              avoidability=judged.text() if judged else None)
     # the body's own exception keeps its traceback; monitor errors are our message alone
     reraise = outcome.exc is not None and not isinstance(outcome.exc, monitor_error_type())
     accepted = None
     if outcome.failed and case_verdict(plan.accept, row, outcome.violated) is None:
-        accepted = accepted_reason(plan.accept, outcome.violated)
+        accepted = accepted_reason(plan.accept, outcome.violated, row)
     return ItemResult(outcome, message, reraise, accepted)
 
 
@@ -405,10 +411,10 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
     return pictures
 
 
-def build_world(case: Case, driver: Any, name: str) -> Any:
+def build_world(case: Case, driver: Any, name: str, ego_driver: Any = None) -> Any:
     from ..sim import World
 
-    return World(seed=case.seed, rng=case.rng, driver=driver, name=name)
+    return World(seed=case.seed, rng=case.rng, driver=driver, name=name, ego_driver=ego_driver)
 
 
 def executor_of(config: pytest.Config) -> Any:
@@ -447,13 +453,16 @@ def driver_ahead(item: pytest.Function) -> Any:
 
 
 def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world: bool,
-             prefetch: bool = False, fixtures: Mapping[str, Any] | None = None) -> Any:
+             prefetch: bool = False, fixtures: Mapping[str, Any] | None = None,
+             reference: str | None = None) -> Any:
     """The executor's description of one case of ``item``'s test.
 
     With ``prefetch`` (before the item's fixtures exist) there are no fixture values, and the
     driver is known only when ``avs_driver`` is the plugin's own (then it is the built-in
     name); otherwise ``driver`` is None and the job cannot be started ahead. ``fixtures``
     gives the values of the test's other fixtures while the item's own are being set up.
+    ``reference`` names a driver that drives the ego whatever the scenario says (the
+    avoidability check); on a cluster it replaces the world's default driver.
     """
     from ..executors import CaseJob
 
@@ -466,6 +475,16 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
         driver = fixtures.get("avs_driver")
         if driver is None and "world" in argnames:
             driver = item._request.getfixturevalue("avs_driver")
+    if reference is not None:
+        return CaseJob(
+            nodeid=item.nodeid, module_path=str(item.path), rootdir=str(item.config.rootpath),
+            function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
+            case=case, monitor_set=plan.monitor_set, driver=reference, fresh_world=True,
+            timeout_s=plan.case_timeout_s,
+            make_world=lambda c: build_world(c, driver, item.nodeid, ego_driver=reference),
+            on_stuck=stuck_case_handler(
+                item, plan.case_timeout_s, lambda o: make_row(item, item.funcargs.get("case", case), o),
+                plan.info()))
     return CaseJob(
         nodeid=item.nodeid, module_path=str(item.path), rootdir=str(item.config.rootpath),
         function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
@@ -538,6 +557,89 @@ def update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
     return f"stored for replay in {entry.path}"
 
 
+@dataclass
+class Avoidability:
+    """What the reference driver made of one counterexample."""
+
+    driver: str
+    avoidable: dict[str, bool | None]  # violated metric -> avoided by the reference?
+    reference_rho: dict[str, float]
+    unsafe_first: dict[str, Any] | None = None  # {"agent": ..., "t": ...}
+    error: str | None = None  # the reference run could not be judged
+
+    def text(self) -> str:
+        lines = []
+        if self.error is not None:
+            lines.append(f"avoidability unknown: the {self.driver} reference run failed ({self.error})")
+        else:
+            for m, ok in self.avoidable.items():
+                rho = self.reference_rho.get(m)
+                how = "" if rho is None else f" (reference rho {fmt_rho(rho)})"
+                word = {True: "avoidable", False: "UNAVOIDABLE", None: "avoidability unknown"}[ok]
+                verb = {True: "keeps it", False: "violates it too", None: "was not judged on it"}[ok]
+                lines.append(f"{m}: {word} — the {self.driver} reference driver {verb}{how}")
+        if self.unsafe_first is not None:
+            who = self.unsafe_first["agent"]
+            subject = "both cars" if who == "both" else who
+            lines.append(f"RSS: {subject} entered an unsafe state first, at "
+                         f"t = {self.unsafe_first['t']:.1f} s")
+        return "\n".join(lines)
+
+
+def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
+                       outcome: CaseOutcome) -> Avoidability | None:
+    """Simulate a counterexample again with the plan's reference driver as the ego (same seed,
+    same other agents and behaviours) and classify each violated metric; name who entered an
+    RSS-unsafe state first. None when not judged (no reference, no violated monitor, budget
+    spent)."""
+    plan = campaign.plan
+    reference = plan.reference_driver
+    if reference is None or not outcome.failed or not outcome.violated:
+        return None
+    done = campaign.judged.get(case.sampler, 0)
+    if plan.reference_max is not None and done >= plan.reference_max:
+        return None
+    campaign.judged[case.sampler] = done + 1
+    ref = executor_of(item.config).run(make_job(item, plan, case, fresh_world=True, reference=reference))
+    judged = Avoidability(reference, {}, {k: float(v) for k, v in ref.rho.items()},
+                          unsafe_first=unsafe_first(outcome))
+    if ref.verdict == "error" and not ref.rho:
+        judged.error = ref.error
+        judged.avoidable = {m: None for m in outcome.violated}
+        return judged
+    for m in outcome.violated:
+        rho = ref.rho.get(m)
+        judged.avoidable[m] = None if rho is None or rho != rho else bool(rho >= 0)
+    return judged
+
+
+def unsafe_first(outcome: CaseOutcome) -> dict[str, Any] | None:
+    """Who entered an RSS-unsafe state first by their own responsibility, between the ego and
+    the agent of the worst violated metric (or, if none is named, the earliest of all)."""
+    traj = outcome.trajectory
+    if traj is None:
+        return None
+    from ..monitors import MonitorError
+    from ..monitors.rss import rss_blame
+
+    try:
+        blames = rss_blame(traj)
+    except (MonitorError, ValueError, FloatingPointError):
+        return None
+    worst = min((r for r in outcome.results.values() if r.rho < 0), key=lambda r: r.rho, default=None)
+    pairs = [b for b in blames if worst is not None and b.other == worst.agent] or list(blames)
+    found = []
+    for b in pairs:
+        who = b.first
+        if who is not None:
+            t = min(x for x in (b.ego_unsafe_at, b.other_unsafe_at) if x is not None)
+            found.append((t, who))
+    if not found:
+        return None
+    t, who = min(found)
+    return {"agent": who, "t": float(t)}
+
+
 def body_rho(outcome: CaseOutcome) -> float:
     # no monitors: a failing assertion is a violation, a pass is neutral
     return -1.0 if outcome.verdict == "fail" else 0.0
@@ -545,10 +647,12 @@ def body_rho(outcome: CaseOutcome) -> float:
 
 def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
              minimized: Mapping[str, Any] | None = None, shrink_sims: int | None = None,
-             flaky: bool = False) -> CaseRow:
+             flaky: bool = False, avoidable: Mapping[str, bool | None] | None = None,
+             unsafe_first: Mapping[str, Any] | None = None) -> CaseRow:
     """The error-table row of one finished case."""
     return CaseRow(
         test=function_id(item), item=item.nodeid, sampler=case.sampler, index=case.index,
         seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
         verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
-        minimized=minimized, shrink_sims=shrink_sims, flaky=flaky)
+        minimized=minimized, shrink_sims=shrink_sims, flaky=flaky, avoidable=avoidable,
+        unsafe_first=unsafe_first)

@@ -67,6 +67,8 @@ class ScenarioPlan:
     case_timeout_s: float | None
     replays: Mapping[int, Any]  # replay index -> db entry
     accept: Any  # acceptance.Criteria
+    reference_driver: str | None = None  # judges avoidability of counterexamples (None: off)
+    reference_max: int | None = None  # counterexamples per sampler judged (None: all)
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -178,7 +180,14 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         monitor_set=monitor_set, sampler_options=types.MappingProxyType(dict(opts)),
         time_budget_s=own.time_budget_s, shrink_budget=own.shrink_budget,
         shrink_max=own.shrink_max, case_timeout_s=own.case_timeout_s,
-        replays=types.MappingProxyType(replays), accept=own.accept)
+        replays=types.MappingProxyType(replays), accept=own.accept,
+        reference_driver=own.reference_driver if "world" in metafunc.fixturenames else None,
+        reference_max=own.reference_max)
+    if own.accept.avoidable and plan.reference_driver is None:
+        raise DeclarationError(
+            "accept='avoidable' counts only counterexamples a reference driver avoids, but this "
+            "test has none: it must use the `world` fixture (the reference drives its ego), "
+            "with reference_driver= not 'none'")
     from ..samplers import base as sampler_base
 
     for name in plan.samplers:

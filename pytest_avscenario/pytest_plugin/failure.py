@@ -31,7 +31,8 @@ def fmt_value(v: Any) -> str:
 
 
 def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
-                    shrink: Any = None, note: str | None = None) -> str:
+                    shrink: Any = None, note: str | None = None,
+                    avoidability: str | None = None) -> str:
     """The text a failing case shows: by default the violated metrics, the parameters (found
     and minimized), the line to pin it and the command to re-run it; with ``-v`` every
     metric and found / minimized / nominal side by side, as the report has them."""
@@ -65,6 +66,8 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
     if verbose:
         lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
                      f"simulated in {outcome.sim_time_s:.3f} s")
+    if avoidability:
+        lines += [f"  {line}" for line in avoidability.splitlines()]
     if note:
         lines.append(f"  {note}")
     lines.append(f"  re-run only this case: {rerun_command(item, case)}")

@@ -29,6 +29,7 @@ from ..markers.spec import ScenarioSpec
 DEFAULT_SAMPLES = 20
 DEFAULT_SAMPLER = "halton"
 DEFAULT_SHRINK_BUDGET = 20
+DEFAULT_REFERENCE = "careful"  # the reference driver of the avoidability check
 DEFAULT_GIFS = 3
 MAX_SAMPLES = 100_000
 MAX_CASE_TIMEOUT_S = 86_400.0  # one day: beyond, a timer overflows and nobody means it
@@ -133,6 +134,17 @@ def _driver(raw: Any) -> str:
     return value
 
 
+def _reference(raw: Any) -> str | None:
+    """A built-in driver's name, or None for 'none' (no avoidability check)."""
+    value = str(raw).strip() if isinstance(raw, str) or raw is None else raw
+    if value is None or value == "none":
+        return None
+    if value not in BUILTIN_DRIVERS:
+        names = ", ".join(repr(n) for n in BUILTIN_DRIVERS)
+        raise ValueError(f"must be a built-in driver ({names}) or 'none', got {_show(raw)}")
+    return value
+
+
 def _accept(raw: Any) -> Any:
     from ..acceptance import parse_accept
 
@@ -226,6 +238,18 @@ OPTIONS = (
            "minimize (and store for replay) only the first N failures of each scenario test "
            "and sampler; the rest are reported as found (default: every failure)",
            "failures per test and sampler that are minimized and stored (default: all)",
+           _integer(0), per_test=True),
+    Option("reference-driver", "NAME|none",
+           "the reference driver each counterexample is simulated again with, to tell "
+           "avoidable violations from unavoidable ones (default 'careful': UN R157's careful "
+           "and competent driver; 'none' turns the check off)",
+           "reference driver judging whether counterexamples were avoidable (careful, idm, "
+           "autopilot or none)",
+           _reference, per_test=True),
+    Option("reference-max", "N",
+           "judge the avoidability of only the first N counterexamples of each scenario test "
+           "and sampler (one extra simulation each; default: all)",
+           "counterexamples per test and sampler whose avoidability is judged (default: all)",
            _integer(0), per_test=True),
     Option("case-timeout", "SECONDS",
            "end a scenario case that runs longer than SECONDS (reported as an error with the "
@@ -331,6 +355,8 @@ class TestSettings:
     time_budget_s: float | None
     case_timeout_s: float | None
     accept: Any  # acceptance.Criteria
+    reference_driver: str | None  # None: no avoidability check
+    reference_max: int | None  # counterexamples per sampler judged (None: all)
 
 
 @dataclass(frozen=True)
@@ -383,7 +409,19 @@ class Settings:
             time_budget_s=pick("time_budget"),
             case_timeout_s=pick("case_timeout"),
             accept=pick("accept") or _default_criteria(),
+            reference_driver=self._reference_for(spec),
+            reference_max=pick("reference_max"),
         )
+
+    def _reference_for(self, spec: ScenarioSpec) -> str | None:
+        # None is a value here ('none', or reference_driver=None: no check), so "not given"
+        # is told apart by the marker's given keywords and the outside settings
+        if "reference_driver" in spec.given:
+            raw = spec.reference_driver
+            return None if raw is None else _validated(
+                _BY_KEY["reference_driver"], raw, "@scenario(reference_driver=...)", DeclarationError).value
+        outside = self.per_test.get("reference_driver")
+        return DEFAULT_REFERENCE if outside is None else outside.value
 
 
 def read_settings(config: pytest.Config) -> Settings:

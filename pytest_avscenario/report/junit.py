@@ -72,7 +72,9 @@ def case_properties(
     keys in declaration order), ``avs.rho.<metric>`` (``repr`` of the float, ``inf`` /
     ``-inf``), ``avs.verdict``, ``avs.sim_time_s``; for a shrunk counterexample also
     ``avs.minimized`` (JSON of the minimal parameters) and ``avs.shrink_sims`` (simulations
-    the shrinking spent), from the row unless given; ``avs.error`` when the simulation raised.
+    the shrinking spent), from the row unless given; ``avs.error`` when the simulation raised;
+    ``avs.avoidable.<metric>`` (``true``/``false``/``unknown``) for a counterexample judged
+    against the reference driver, and ``avs.unsafe_first`` (``agent@seconds``).
     """
     r = CaseRow.coerce(row)
     minimized = r.minimized if minimized is None else minimized
@@ -94,6 +96,10 @@ def case_properties(
         props.append(("avs.error", r.error))
     if r.flaky:
         props.append(("avs.flaky", "true"))
+    for m, ok in (r.avoidable or {}).items():
+        props.append((f"avs.avoidable.{m}", {True: "true", False: "false"}.get(ok, "unknown")))
+    if r.unsafe_first:
+        props.append(("avs.unsafe_first", f"{r.unsafe_first.get('agent')}@{r.unsafe_first.get('t')}"))
     return [(name, xml_safe(value)) for name, value in props]
 
 

@@ -89,6 +89,10 @@ class SummaryRow:
     #: why the campaign is rejected by its acceptance criteria (empty: accepted; None: the
     #: campaign was not judged)
     reasons: tuple[str, ...] | None = None
+    #: counterexamples whose avoidability was judged, and those of them the reference driver
+    #: could not avoid either (every violated metric violated by the reference too)
+    judged: int = 0
+    unavoidable: int = 0
 
     @property
     def verdict(self) -> str | None:
@@ -96,12 +100,8 @@ class SummaryRow:
 
 
 def _unit_coordinate(dist: Any, value: Any) -> float:
-    lo, hi = getattr(dist, "lo", None), getattr(dist, "hi", None)
-    if type(dist).__name__ == "Uniform" and isinstance(lo, float) and isinstance(hi, float) \
-            and not math.isfinite(hi - lo):
-        # Uniform(-1e308, 1e308): hi - lo overflows, so the plain (x - lo) / (hi - lo) gives
-        # 0 or NaN; the same ratio of halved numbers is exact to a rounding and stays finite.
-        return (0.5 * float(value) - 0.5 * lo) / (0.5 * hi - 0.5 * lo)
+    # a Uniform whose span is not a finite float (Uniform(-1e308, 1e308)) is refused at
+    # collection, so to_unit's (x - lo) / (hi - lo) is finite here
     return float(dist.to_unit(value))
 
 
@@ -225,6 +225,9 @@ def summarize(
                 sim_time_s=float(sum(r.sim_time_s for r in group)),
                 failed_items=tuple(sorted(failing_items)),
                 reasons=None if verdicts is None else tuple(verdicts.get((test, sampler), ())),
+                judged=sum(1 for r in failing if r.avoidable),
+                unavoidable=sum(1 for r in failing if r.avoidable
+                                and all(v is False for v in r.avoidable.values())),
             )
         )
     return out
@@ -273,13 +276,16 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     show_errors = any(s.errors for s in summary)
     header = ["test", "sampler", "samples", *(_metric_title(m) for m in metrics), "ε"]
     judged = any(s.verdict is not None for s in summary)
-    header += ["cex", "min"] + (["errors"] if show_errors else []) + ["sim s"]
+    show_unavoidable = any(s.judged for s in summary)
+    header += ["cex", "min"] + (["unavoid"] if show_unavoidable else []) \
+        + (["errors"] if show_errors else []) + ["sim s"]
     header += ["verdict"] if judged else []
     body = []
     for s in summary:
         line = [s.test, s.sampler, str(s.samples)]
         line += [str(s.violations[m]) if m in s.violations else DASH for m in metrics]
         line += [_fmt_eps(s.epsilon), str(s.counterexamples), str(s.minimized)]
+        line += [str(s.unavoidable) if s.judged else DASH] if show_unavoidable else []
         line += [str(s.errors)] if show_errors else []
         line += [_fmt_time(s.sim_time_s)]
         line += [{"rejected": "REJECTED", None: DASH}.get(s.verdict, s.verdict)] if judged else []
@@ -288,6 +294,12 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
 
 
 LEGEND = "ε: coverage of the continuous parameters (smaller: better) · cex: counterexamples · min: minimized"
+#: added when a column "unavoid" is shown
+LEGEND_UNAVOIDABLE = " · unavoid: counterexamples the reference driver fails too"
+
+
+def _legend(header: Sequence[str]) -> str:
+    return LEGEND + (LEGEND_UNAVOIDABLE if "unavoid" in header else "")
 
 
 def short_names(tests: Sequence[str]) -> dict[str, str]:
@@ -323,10 +335,10 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
 
     rule = "  ".join("-" * w for w in widths)
     if width is None or len(rule) <= width:
-        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), LEGEND])
+        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), _legend(header)])
     # too wide: the figures on one line, the violations per metric on the next
     metrics = [h for h in header if h not in ("test", "sampler", "samples", "ε", "cex", "min",
-                                              "errors", "sim s", "verdict")]
+                                              "unavoid", "errors", "sim s", "verdict")]
     fixed = [i for i, h in enumerate(header) if h not in metrics]
     fheader = [header[i] for i in fixed]
     fbody = [[r[i] for i in fixed] for r in body]
@@ -338,7 +350,7 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
         counts = [f"{h} {full[header.index(h)]}" for h in metrics
                   if full[header.index(h)] not in (DASH, "0")]
         out.append("    violations: " + (", ".join(counts) or "none"))
-    return "\n".join([*out, LEGEND])
+    return "\n".join([*out, _legend(header)])
 
 
 def format_rejections(summary: Sequence[SummaryRow]) -> list[str]:
@@ -391,6 +403,8 @@ def suite_properties(
         props[f"{key}.epsilon"] = _prop_value(s.epsilon)
         props[f"{key}.counterexamples"] = str(s.counterexamples)
         props[f"{key}.minimized"] = str(s.minimized)
+        if s.judged:
+            props[f"{key}.unavoidable"] = str(s.unavoidable)
         props[f"{key}.sim_time_s"] = f"{s.sim_time_s:.3f}"
         if s.verdict is not None:
             props[f"{key}.verdict"] = s.verdict + "".join(f"; {r}" for r in s.reasons)

@@ -35,11 +35,13 @@ class World:
     ``seed`` seeds highway-env's road rng; ``rng`` (default ``default_rng(seed)``) is what
     behaviours draw from during the run; ``driver`` is the ego's default driver (a name such
     as ``"autopilot"``/``"idm"`` or a policy object, see :func:`.drivers.resolve`); ``name``
-    the pytest node id, quoted in every error.
+    the pytest node id, quoted in every error. ``ego_driver``, when given, drives the ego
+    whatever driver the scenario names (the plugin's avoidability check puts its reference
+    driver there).
     """
 
     def __init__(self, seed: int, rng: np.random.Generator | None = None, driver: Any = None,
-                 name: str = "") -> None:
+                 name: str = "", ego_driver: Any = None) -> None:
         try:
             self.seed = int(seed)
         except (TypeError, ValueError):
@@ -48,6 +50,7 @@ class World:
             raise SimError(f"World(seed={seed!r}): need an integer >= 0", test=str(name))
         self.rng = rng if rng is not None else np.random.default_rng(self.seed)
         self.driver = driver
+        self.ego_driver = ego_driver
         self.name = str(name)
         self.t = 0.0  # [s] simulation time of the state being acted on
         self.dt = 0.1  # [s]
@@ -366,7 +369,8 @@ class World:
         spot = self._spot(place, s, r, name)
         v = self._check_speed(speed, name)
         lanes, k = self._route_for(spot, route, name)
-        drv = resolve(driver if driver is not None else self.driver)
+        drv = resolve(self.ego_driver if self.ego_driver is not None
+                      else driver if driver is not None else self.driver)
         pos = spot.position
         heading = spot.heading
         from .engine import DriverEgo, IDMEgo
