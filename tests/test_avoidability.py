@@ -1,0 +1,122 @@
+"""Which failures matter: every counterexample simulated again with the reference driver (UN
+R157's careful and competent driver by default) — avoidable or not, per violated metric, and
+who entered an RSS-unsafe state first — in the table, the failure text, JUnit, the summary
+and the acceptance criteria."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from pytest_avscenario.sim.drivers import stopping_distance
+
+# A stopped car ahead of an ego at 20 m/s whose driver never brakes: every case collides.
+# The careful driver stops within stopping_distance(20) ≈ 55 m: a gap of 10 m is unavoidable,
+# one of 120 m avoidable (the closed forms are checked in test_reference.py).
+BLIND = """
+import pytest
+
+@pytest.fixture
+def avs_driver():
+    def blind(observation):  # never brakes
+        return (0.0, 0.0)
+    return blind
+"""
+
+STOPPED = """
+from pytest_avscenario import scenario, Choice
+from pytest_avscenario.monitors import collision
+from pytest_avscenario.sim import behaviors as b
+
+@scenario(gap=Choice([10.0, 120.0]), samples=2, monitors=[collision()], shrink_budget=0{extra})
+def test_stopped(case, world):
+    road = world.straight_road(lanes=1, length=400)
+    world.ego(road.lane(0), s=20.0, speed=20.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=0.0, behavior=b.stopped(), name="stopped")
+    world.run(seconds=10)
+"""
+
+
+def rows_of(pytester) -> list[dict]:
+    table = pytester.path / "avs-report" / "errors.jsonl"
+    return [json.loads(line) for line in table.read_text().splitlines()]
+
+
+def by_gap(pytester) -> dict[float, dict]:
+    return {r["params"]["gap"]: r for r in rows_of(pytester)}
+
+
+def test_the_sanity_of_the_fixture_scene():
+    assert 10.0 < stopping_distance(20.0) < 120.0
+
+
+def test_each_counterexample_is_judged_against_the_careful_driver(pytester):
+    pytester.makeconftest(BLIND)
+    pytester.makepyfile(test_stopped=STOPPED.format(extra=""))
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist", "--junitxml=out.xml")
+    result.assert_outcomes(failed=2)
+    rows = by_gap(pytester)
+    assert rows[120.0]["avoidable"] == {"collision": True}
+    assert rows[10.0]["avoidable"] == {"collision": False}
+    # far away the ego became RSS-unsafe by its own fault; at 10 m the scene starts unsafe,
+    # which is nobody's doing
+    assert rows[120.0]["unsafe_first"]["agent"] == "ego"
+    assert "unsafe_first" not in rows[10.0]
+    out = result.stdout.str()
+    assert "collision: avoidable — the careful reference driver keeps it" in out
+    assert "collision: UNAVOIDABLE — the careful reference driver violates it too" in out
+    assert "RSS: ego entered an unsafe state first" in out
+    result.stdout.fnmatch_lines(["*cex  min  unavoid*", "test_stopped *2    0        1*",
+                                 "*unavoid: counterexamples the reference driver fails too*"])
+    xml = (pytester.path / "out.xml").read_text()
+    assert xml.count('name="avs.avoidable.collision" value="true"') == 1
+    assert xml.count('name="avs.avoidable.collision" value="false"') == 1
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())["tests"][0]
+    assert (summary["judged"], summary["unavoidable"]) == (2, 1)
+
+
+def test_accept_avoidable_lets_only_avoidable_counterexamples_reject(pytester):
+    pytester.makeconftest(BLIND)
+    pytester.makepyfile(test_stopped=STOPPED.format(extra=", accept='avoidable'"))
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist", "-rx")
+    result.assert_outcomes(failed=1, xfailed=1)
+    assert result.ret == pytest.ExitCode.TESTS_FAILED
+    result.stdout.fnmatch_lines(["*XFAIL*violated collision, unavoidable: the reference driver violates it too*"])
+
+
+def test_the_check_can_be_turned_off_or_capped(pytester):
+    pytester.makeconftest(BLIND)
+    pytester.makepyfile(test_stopped=STOPPED.format(extra=""))
+    pytester.runpytest("--avs-db=none", "-p", "no:xdist", "--avs-reference-driver=none")
+    assert all("avoidable" not in r for r in rows_of(pytester))
+    pytester.runpytest("--avs-db=none", "-p", "no:xdist", "--avs-reference-max=1")
+    assert sum("avoidable" in r for r in rows_of(pytester)) == 1
+
+
+def test_the_marker_names_another_reference_driver(pytester):
+    pytester.makeconftest(BLIND)
+    pytester.makepyfile(test_stopped=STOPPED.format(extra=", reference_driver='idm'"))
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist")
+    result.assert_outcomes(failed=2)
+    assert "the idm reference driver" in result.stdout.str()
+    assert all("avoidable" in r for r in rows_of(pytester))
+
+
+@pytest.mark.parametrize("declaration, message", [
+    ("reference_driver='nobody'", "reference_driver must be a built-in driver"),
+    ("accept='avoidable', monitors=[collision()]", "accept='avoidable' counts only counterexamples a reference driver avoids"),
+])
+def test_bad_avoidability_settings_are_collection_errors(pytester, declaration, message):
+    pytester.makepyfile(f"""
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import collision
+
+@scenario(x=Uniform(0, 1), samples=2, {declaration})
+def test_no_world(case):
+    pass
+""")
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist")
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert "test_no_world" in result.stdout.str() and message in result.stdout.str()
+    assert "Traceback" not in result.stdout.str()
