@@ -380,8 +380,13 @@ class DriverEgo(Actor):
         try:
             raw = self.driver.act(obs)
         except Exception as exc:  # the driver is user code: report, never swallow
+            hint = ""
+            if getattr(self.driver, "style", "") == "predict":
+                hint = ("; predict() gets the plugin's Observation, not an array: for a model "
+                        "trained on highway-env use driver=highway_env_agent(model, "
+                        "env='highway-fast-v0') from pytest_avscenario.sim.drivers")
             raise DriverError(
-                f"driver {self.driver!r} raised {type(exc).__name__}: {exc} at t={w.t:.2f} s",
+                f"driver {self.driver!r} raised {type(exc).__name__}: {exc} at t={w.t:.2f} s{hint}",
                 test=w.name, agent=self.name, driver_traceback=traceback.format_exc()) from exc
         try:
             a, d = action_pair(raw)
