@@ -354,7 +354,8 @@ class World:
         """Place the AV under test at ``place``: a lane (``s`` [m] along it), or a spot or stop
         line (``s`` [m] further along its lane, e.g. ``inter.stop_line("south").before(20)``).
 
-        ``driver`` overrides the world's default driver; ``route`` (e.g.
+        ``driver`` overrides the world's default driver (one with its own vehicle model, such
+        as ``highway_env_agent(...)``, builds the ego itself); ``route`` (e.g.
         ``inter.route("south", "left")``) defaults to straight on. Placed on a lane beside the
         route's first lane (``inter.approach("south", 1)`` with a route from lane 0), the ego
         starts with a lane change onto its route: its driver merges. ``target_speed`` [m/s] is

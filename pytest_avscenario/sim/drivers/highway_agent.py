@@ -8,8 +8,11 @@ the action type, ``policy_frequency`` and ``simulation_frequency``. Per case:
 
 * the ego is built as the vehicle class that action type controls (``MDPVehicle`` for
   ``DiscreteMetaAction``, ``Vehicle`` for ``ContinuousAction``/``DiscreteAction``), with the
-  world's lane tracking mixed in, as the ``"idm"`` driver builds an ``IDMVehicle``; it gets
-  fresh highway-env observation and action objects, so nothing carries over between cases;
+  world's lane tracking mixed in, as the ``"idm"`` driver builds an ``IDMVehicle``; a
+  controlled vehicle follows the world's route and starts with ``world.ego(target_speed=)``
+  or its speed as its target (``MDPVehicle`` snaps it to the action type's target speeds,
+  as highway-env builds its ego); it gets fresh highway-env observation and action objects,
+  so nothing carries over between cases;
 * every policy period — ``int(simulation_frequency // policy_frequency)`` highway-env steps,
   as in its ``step`` — the ego is observed by highway-env's observation object, the model
   answers, and highway-env's action object applies the answer; between decisions the
