@@ -168,6 +168,13 @@ class World:
         self._index = index
         return index
 
+    def agent_class(self, base: type) -> type:
+        """A highway-env vehicle class ``base`` made an agent of this world (lane tracking,
+        route progress), for drivers that bring their own vehicle model."""
+        from .engine import agent_class
+
+        return agent_class(base)
+
     @property
     def engine_road(self) -> Any:
         """highway-env's ``Road`` the agents live on (its ``network`` and ``vehicles``), for

@@ -165,7 +165,7 @@ class HighwayEnvAgent:
             base, kwargs = factory, {}
         from highway_env.vehicle.controller import ControlledVehicle
 
-        cls = _ego_class(base)
+        cls = _ego_class(world, base)
         if issubclass(base, ControlledVehicle):
             ego = cls(None, position, heading, speed, target_lane_index=lane_index,
                       target_speed=target_speed, route=list(route), **kwargs)
@@ -245,17 +245,11 @@ def _env_id(env: Any) -> str:
 _EGO_CLASSES: dict[type, type] = {}
 
 
-def _ego_class(base: type) -> type:
-    """``base`` (a highway-env vehicle class) with the world's agent mixin and its constants
-    frozen at first use, so code that rewrites highway-env's class constants later (e.g.
-    ``intersection-v0``) cannot change a case."""
+def _ego_class(world: Any, base: type) -> type:
+    """``base`` (a highway-env vehicle class) as a world agent that decides by its model."""
     cls = _EGO_CLASSES.get(base)
     if cls is None:
-        from ..engine import _Agent
-
-        consts = {k: getattr(base, k) for k in dir(base)
-                  if k.isupper() and not callable(getattr(base, k))}
-        cls = type(f"HighwayEnv{base.__name__}Ego", (_PolicyEgo, _Agent, base), consts)
+        cls = type(f"HighwayEnv{base.__name__}Ego", (_PolicyEgo, world.agent_class(base)), {})
         _EGO_CLASSES[base] = cls
     return cls
 
