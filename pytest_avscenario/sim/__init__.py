@@ -18,8 +18,10 @@ One concept per module; scenario code talks to :mod:`.world`, the rest talk to e
 * :mod:`.behaviors` — what non-ego agents do; :mod:`.control` — the control laws they use.
 * :mod:`.right_of_way` — the all-way-stop rule, shared by behaviours and the autopilot.
 * :mod:`.geometry` — angle wrapping and footprint overlap.
-* :mod:`.observation` — what a driver sees; :mod:`.drivers` — who drives the ego (the
-  autopilot with its route path, perception, junction and parking modules).
+* :mod:`.observation` — what a driver sees; :mod:`.view` — the read-only view of the whole
+  scene (``world.view()``); :mod:`.drivers` — who drives the ego (the autopilot with its
+  route path, perception, junction and parking modules; ``highway_agent``, an agent trained
+  on highway-env in highway-env's frame).
 * :mod:`.recording` — per-step recording into the Trajectory the monitors read.
 * :mod:`.render` — PNG/GIF replays of a recorded run; :mod:`.errors` — SimError, DriverError.
 """

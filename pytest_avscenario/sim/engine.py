@@ -34,7 +34,8 @@ from .drivers import action_pair
 from .errors import DriverError, SimError
 from .geometry import wrap_to_pi
 
-__all__ = ["Straight", "Arc", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian"]
+__all__ = ["Straight", "Arc", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian",
+           "agent_class"]
 
 
 # -- lanes ----------------------------------------------------------------------------------------
@@ -380,8 +381,13 @@ class DriverEgo(Actor):
         try:
             raw = self.driver.act(obs)
         except Exception as exc:  # the driver is user code: report, never swallow
+            hint = ""
+            if getattr(self.driver, "style", "") == "predict":
+                hint = ("; predict() gets the plugin's Observation, not an array: for a model "
+                        "trained on highway-env use driver=highway_env_agent(model, "
+                        "env='highway-fast-v0') from pytest_avscenario.sim.drivers")
             raise DriverError(
-                f"driver {self.driver!r} raised {type(exc).__name__}: {exc} at t={w.t:.2f} s",
+                f"driver {self.driver!r} raised {type(exc).__name__}: {exc} at t={w.t:.2f} s{hint}",
                 test=w.name, agent=self.name, driver_traceback=traceback.format_exc()) from exc
         try:
             a, d = action_pair(raw)
@@ -434,6 +440,22 @@ class IDMEgo(_Agent, IDMVehicle):
                             route=route, enable_lane_change=False, timer=0.0)
         self.road = road
         self.driver = None
+
+
+_AGENT_CLASSES: dict[type, type] = {}
+
+
+def agent_class(base: type) -> type:
+    """``base`` (a highway-env vehicle class) with the agent mixin — lane tracking, route
+    progress, the helpers — and its class constants frozen at first use, so code that
+    rewrites highway-env's constants later (``intersection-v0``) cannot change a case."""
+    cls = _AGENT_CLASSES.get(base)
+    if cls is None:
+        consts = {k: getattr(base, k) for k in dir(base)
+                  if k.isupper() and not callable(getattr(base, k))}
+        cls = type(f"World{base.__name__}", (_Agent, base), consts)
+        _AGENT_CLASSES[base] = cls
+    return cls
 
 
 class Pedestrian(_Agent, Vehicle):

@@ -3,8 +3,14 @@
 A driver is handed one :class:`Observation` per step and returns ``(acceleration [m/s^2],
 steering [rad])`` — the front-wheel angle of highway-env's kinematic bicycle model.
 Drivers take any of three shapes (see :func:`pytest_avscenario.sim.drivers.resolve`): a
-callable ``policy(observation)``, an object with ``act(observation)``, or a
-stable-baselines3-style object with ``predict(observation)`` returning ``(action, state)``.
+callable ``policy(observation)``, an object with ``act(observation)``, or an object with
+``predict(observation)`` returning ``(action, state)`` — each gets this dataclass, not an
+array: a model trained on highway-env drives through
+:func:`~pytest_avscenario.sim.drivers.highway_env_agent`, which hands it highway-env's own
+observations. Positions and headings are in the world frame (x east, y north [m], headings
+counter-clockwise [rad]), which is highway-env's mirrored (y -> -y); ``r`` is positive to the
+left. A driver that needs the whole scene gets the world in ``reset(world)`` and calls
+``world.view()``.
 
 Geometry is handed over as the simulator's lane objects, which all speak one small
 vocabulary: ``position(s, r) -> (x, y)``, ``heading_at(s)``, ``local_coordinates((x, y)) ->

@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .drivers import IDMDriver, resolve
-from .errors import SimError
+from .errors import DriverError, SimError
 from .geometry import footprints_overlap
 from .observation import AgentState, Observation, StopLine as ObsStopLine
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
@@ -170,6 +170,19 @@ class World:
                 index.stop_marks[key] = list(marks)
         self._index = index
         return index
+
+    def agent_class(self, base: type) -> type:
+        """A highway-env vehicle class ``base`` made an agent of this world (lane tracking,
+        route progress), for drivers that bring their own vehicle model."""
+        from .engine import agent_class
+
+        return agent_class(base)
+
+    @property
+    def engine_road(self) -> Any:
+        """highway-env's ``Road`` the agents live on (its ``network`` and ``vehicles``), for
+        adapters that run highway-env code against the scene; read it, do not change it."""
+        return self._road
 
     @property
     def movers(self) -> list[Any]:
@@ -351,7 +364,8 @@ class World:
         """Place the AV under test at ``place``: a lane (``s`` [m] along it), or a spot or stop
         line (``s`` [m] further along its lane, e.g. ``inter.stop_line("south").before(20)``).
 
-        ``driver`` overrides the world's default driver; ``route`` (e.g.
+        ``driver`` overrides the world's default driver (one with its own vehicle model, such
+        as ``highway_env_agent(...)``, builds the ego itself); ``route`` (e.g.
         ``inter.route("south", "left")``) defaults to straight on. Placed on a lane beside the
         route's first lane (``inter.approach("south", 1)`` with a route from lane 0), the ego
         starts with a lane change onto its route: its driver merges. ``target_speed`` [m/s] is
@@ -381,6 +395,11 @@ class World:
                 v0 = float(spot.lane.geometry.speed_limit)
             agent = IDMEgo(self._road, pos, heading, v, target_lane_index=lanes[k].index,
                            target_speed=float(v0), route=[l.index for l in lanes[k:]])
+        elif callable(getattr(drv, "make_ego", None)):
+            # a driver that brings its own vehicle model (highway_env_agent)
+            agent = drv.make_ego(self, pos, heading, v, lane_index=lanes[k].index,
+                                 route=[l.index for l in lanes[k:]], target_speed=target_speed,
+                                 name=name)
         else:
             agent = DriverEgo(pos, heading, v)
         agent.driver = drv
@@ -615,6 +634,28 @@ class World:
             "target_speed": ego.target_speed_request, "goal": ego.goal,
             "sensor_range": self.sensor_range})
 
+    def view(self) -> Any:
+        """A read-only :class:`~.view.SceneView` of the simulation now: every lane of the road
+        network with its geometry, and the state of every agent on the road (ego first), in
+        the world frame. For drivers that need more than their observation (they get the
+        world from their ``reset(world)`` hook); before a run, the agents placed to be there
+        at t = 0."""
+        from . import view as _view
+
+        if self._index is None:
+            raise SimError("world.view(): build a road first", test=self.name)
+        cached = getattr(self, "_view_cache", None)
+        if cached is None or cached[0] is not self._index:
+            cached = (self._index, _view.lane_views(self._index), _view.stop_marks(self._index))
+            self._view_cache = cached
+        running = getattr(self, "_agents_in_order", None) is not None
+        agents = list(self._movers) if running else [a for a in self._all() if a.appear is None]
+        return _view.SceneView(
+            t=float(self.t), dt=float(self.dt), ego=self._ego.name if self._ego is not None else "",
+            lanes=cached[1],
+            agents=tuple(self._state(a) for a in agents),
+            agent_lanes=_view.agent_lanes(self._index, agents), stop_marks=cached[2])
+
     # -- running -----------------------------------------------------------------------------------
     def run(self, seconds: float, dt: float = 0.1, until: Callable[["World"], bool] | None = None,
             stop_on_collision: bool = False) -> Trajectory:
@@ -659,6 +700,7 @@ class World:
                 except ValueError as exc:
                     raise SimError(f"behaviour {a.behavior.name}: {exc}", test=self.name,
                                    agent=a.name) from exc
+        self._reset_driver(ego)
         rec = Recorder(self, agents, n_steps + 1)
         road = self._road
         reason = None
@@ -688,6 +730,23 @@ class World:
                 break
         self.trajectory = rec.finish(k + 1, seconds=seconds, stopped=reason)
         return self.trajectory
+
+    def _reset_driver(self, ego: Any) -> None:
+        """The driver's per-case hook: ``reset(world)`` once, before the first step."""
+        reset = getattr(ego.driver, "reset", None)
+        if not callable(reset):
+            return
+        try:
+            reset(self)
+        except SimError:
+            raise
+        except Exception as exc:  # the driver is user code: report, never swallow
+            import traceback
+
+            raise DriverError(
+                f"driver {ego.driver!r}: reset(world) raised {type(exc).__name__}: {exc} "
+                "(the per-case hook is reset(self, world), called before the run)",
+                test=self.name, agent=ego.name, driver_traceback=traceback.format_exc()) from exc
 
     def _sync_active(self) -> None:
         active = [a for a in self._agents_in_order if a.active]

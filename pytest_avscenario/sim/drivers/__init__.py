@@ -10,9 +10,21 @@
 * ``"careful"`` — the careful and competent human driver of UN R157 (:class:`CarefulDriver`,
   ``pytest_avscenario.sim.drivers.reference``): the reference a failure is judged against;
 * ``"package.module:Name"`` — a class (instantiated without arguments) or object found there;
-* a user object: anything with ``act(observation)``, a stable-baselines3-style object with
+* a user object: anything with ``act(observation)``, an object with
   ``predict(observation)`` returning ``(action, state)``, or a plain callable
-  ``policy(observation)``. The answer is ``(acceleration [m/s^2], steering [rad])``.
+  ``policy(observation)``. Each gets the plugin's
+  :class:`~pytest_avscenario.sim.observation.Observation` and answers
+  ``(acceleration [m/s^2], steering [rad])`` — so a model trained on highway-env (whose
+  ``predict`` expects highway-env's observation arrays) goes through
+  :func:`highway_env_agent` instead;
+* a driver with its own vehicle model, such as :func:`highway_env_agent`'s: an object with
+  ``make_ego(world, position, heading, speed, *, lane_index, route, target_speed, name)``
+  that returns the ego vehicle, which then drives itself.
+
+Any driver may have the per-case hook ``reset(world)`` (or ``reset()``): the world calls it
+once per case, after every agent is placed and before the first step, so a driver object
+reused across cases starts each one afresh, and a stack that needs more than its
+observation keeps the world to call ``world.view()`` (every lane and every agent, read-only).
 
 :func:`action_pair` checks what a driver returned; the world turns its ``ValueError`` into a
 :class:`~pytest_avscenario.sim.SimError` naming the test and the agent.
@@ -29,7 +41,8 @@ from ..errors import SimError
 from .reference import CarefulDriver, CarefulDriverOptions, closing_distance, stopping_distance
 
 __all__ = ["resolve", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
-           "CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance"]
+           "CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance",
+           "highway_env_agent"]
 
 AUTOPILOT = "pytest_avscenario.sim.drivers.autopilot:Autopilot"
 CAREFUL = "pytest_avscenario.sim.drivers.reference:CarefulDriver"
@@ -80,8 +93,41 @@ class PolicyDriver:
     def act(self, observation: Any) -> Any:
         return self._call(observation)
 
+    def reset(self, world: Any) -> None:
+        """The user object's per-case hook, if it has one: ``reset(world)`` or ``reset()``."""
+        hook = getattr(self.target, "reset", None)
+        if not callable(hook):
+            return
+        try:
+            inspect.signature(hook).bind(world)
+        except TypeError:
+            try:
+                inspect.signature(hook).bind()
+            except TypeError:
+                pass  # neither fits: call it with the world and let the error say so
+            else:
+                hook()
+                return
+        except ValueError:  # no signature (a builtin): the documented form
+            pass
+        hook(world)
+
     def __repr__(self) -> str:
         return f"PolicyDriver({self.name}, {self.style})"
+
+
+def highway_env_agent(model: Any, env: Any = "highway-fast-v0", config: dict | None = None) -> Any:
+    """An agent trained on highway-env as the ego, driven exactly as its environment would.
+
+    ``model`` is an object with stable-baselines3's ``predict(obs, deterministic=...)`` or a
+    plain callable ``policy(obs) -> action``; ``env`` the highway-env id it was trained on (or
+    that environment itself); ``config`` what was changed in that environment's default
+    config. Use it as ``world.ego(..., driver=highway_env_agent(model))`` or as the value of
+    the ``avs_driver`` fixture. See :mod:`.highway_agent`.
+    """
+    from .highway_agent import HighwayEnvAgent
+
+    return HighwayEnvAgent(model, env=env, config=config)
 
 
 def _first(out: Any) -> Any:
@@ -120,7 +166,7 @@ def resolve(driver: Any) -> Any:
         if inspect.isclass(obj):
             obj = obj()
         return resolve(obj) if not isinstance(obj, str) else resolve(obj)
-    if isinstance(driver, (IDMDriver, PolicyDriver)):
+    if isinstance(driver, (IDMDriver, PolicyDriver)) or callable(getattr(driver, "make_ego", None)):
         return driver
     if callable(getattr(driver, "act", None)):
         return PolicyDriver(driver, "act")

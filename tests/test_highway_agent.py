@@ -1,0 +1,420 @@
+"""Agents trained on highway-env as the ego: the same observations, decisions and trajectory as
+in highway-env's own environment, highway-env's frame for the agent, and clear errors.
+
+The policies are deterministic numpy objects with stable-baselines3's ``predict`` signature,
+so no torch is needed.
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+from dataclasses import dataclass
+
+import gymnasium
+import highway_env  # noqa: F401  (registers the environment ids)
+import numpy as np
+import pytest
+from highway_env.road.road import Road, RoadNetwork
+from highway_env.vehicle.kinematics import Vehicle
+
+import pytest_avscenario.sim.drivers.highway_agent  # noqa: F401  (imported before any pytester run)
+from pytest_avscenario.sim import DriverError, SimError, World
+from pytest_avscenario.sim.behaviors import Behavior
+from pytest_avscenario.sim.drivers import highway_env_agent
+
+LANES = 4
+WIDTH = 4.0  # highway-env's lane width [m]
+LENGTH = 10000.0  # highway-env's straight_road_network length [m]
+
+
+class LinearPolicy:
+    """A fixed random linear policy: argmax (discrete) or tanh (continuous) of W @ obs."""
+
+    def __init__(self, n_out: int, seed: int, continuous: bool = False, gain: float = 1.0):
+        self.n_out, self.seed, self.continuous, self.gain = n_out, seed, continuous, gain
+        self.W = None
+        self.seen: list[np.ndarray] = []
+        self.answers: list = []
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=False):
+        x = np.asarray(obs, dtype=float).ravel()
+        self.seen.append(np.array(obs, copy=True))
+        if self.W is None:
+            self.W = np.random.default_rng(self.seed).normal(size=(self.n_out, x.size))
+        z = self.W @ x
+        a = (np.tanh(z) * self.gain).astype(np.float32) if self.continuous else np.array(int(np.argmax(z)))
+        self.answers.append(a)
+        return a, None
+
+
+def profile(t: float) -> float:
+    """[m/s^2] the lead car's acceleration at time t [s]: cruise, brake, cruise, speed up."""
+    if 2.0 <= t < 4.0:
+        return -3.0
+    if 6.0 <= t < 7.0:
+        return 2.0
+    return 0.0
+
+
+@dataclass(frozen=True)
+class Scripted(Behavior):
+    """The world's side of a scripted car: acceleration by its age, no steering."""
+
+    accelerating: bool = True
+
+    def control(self, agent, world):
+        return (profile(agent.age) if self.accelerating else 0.0), 0.0
+
+
+class ScriptedVehicle(Vehicle):
+    """highway-env's side of the same car."""
+
+    def __init__(self, road, position, speed, dt, accelerating=True):
+        super().__init__(road, position, 0.0, speed)
+        self.n, self.dt, self.accelerating = 0, dt, accelerating
+
+    def act(self, action=None):
+        t = self.n * self.dt
+        self.n += 1
+        super().act({"acceleration": profile(t) if self.accelerating else 0.0, "steering": 0.0})
+
+
+class RecordingRoad(Road):
+    """highway-env's Road, keeping the ego's state after every step."""
+
+    def step(self, dt):
+        super().step(dt)
+        e = self.vehicles[0]
+        self.log.append((e.position[0], e.position[1], e.heading, e.speed))
+
+
+# ego lane, ego s, ego speed; then (lane, s, speed, scripted?) for the others
+SCENE = (1, 100.0, 25.0, [(1, 135.0, 22.0, True), (2, 115.0, 24.0, False),
+                          (0, 80.0, 27.0, False), (3, 160.0, 20.0, True)])
+
+
+def run_in_highway_env(env_id, config, policy, seconds):
+    env = gymnasium.make(env_id, config=config).unwrapped
+    env.reset(seed=0)
+    dt = 1.0 / env.config["simulation_frequency"]
+    road = RecordingRoad(network=RoadNetwork.straight_road_network(LANES, speed_limit=30),
+                         np_random=env.np_random, record_history=False)
+    road.log = []
+    lane, s, v, others = SCENE
+    ego = env.action_type.vehicle_class(road, np.array([s, lane * WIDTH]), 0.0, v)
+    if hasattr(ego, "route"):
+        ego.route = [("0", "1", lane)]  # the world gives its ego its route
+    road.vehicles.append(ego)
+    for ln, so, vo, scripted in others:
+        road.vehicles.append(ScriptedVehicle(road, np.array([so, ln * WIDTH]), vo, dt, scripted))
+    env.road = road
+    env.controlled_vehicles = [ego]
+    e = road.vehicles[0]
+    road.log.append((e.position[0], e.position[1], e.heading, e.speed))
+    obs = env.observation_type.observe()
+    crashed = False
+    for _ in range(int(round(seconds * env.config["policy_frequency"]))):
+        action, _state = policy.predict(obs, deterministic=True)
+        if env.config["action"]["type"] == "DiscreteMetaAction":
+            action = int(action)
+        obs, _r, _term, _trunc, _info = env.step(action)
+        crashed |= ego.crashed
+    return np.array(road.log), crashed, dt
+
+
+def run_in_world(env_id, config, policy, seconds):
+    agent = highway_env_agent(policy, env=env_id, config=config)
+    w = World(seed=0, name="test_equivalence")
+    road = w.straight_road(lanes=LANES, length=LENGTH, lane_width=WIDTH, speed_limit=30.0)
+    lane, s, v, others = SCENE
+    w.ego(road.lane(lane), s=s, speed=v, driver=agent)
+    for ln, so, vo, scripted in others:
+        w.car(road.lane(ln), s=so, speed=vo, behavior=Scripted(scripted))
+    tr = w.run(seconds, dt=agent.dt)
+    return w, tr
+
+
+CONFIGS = {  # env id, config changes, policy (its seed picks a run with lane changes)
+    "highway-fast default": ("highway-fast-v0", None, dict(n_out=5, seed=1)),
+    "every kinematics feature": (
+        "highway-fast-v0",
+        {"observation": {"type": "Kinematics", "vehicles_count": 4, "normalize": False,
+                         "features": ["presence", "x", "y", "vx", "vy", "heading", "cos_h",
+                                      "sin_h", "cos_d", "sin_d", "long_off", "lat_off",
+                                      "ang_off"]}},
+        dict(n_out=5, seed=8)),
+    "highway-v0 at 15 Hz": ("highway-v0", None, dict(n_out=5, seed=4)),
+    "occupancy grid": ("highway-fast-v0", {"observation": {"type": "OccupancyGrid"}},
+                       dict(n_out=5, seed=3)),
+    "time to collision": ("highway-fast-v0", {"observation": {"type": "TimeToCollision"}},
+                          dict(n_out=5, seed=8)),
+    "lidar, until a crash": ("highway-fast-v0", {"observation": {"type": "LidarObservation"}},
+                             dict(n_out=5, seed=1)),
+    "continuous action": ("highway-fast-v0",
+                          {"action": {"type": "ContinuousAction"}, "policy_frequency": 5},
+                          dict(n_out=2, seed=0, continuous=True, gain=0.1)),
+}
+
+
+@pytest.mark.parametrize("which", list(CONFIGS))
+def test_same_observations_decisions_and_trajectory_as_highway_env(which):
+    env_id, config, pol = CONFIGS[which]
+    seconds = 10.0
+    ours, theirs = LinearPolicy(**pol), LinearPolicy(**pol)
+    w, tr = run_in_world(env_id, config, ours, seconds)
+    log, crashed, dt = run_in_highway_env(env_id, config, theirs, seconds)
+    assert tr.t[1] == pytest.approx(dt)
+    e = tr.ego
+    assert len(log) == len(e.x)
+    # highway-env ends its episode at a crash (and then shoves the cars apart its own way):
+    # compare up to the step the ego crashed, in both or in neither
+    hit = np.flatnonzero(e.crashed)
+    end = int(hit[0]) + 1 if hit.size else len(e.x)
+    assert crashed == bool(hit.size) and crashed == ("crash" in which)
+    # the agent saw the same arrays (highway-env's frame) and answered the same
+    assert len(ours.seen) >= (seconds if not crashed else 3)
+    assert len(ours.seen) == (len(theirs.seen) if not crashed else
+                              math.ceil(end * dt * w.agent("ego").session.agent.policy_period ** -1
+                                        - 1e-9))
+    for k, (a, b) in enumerate(zip(ours.seen, theirs.seen)):
+        assert a.shape == b.shape and a.dtype == b.dtype
+        np.testing.assert_allclose(a, b, atol=1e-6, err_msg=f"observation {k}")
+    for a, b in zip(ours.answers, theirs.answers):
+        np.testing.assert_array_equal(a, b)
+    # the ego went the same way, mirrored: (x, y, heading) here is (x, -y, -heading) there
+    log = log[:end]
+    np.testing.assert_allclose(e.x[:end], log[:, 0], atol=1e-6)
+    np.testing.assert_allclose(e.y[:end], -log[:, 1], atol=1e-6)
+    np.testing.assert_allclose(e.heading[:end], -np.arctan2(np.sin(log[:, 2]), np.cos(log[:, 2])),
+                               atol=1e-6)
+    np.testing.assert_allclose(e.speed[:end], log[:, 3], atol=1e-6)
+    # and the comparison means something: the agent changed its mind and its lane
+    if not pol.get("continuous"):
+        assert len({int(a) for a in ours.answers}) >= 2
+    assert np.ptp(e.y[:end]) > 3.0
+
+
+def test_the_agent_sees_highway_envs_frame():
+    # a car one lane to the right of the ego: y < 0 in the world, y > 0 in highway-env
+    pol = LinearPolicy(n_out=5, seed=0)
+    agent = highway_env_agent(pol, config={"observation": {"type": "Kinematics",
+                                                          "normalize": False,
+                                                          "features": ["presence", "x", "y",
+                                                                       "heading"]}})
+    w = World(seed=0, name="test_frame")
+    road = w.straight_road(lanes=3, length=500, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    car = w.car(road.lane(2), s=70, speed=25.0)
+    assert car.position[1] - w.agent("ego").position[1] == pytest.approx(-4.0)
+    w.run(0.2, dt=agent.dt)
+    obs = pol.seen[0]
+    assert obs[0][2] == pytest.approx(4.0)  # ego: lane 1 at y = +4 m in highway-env
+    assert obs[1][1] == pytest.approx(20.0) and obs[1][2] == pytest.approx(4.0)
+
+
+def test_one_decision_per_policy_period_at_any_dividing_dt():
+    pol = LinearPolicy(n_out=5, seed=3)
+    agent = highway_env_agent(pol)  # highway-fast-v0: 1 Hz decisions, 5 Hz simulation
+    w = World(seed=0, name="test_period")
+    road = w.straight_road(lanes=3, length=800, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    w.run(4.95, dt=0.05)
+    assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 1.0, 2.0, 3.0, 4.0])
+
+
+def test_a_world_step_that_does_not_divide_the_policy_period_is_refused():
+    agent = highway_env_agent(LinearPolicy(n_out=5, seed=0))
+    w = World(seed=0, name="tests/x.py::test_dt[3]")
+    road = w.straight_road(lanes=3, length=500, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    with pytest.raises(SimError) as err:
+        w.run(5, dt=0.3)
+    msg = str(err.value)
+    assert "tests/x.py::test_dt[3]" in msg and "policy_frequency 1 Hz" in msg
+    assert "dt=0.3" in msg and "run with dt=0.2" in msg
+
+
+@pytest.mark.parametrize("answer, expected", [
+    (7, "expected an action index 0..4 (0=LANE_LEFT, 1=IDLE, 2=LANE_RIGHT, 3=FASTER, 4=SLOWER)"),
+    (np.array([1, 2]), "expected an action index 0..4"),
+    (1.5, "expected an action index 0..4"),
+    ("left", "expected an action index 0..4"),
+])
+def test_a_bad_discrete_action_names_the_test_time_and_the_actions(answer, expected):
+    agent = highway_env_agent(lambda obs: answer)
+    w = World(seed=0, name="test_bad_action")
+    road = w.straight_road(lanes=3, length=500, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    with pytest.raises(SimError) as err:
+        w.run(2, dt=agent.dt)
+    msg = str(err.value)
+    assert "test_bad_action" in msg and "agent 'ego'" in msg and "t=0.00 s" in msg
+    assert expected in msg
+
+
+def test_a_bad_continuous_action_says_what_was_expected():
+    agent = highway_env_agent(lambda obs: np.array([0.1, np.nan]),
+                              config={"action": {"type": "ContinuousAction"}})
+    w = World(seed=0, name="test_bad_continuous")
+    road = w.straight_road(lanes=3, length=500, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    with pytest.raises(SimError, match=r"expected 2 numbers in \[-1, 1\] \(ContinuousAction\)"):
+        w.run(2, dt=agent.dt)
+
+
+def test_a_model_that_raises_is_a_driver_error_with_its_traceback():
+    class Broken:
+        def predict(self, obs, deterministic=False):
+            raise RuntimeError("weights missing")
+
+    agent = highway_env_agent(Broken())
+    w = World(seed=0, name="test_broken")
+    road = w.straight_road(lanes=3, length=500, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    with pytest.raises(DriverError) as err:
+        w.run(2, dt=agent.dt)
+    assert "test_broken" in str(err.value) and "weights missing" in str(err.value)
+    assert "RuntimeError" in err.value.driver_traceback
+
+
+@pytest.mark.parametrize("config, words", [
+    ({"observation": {"type": "GrayscaleObservation", "observation_shape": (84, 84),
+                      "stack_size": 4, "weights": [0.3, 0.6, 0.1]}},
+     ["'GrayscaleObservation' is an image", "Kinematics"]),
+    ({"observation": {"type": "KinematicsGoal", "features": ["x"], "scales": [1]}},
+     ["'KinematicsGoal' is not supported", "OccupancyGrid"]),
+    ({"action": {"type": "ContinuousAction", "dynamical": True}}, ["dynamical", "BicycleVehicle"]),
+    ({"observation": {"type": "TimeToCollision"}, "action": {"type": "ContinuousAction"}},
+     ["TimeToCollision", "target speeds"]),
+])
+def test_unsupported_environment_settings_are_refused_naming_the_test(config, words):
+    agent = highway_env_agent(LinearPolicy(n_out=5, seed=0), config=config)
+    w = World(seed=0, name="tests/t.py::test_agent[1]")
+    road = w.straight_road(lanes=3, length=500, lane_width=4.0)
+    with pytest.raises(SimError) as err:
+        w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+    msg = str(err.value)
+    assert "tests/t.py::test_agent[1]" in msg and "highway_env_agent(env='highway-fast-v0')" in msg
+    for word in words:
+        assert word in msg
+
+
+def test_an_unknown_environment_id_is_refused():
+    agent = highway_env_agent(LinearPolicy(n_out=5, seed=0), env="highway-nonesuch-v9")
+    w = World(seed=0, name="test_unknown_env")
+    road = w.straight_road(lanes=3, length=500)
+    with pytest.raises(SimError, match="highway-nonesuch-v9.*e.g. 'highway-fast-v0'"):
+        w.ego(road.lane(0), s=50, speed=25.0, driver=agent)
+
+
+@pytest.mark.parametrize("model", [None, 3, "dqn.zip"])
+def test_a_model_that_cannot_predict_is_refused_at_once(model):
+    with pytest.raises(SimError, match="predict.*callable"):
+        highway_env_agent(model)
+
+
+def test_the_agent_pickles_without_its_environment():
+    agent = highway_env_agent(LinearPolicy(n_out=5, seed=0), config={"policy_frequency": 2})
+    assert agent.dt == pytest.approx(0.2) and agent.policy_period == pytest.approx(0.4)
+    again = pickle.loads(pickle.dumps(agent))
+    assert again._env is None and again.config == {"policy_frequency": 2}
+    assert repr(again) == "highway_env_agent(LinearPolicy, env='highway-fast-v0')"
+
+
+def test_cases_do_not_depend_on_what_the_agent_drove_before():
+    # one agent object over several worlds (as an avs_driver fixture of wider scope):
+    # a case gives the same trajectory first or after others
+    def case(agent, lanes, seed):
+        w = World(seed=seed, name=f"case{seed}")
+        road = w.straight_road(lanes=lanes, length=800, lane_width=4.0)
+        w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
+        w.car(road.lane(1), s=90, speed=20.0)
+        return w.run(6, dt=agent.dt)
+
+    alone = case(highway_env_agent(LinearPolicy(n_out=5, seed=3)), 2, 1)
+    shared = highway_env_agent(LinearPolicy(n_out=5, seed=3))
+    case(shared, 4, 7)
+    again = case(shared, 2, 1)
+    np.testing.assert_array_equal(alone.y, again.y)
+    np.testing.assert_array_equal(alone.x, again.x)
+    assert math.isfinite(float(again.x[0, -1]))
+
+
+# -- as a user meets it: the avs_driver fixture -------------------------------------------------
+
+AGENT_CONFTEST = """
+import numpy as np
+import pytest
+from pytest_avscenario.sim.drivers import highway_env_agent
+
+class Cautious:
+    '''Slow down when something is close ahead in the ego's lane, else keep going.'''
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=False):
+        assert obs.shape == (5, 5), obs.shape
+        ahead = (obs[1:, 0] > 0) & (np.abs(obs[1:, 2]) < 0.1) & (obs[1:, 1] > 0) & (obs[1:, 1] < 0.25)
+        return np.array(4 if ahead.any() else 1), None
+
+AGENT = highway_env_agent(Cautious(), env="highway-fast-v0", config=CONFIG)
+
+@pytest.fixture
+def avs_driver():
+    return AGENT  # one object for every case
+"""
+
+AGENT_TEST = """
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+
+@scenario(gap=Uniform(30.0, 60.0), samples=3, monitors=[distance(0.5)])
+def test_follow(case, world, avs_driver):
+    road = world.straight_road(lanes=3, length=1000, lane_width=4.0)
+    world.ego(road.lane(1), s=50, speed=25.0)
+    world.car(road.lane(1), s=50 + case.gap, speed=20.0)
+    world.run(5, dt=avs_driver.dt)
+    assert [t for t, _ in world.agent("ego").decisions] == [0.0, 1.0, 2.0, 3.0, 4.0]
+"""
+
+
+def test_an_avs_driver_fixture_returning_a_highway_env_agent_drives_every_case(pytester):
+    pytester.makeconftest(AGENT_CONFTEST.replace("CONFIG", "None"))
+    pytester.makepyfile(test_agent=AGENT_TEST)
+    result = pytester.runpytest("--avs-seed=1", "--avs-db=none", "-p", "no:xdist")
+    result.assert_outcomes(passed=3)
+
+
+def test_an_image_observation_is_refused_naming_the_case_and_the_setting(pytester):
+    pytester.makeconftest(AGENT_CONFTEST.replace(
+        "CONFIG", "{'observation': {'type': 'GrayscaleObservation'}}"))
+    pytester.makepyfile(test_agent=AGENT_TEST.replace("samples=3", "samples=1"))
+    result = pytester.runpytest("--avs-seed=1", "--avs-db=none", "-p", "no:xdist")
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines([
+        "*test_agent.py::test_follow*highway_env_agent(env='highway-fast-v0'): observation type "
+        "'GrayscaleObservation' is an image*(config={'observation': {'type': 'Kinematics'}})"])
+
+
+def test_a_highway_env_model_given_the_observation_raises_with_a_hint(pytester):
+    # what a stable-baselines3 model does with the plugin's Observation dataclass
+    pytester.makeconftest("""
+import numpy as np
+import pytest
+
+class Trained:
+    def predict(self, observation, state=None, episode_start=None, deterministic=False):
+        if np.asarray(observation).shape != (5, 5):
+            raise ValueError(f"Unexpected observation shape {np.asarray(observation).shape}")
+        return np.array(1), None
+
+@pytest.fixture
+def avs_driver():
+    return Trained()
+""")
+    pytester.makepyfile(test_agent=AGENT_TEST.replace("samples=3", "samples=1").replace(
+        "    world.run(5, dt=avs_driver.dt)\n", "    world.run(5)\n"))
+    result = pytester.runpytest("--avs-seed=1", "--avs-db=none", "-p", "no:xdist")
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines([
+        "*Unexpected observation shape ()*predict() gets the plugin's Observation*"
+        "highway_env_agent(model, env='highway-fast-v0')*"])
