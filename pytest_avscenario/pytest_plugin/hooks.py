@@ -189,8 +189,10 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
     """The AV under test driving the ego: override this fixture in conftest.py with your stack.
 
     Return a callable ``policy(observation) -> (acceleration, steering)``, an object with
-    ``act(observation)`` or ``predict(observation)``, or a built-in name (``"autopilot"``,
-    ``"idm"``, ``"careful"``). The default is ``--avs-driver`` / ini ``avs_driver`` or ``"autopilot"``.
+    ``act(observation)`` or ``predict(observation)`` answering the plugin's ``Observation``,
+    a model trained on highway-env wrapped as ``highway_env_agent(model, env=...)``, or a
+    built-in name (``"autopilot"``, ``"idm"``, ``"careful"``). The default is ``--avs-driver``
+    / ini ``avs_driver`` or ``"autopilot"``.
     """
     return request.config.stash[settings_key].driver
 
