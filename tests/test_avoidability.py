@@ -120,3 +120,40 @@ def test_no_world(case):
     assert result.ret == pytest.ExitCode.INTERRUPTED
     assert "test_no_world" in result.stdout.str() and message in result.stdout.str()
     assert "Traceback" not in result.stdout.str()
+
+
+RECORDING = BLIND + """
+import json
+import numpy as np
+from pytest_avscenario.samplers import Sampler, register
+
+@register("alternate")
+class Alternate(Sampler):
+    # asks the two ends of the space in turn and writes down what it is told
+    name = "alternate"
+    active = True
+
+    def __init__(self, space, seed=0, metrics=None):
+        super().__init__(space, seed=seed)
+        self.k = 0
+
+    def ask_unit(self):
+        self.k += 1
+        return np.full(self.d, 0.0 if self.k % 2 else 1.0)
+
+    def tell_unit(self, u, rho):
+        with open("told.jsonl", "a") as f:
+            f.write(json.dumps(None if rho is None else "told") + "\\n")
+"""
+
+
+@pytest.mark.parametrize("mode, told", [("keep", ["told", "told"]), ("discard", [None, "told"])])
+def test_discard_tells_an_active_sampler_nothing_of_an_unavoidable_case(pytester, mode, told):
+    # the first case starts 10 m behind a stopped car at 20 m/s (RSS-unsafe from t = 0, and
+    # unavoidable); the second 120 m behind (avoidable): both are counterexamples
+    pytester.makeconftest(RECORDING)
+    pytester.makepyfile(test_stopped=STOPPED.format(extra=f", sampler='alternate', unavoidable='{mode}'"))
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist")
+    result.assert_outcomes(failed=2)  # still run and reported either way
+    assert [json.loads(line) for line in (pytester.path / "told.jsonl").read_text().splitlines()] == told
+    assert [r["avoidable"] for r in rows_of(pytester)] == [{"collision": False}, {"collision": True}]

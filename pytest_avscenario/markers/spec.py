@@ -26,6 +26,7 @@ SPEC_KEYWORDS = (
     "accept",
     "reference_driver",
     "reference_max",
+    "unavoidable",
 )
 
 _UNSET: Any = object()
@@ -49,6 +50,7 @@ class ScenarioSpec:
     accept: Any = None
     reference_driver: Any = None
     reference_max: Any = None
+    unavoidable: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
     given: frozenset[str] = field(default_factory=frozenset)
     #: what was wrong with the call itself (positional arguments, a bare ``@scenario``), told
@@ -71,6 +73,7 @@ def scenario(
     accept: Any = _UNSET,
     reference_driver: str | None = _UNSET,
     reference_max: int | None = _UNSET,
+    unavoidable: str = _UNSET,
     **parameters: Any,
 ) -> pytest.MarkDecorator:
     """Declare an abstract scenario on a test; returns a ``pytest.mark.scenario`` mark.
@@ -106,6 +109,9 @@ def scenario(
         whether its violations were avoidable (default ``"careful"``, UN R157's careful and
         competent driver; ``"none"`` turns the check off).
     :param reference_max: judge only the first N counterexamples per sampler (default: all).
+    :param unavoidable: ``"keep"`` (default) or ``"discard"``: an active sampler is told
+        nothing of a case that starts RSS-unsafe or of a counterexample the reference driver
+        cannot avoid either (it is still run and reported), so it does not converge on them.
     """
     given = {
         k
@@ -114,6 +120,7 @@ def scenario(
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
             reference_driver=reference_driver, reference_max=reference_max,
+            unavoidable=unavoidable,
         ).items()
         if v is not _UNSET
     }
@@ -124,6 +131,7 @@ def scenario(
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
             reference_driver=reference_driver, reference_max=reference_max,
+            unavoidable=unavoidable,
         ).items()
     }
     problem = None

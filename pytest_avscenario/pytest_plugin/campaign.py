@@ -70,6 +70,8 @@ class Campaign:
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
     judged: dict[str, int] = field(default_factory=dict)  # sampler -> avoidability checks run
+    # (sampler, index) -> its avoidability, judged before its item ran (to tell a sampler)
+    judgements: dict[tuple[str, int], Any] = field(default_factory=dict)
     # asking ahead on a cluster: (sampler, index) -> the item
     items: dict[tuple[str, int], Any] = field(default_factory=dict)
 
@@ -139,16 +141,51 @@ def active_params(item: pytest.Function, slot: CaseSlot, request: pytest.Fixture
             f"{function_id(item)}[{slot.sampler}-{j:03d}]", run.params[j])
         outcome = executor.run(make_job(item, campaign.plan, earlier, fresh_world=True, fixtures=fixtures))
         run.ahead[j] = outcome
-        tell(run, outcome)
+        tell(run, outcome, unfair(item, campaign, earlier, outcome, fixtures))
     run.params.append(run.sampler.ask())
     return run.params[k]
 
 
-def tell(run: ActiveRun, outcome: CaseOutcome) -> None:
-    """Tell the next case's outcome to its sampler (errors as invalid: no evidence)."""
-    run.sampler.tell(outcome.params,
-                     None if outcome.verdict == "error" else (dict(outcome.rho) or body_rho(outcome)))
+def tell(run: ActiveRun, outcome: CaseOutcome, discard: bool = False) -> None:
+    """Tell the next case's outcome to its sampler (errors, and with ``discard`` unfair cases,
+    as invalid: no evidence)."""
+    run.sampler.tell(outcome.params, None if outcome.verdict == "error" or discard
+                     else (dict(outcome.rho) or body_rho(outcome)))
     run.told += 1
+
+
+def unfair(item: pytest.Function, campaign: Campaign, case: Case, outcome: CaseOutcome,
+           fixtures: Mapping[str, Any] | None = None) -> bool:
+    """With ``unavoidable="discard"``: whether the sampler should learn nothing of this case —
+    it starts RSS-unsafe, or it is a counterexample the reference driver cannot avoid either
+    (judged now, and kept for the case's row)."""
+    if not campaign.plan.discard_unavoidable:
+        return False
+    if starts_unsafe(outcome):
+        return True
+    if not (outcome.failed and outcome.violated):
+        return False
+    judged = judge_avoidability(item, campaign, case, outcome, fixtures)
+    campaign.judgements[(case.sampler, case.index)] = judged
+    return judged is not None and judged.error is None and bool(judged.avoidable) \
+        and all(v is False for v in judged.avoidable.values())
+
+
+def starts_unsafe(outcome: CaseOutcome) -> bool:
+    """The ego and another agent are in an RSS-dangerous situation at t = 0 (both distances
+    unsafe): nobody entered it, no driver is to blame. False without a trajectory (a remote
+    outcome carries none)."""
+    traj = outcome.trajectory
+    if traj is None or traj.n_agents < 2 or traj.n_steps < 1:
+        return False
+    from ..monitors import MonitorError
+    from ..monitors.rss import rss_margins
+
+    try:
+        lon, lat = rss_margins(traj)
+    except (MonitorError, ValueError, FloatingPointError):
+        return False
+    return bool(((lon[:, 0] < 0) & (lat[:, 0] < 0)).any())
 
 
 def note_selection(session: pytest.Session) -> None:
@@ -227,7 +264,7 @@ def run_item(item: pytest.Function) -> ItemResult:
             ask_ahead(item, campaign, slot)
         outcome = executor_of(item.config).run(make_job(item, plan, case_obj, fresh_world=False))
         if run is not None and slot.index not in run.from_cache:
-            tell(run, outcome)
+            tell(run, outcome, unfair(item, campaign, case_obj, outcome))
     campaign.ran[slot.sampler] = campaign.ran.get(slot.sampler, 0) + 1
 
     shrink = None
@@ -239,8 +276,11 @@ def run_item(item: pytest.Function) -> ItemResult:
             campaign.shrunk[slot.sampler] = done + 1
             shrink = shrink_case(item, plan, case_obj, outcome)
     minimized = shrink is not None and shrink.minimized is not None
-    judged = judge_avoidability(item, campaign, case_obj, outcome) \
-        if not (shrink is not None and shrink.flaky) else None
+    key = (case_obj.sampler, case_obj.index)
+    judged = campaign.judgements.pop(key) if key in campaign.judgements and case_obj.origin == "sampled" \
+        else judge_avoidability(item, campaign, case_obj, outcome)
+    if shrink is not None and shrink.flaky:
+        judged = None
     row = make_row(item, case_obj, outcome,
                    minimized=shrink.minimized if minimized else None,
                    shrink_sims=shrink.sims if minimized else None,
@@ -587,7 +627,7 @@ class Avoidability:
 
 
 def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
-                       outcome: CaseOutcome) -> Avoidability | None:
+                       outcome: CaseOutcome, fixtures: Mapping[str, Any] | None = None) -> Avoidability | None:
     """Simulate a counterexample again with the plan's reference driver as the ego (same seed,
     same other agents and behaviours) and classify each violated metric; name who entered an
     RSS-unsafe state first. None when not judged (no reference, no violated monitor, budget
@@ -600,7 +640,8 @@ def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
     if plan.reference_max is not None and done >= plan.reference_max:
         return None
     campaign.judged[case.sampler] = done + 1
-    ref = executor_of(item.config).run(make_job(item, plan, case, fresh_world=True, reference=reference))
+    ref = executor_of(item.config).run(make_job(item, plan, case, fresh_world=True, reference=reference,
+                                                fixtures=fixtures))
     judged = Avoidability(reference, {}, {k: float(v) for k, v in ref.rho.items()},
                           unsafe_first=unsafe_first(outcome))
     if ref.verdict == "error" and not ref.rho:

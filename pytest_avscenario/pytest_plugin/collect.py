@@ -69,6 +69,7 @@ class ScenarioPlan:
     accept: Any  # acceptance.Criteria
     reference_driver: str | None = None  # judges avoidability of counterexamples (None: off)
     reference_max: int | None = None  # counterexamples per sampler judged (None: all)
+    discard_unavoidable: bool = False  # active samplers learn nothing of unfair cases
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -182,7 +183,7 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         shrink_max=own.shrink_max, case_timeout_s=own.case_timeout_s,
         replays=types.MappingProxyType(replays), accept=own.accept,
         reference_driver=own.reference_driver if "world" in metafunc.fixturenames else None,
-        reference_max=own.reference_max)
+        reference_max=own.reference_max, discard_unavoidable=own.unavoidable == "discard")
     if own.accept.avoidable and plan.reference_driver is None:
         raise DeclarationError(
             "accept='avoidable' counts only counterexamples a reference driver avoids, but this "

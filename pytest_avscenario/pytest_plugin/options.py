@@ -251,6 +251,12 @@ OPTIONS = (
            "and sampler (one extra simulation each; default: all)",
            "counterexamples per test and sampler whose avoidability is judged (default: all)",
            _integer(0), per_test=True),
+    Option("unavoidable", "keep|discard",
+           "'discard': active samplers are told nothing of cases that start RSS-unsafe or of "
+           "counterexamples the reference driver cannot avoid either, so they do not converge "
+           "on them (the cases are still run and reported); default 'keep'",
+           "keep or discard (for active samplers) cases that start RSS-unsafe or are unavoidable",
+           _one_of("unavoidable", "keep", "discard"), per_test=True),
     Option("case-timeout", "SECONDS",
            "end a scenario case that runs longer than SECONDS (reported as an error with the "
            "time it ran)",
@@ -357,6 +363,7 @@ class TestSettings:
     accept: Any  # acceptance.Criteria
     reference_driver: str | None  # None: no avoidability check
     reference_max: int | None  # counterexamples per sampler judged (None: all)
+    unavoidable: str  # "keep" or "discard"
 
 
 @dataclass(frozen=True)
@@ -411,6 +418,7 @@ class Settings:
             accept=pick("accept") or _default_criteria(),
             reference_driver=self._reference_for(spec),
             reference_max=pick("reference_max"),
+            unavoidable=pick("unavoidable") or "keep",
         )
 
     def _reference_for(self, spec: ScenarioSpec) -> str | None:
