@@ -60,7 +60,8 @@ def test_highway_cut_in(case, world):
 
 
 def run(test: str, cwd: Path, seed: int, samples: int, *extra: str) -> tuple[list[dict], float]:
-    report = cwd / f"report-{seed}-{abs(hash(extra)) % 10**6}"
+    # the report of each run goes to a folder of its own, outside the repository
+    report = Path(tempfile.mkdtemp(prefix=f"avs-bench-{seed}-")) / "report"
     cmd = [sys.executable, "-m", "pytest", test, "-q", "-p", "no:xdist", "-p", "no:cacheprovider",
            "-m", "scenario or not scenario", f"--avs-seed={seed}", "--avs-sampler=mab",
            f"--avs-samples={samples}", "--avs-shrink-budget=0", "--avs-db=none",
@@ -72,6 +73,36 @@ def run(test: str, cwd: Path, seed: int, samples: int, *extra: str) -> tuple[lis
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     rows = [json.loads(line) for line in (report / "errors.jsonl").read_text().splitlines()]
     return rows, cpu
+
+
+def simulation_cost(n: int) -> tuple[float, float]:
+    """CPU seconds per simulation of scenario 2's body with the autopilot as the ego, and with
+    the careful reference driver as the ego (the avoidability check's one extra simulation),
+    on the same ``n`` Halton cases, in this process."""
+    sys.path.insert(0, str(ROOT / "example_tests"))
+    from test_02_vehicle_following import test_vehicle_following as body
+
+    from pytest_avscenario.case import Case, stable_seed
+    from pytest_avscenario.runner import run_case
+    from pytest_avscenario.samplers import make
+    from pytest_avscenario.sim import World
+
+    spec = body.pytestmark[0].args[0]
+    from pytest_avscenario.monitors import MonitorSet
+    from pytest_avscenario.space import FeatureSpace
+
+    space = FeatureSpace(spec.parameters)
+    monitors = MonitorSet(spec.monitors)
+    cases = [Case(space.from_unit(u), index=k, seed=stable_seed("bench", k), sampler="halton")
+             for k, u in enumerate(make("halton", space, seed=0).sample_unit(n))]
+    out = []
+    for ego in (None, "careful"):
+        t0 = time.process_time()
+        for c in cases:
+            run_case(body, ("case", "world"), {}, c, monitors,
+                     lambda c, ego=ego: World(seed=c.seed, rng=c.rng, driver="autopilot", ego_driver=ego))
+        out.append((time.process_time() - t0) / n)
+    return out[0], out[1]
 
 
 def shares(rows: list[dict]) -> tuple[int, int, int]:
@@ -116,6 +147,10 @@ def main() -> None:
                 n, j, u = totals
                 print(f"| {name} | {mode} | {n} | {j} | {u} | {u / j:.0%} |" if j else
                       f"| {name} | {mode} | {n} | 0 | 0 | — |", flush=True)
+        case_s, ref_s = simulation_cost(60)
+        print(f"\none simulation of scenario 2 in this process (CPU, 60 Halton cases): autopilot "
+              f"ego {case_s * 1e3:.1f} ms, careful reference ego {ref_s * 1e3:.1f} ms — the check "
+              f"costs {ref_s / case_s:.2f} of a case's simulation per counterexample judged")
         if cost:
             print(f"\ncost of the check per counterexample judged, in cases (CPU time, with vs "
                   f"without the reference): median {statistics.median(cost):.2f}, "
