@@ -159,7 +159,10 @@ def parse_accept(value: Any) -> Criteria:
         else:
             raise ValueError(f"unknown criterion {term!r}: use 'any', 'regressions', "
                              "'avoidable', a metric name or rate(...)")
-    if avoidable and not (any_ or metrics or regressions or rates):
+    if avoidable and not (any_ or metrics or regressions):
+        if rates:
+            raise ValueError("'avoidable' qualifies 'any', 'regressions' or metric names; a rate "
+                             "bound counts every violation: add 'any' or a metric name to it")
         any_ = True  # "avoidable" alone: every avoidable counterexample rejects
     return Criteria(any_, tuple(dict.fromkeys(metrics)), regressions, tuple(rates), avoidable)
 

@@ -24,7 +24,7 @@ from typing import Any, Mapping
 
 from .codec import jsonable, rho_from_json, rho_to_json
 
-__all__ = ["CaseOutcome", "CaseRow", "ORIGINS", "VERDICTS"]
+__all__ = ["CaseOutcome", "CaseRow", "ORIGINS", "VERDICTS", "all_unavoidable"]
 
 ORIGINS = ("sampled", "replay", "example", "pinned", "shrink")
 VERDICTS = ("pass", "fail", "error")
@@ -223,9 +223,10 @@ class CaseRow:
         )
 
     @property
-    def unavoidable(self) -> list[str]:
-        """The violated metrics the reference driver violates too."""
-        return [m for m, v in (self.avoidable or {}).items() if v is False]
+    def unavoidable(self) -> bool:
+        """A counterexample judged against the reference driver, every violated metric of
+        which the reference violates too (no driver of its standard avoids it)."""
+        return all_unavoidable(self.avoidable)
 
     @classmethod
     def coerce(cls, row: "CaseRow | Mapping[str, Any]") -> "CaseRow":
@@ -237,4 +238,9 @@ def _avoidable(data: Any) -> dict[str, bool | None] | None:
     if not isinstance(data, Mapping):
         return None
     return {str(k): v if isinstance(v, bool) else None for k, v in data.items()}
+
+
+def all_unavoidable(avoidable: Mapping[str, bool | None] | None) -> bool:
+    """Every judged metric is unavoidable (False), and there is at least one."""
+    return bool(avoidable) and all(v is False for v in avoidable.values())
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from contextlib import contextmanager
 from typing import Any, Callable, Mapping
 
 from .case import Case
@@ -34,54 +33,73 @@ GRACE_S = 3.0
 RETRY_S = 0.25
 
 
-@contextmanager
-def time_limit(seconds: float | None, on_stuck: Callable[[float], None] | None = None):
-    """End the enclosed code with :class:`CaseTimeout` after ``seconds`` of wall time.
+class TimeLimit:
+    """Ends the code between :meth:`start` and :meth:`stop` with :class:`CaseTimeout` after
+    ``seconds`` of wall time.
 
     Uses SIGALRM (it interrupts pure-Python loops and sleeps alike) in the main thread of a
     POSIX process — where pytest, and pytest-xdist's workers, run tests — and raises again
     every :data:`RETRY_S` until the code ends. Code that still does not end (it swallows every
     interrupt, or is stuck in one long C call that no signal handler can enter) is handed to
     ``on_stuck(ran_s)`` from a watchdog thread :data:`GRACE_S` seconds after the limit; the
-    plugin's ``on_stuck`` records the case and ends the process. Elsewhere the limit is not
-    enforced here; executors that run cases in threads or remotely bound them themselves.
+    plugin's ``on_stuck`` records the case and ends the process. Elsewhere (no ``seconds``,
+    another thread, no SIGALRM) it does nothing: executors that run cases in threads or
+    remotely bound them themselves.
+
+    :meth:`stop` always ends the limit, even when an alarm lands while it runs: the handler
+    raises only while the limit is live, and ``stop`` retries until it has made it not live,
+    under a lock the watchdog takes too (a case that ends as the watchdog fires is either
+    stuck or done, never both).
     """
-    usable = (seconds is not None and hasattr(signal, "setitimer")
-              and threading.current_thread() is threading.main_thread())
-    if not usable:
-        yield
-        return
 
-    t0 = time.monotonic()
+    def __init__(self, seconds: float | None, on_stuck: Callable[[float], None] | None = None):
+        self.seconds = seconds
+        self.on_stuck = on_stuck
+        self.usable = (seconds is not None and hasattr(signal, "setitimer")
+                       and threading.current_thread() is threading.main_thread())
+        self.live = False
+        self.lock = threading.Lock()
+        self.t0 = 0.0
+        self.previous: Any = None
+        self.watchdog: threading.Timer | None = None
 
-    live = [True]  # False once the code ended: a signal still pending then raises nothing
+    def _expire(self, signum: int, frame: Any) -> None:
+        if self.live:
+            raise CaseTimeout(f"the case ran longer than its time limit of {self.seconds:g} s")
 
-    def expire(signum: int, frame: Any) -> None:
-        if live[0]:
-            raise CaseTimeout(f"the case ran longer than its time limit of {seconds:g} s")
+    def _stuck(self) -> None:
+        with self.lock:  # held while on_stuck ends the process: stop() waits, or was first
+            if self.live:
+                self.on_stuck(time.monotonic() - self.t0)  # type: ignore[misc]
 
-    watchdog = None
-    if on_stuck is not None:
-        watchdog = threading.Timer(float(seconds) + GRACE_S, 
-                                   lambda: live[0] and on_stuck(time.monotonic() - t0))
-        watchdog.daemon = True
-        watchdog.name = "avscenario-case-watchdog"
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, float(seconds), RETRY_S)
-    if watchdog is not None:
-        watchdog.start()
-    try:
-        yield
-    finally:
-        while live[0]:
-            try:  # the repeating timer may still raise until it is off
-                live[0] = False
-                signal.setitimer(signal.ITIMER_REAL, 0)
+    def start(self) -> None:
+        if not self.usable:
+            return
+        self.t0 = time.monotonic()
+        self.live = True
+        self.previous = signal.signal(signal.SIGALRM, self._expire)
+        signal.setitimer(signal.ITIMER_REAL, float(self.seconds), RETRY_S)  # type: ignore[arg-type]
+        if self.on_stuck is not None:
+            self.watchdog = threading.Timer(float(self.seconds) + GRACE_S, self._stuck)  # type: ignore[arg-type]
+            self.watchdog.daemon = True
+            self.watchdog.name = "avscenario-case-watchdog"
+            self.watchdog.start()
+
+    def stop(self) -> None:
+        if not self.usable:
+            return
+        while True:
+            try:  # an alarm may still land here: retry until the limit is not live
+                with self.lock:
+                    self.live = False
+                break
             except CaseTimeout:
-                live[0] = True
-        if watchdog is not None:
-            watchdog.cancel()
-        signal.signal(signal.SIGALRM, previous)
+                continue
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        if self.watchdog is not None:
+            self.watchdog.cancel()
+        if self.previous is not None:
+            signal.signal(signal.SIGALRM, self.previous)
 
 
 def run_case(
@@ -99,7 +117,7 @@ def run_case(
     ``fixtures`` holds the values of the test's other fixtures; ``case`` replaces the
     ``case`` argument and, when the test requests ``world``, ``make_world(case)`` builds a
     fresh one (``None`` means: use ``fixtures["world"]`` as it is). ``timeout_s`` bounds the
-    body (see :func:`time_limit`, which hands a case that will not stop to ``on_stuck``); a
+    body (see :class:`TimeLimit`, which hands a case that will not stop to ``on_stuck``); a
     case that runs past it is an error saying how long it ran.
 
     Whatever the body raises becomes the outcome, except what must end the run or belongs to
@@ -118,9 +136,13 @@ def run_case(
     outcome = CaseOutcome(params=dict(case.params), verdict="pass")
     t0 = time.perf_counter()
     ret = None
+    limit = TimeLimit(timeout_s, on_stuck)
     try:
-        with time_limit(timeout_s, on_stuck):
+        try:
+            limit.start()
             ret = func(**{a: args[a] for a in argnames})
+        finally:
+            limit.stop()  # whatever happens here: no alarm outlives the body
     except CaseTimeout as exc:
         ran = time.perf_counter() - t0
         outcome.verdict, outcome.exc = "error", exc

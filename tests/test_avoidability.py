@@ -157,3 +157,14 @@ def test_discard_tells_an_active_sampler_nothing_of_an_unavoidable_case(pytester
     result.assert_outcomes(failed=2)  # still run and reported either way
     assert [json.loads(line) for line in (pytester.path / "told.jsonl").read_text().splitlines()] == told
     assert [r["avoidable"] for r in rows_of(pytester)] == [{"collision": False}, {"collision": True}]
+
+
+def test_avoidable_reads_as_a_qualifier_of_the_other_criteria():
+    from pytest_avscenario.acceptance import parse_accept, rate
+
+    assert parse_accept("avoidable").any and parse_accept("avoidable").avoidable
+    both = parse_accept(["collision", "avoidable"])
+    assert not both.any and both.metrics == ("collision",) and both.avoidable
+    assert parse_accept(both.text()) == both
+    with pytest.raises(ValueError, match="'avoidable' qualifies"):
+        parse_accept(["avoidable", rate("collision", at_most=0.01)])

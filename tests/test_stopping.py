@@ -371,3 +371,25 @@ def test_y(case, broken):
     assert all("ValueError: clumsy sampler cannot learn" in r["error"] for r in rows[:2])
     assert all("RuntimeError: no map server" in r["error"] for r in rows[2:])
     assert [r["params"] for r in rows[2:]] == [{"x": 0.5}, {"x": 0.25}]
+
+
+def test_no_alarm_outlives_a_case_that_ends_as_its_limit_fires():
+    # bodies that end right as their limit fires: afterwards no alarm is armed and SIGALRM is
+    # what it was (an alarm left behind would raise CaseTimeout in the plugin's own code)
+    from pytest_avscenario.runner import CaseTimeout, TimeLimit
+
+    before = signal.getsignal(signal.SIGALRM)
+    for _ in range(300):
+        limit = TimeLimit(0.002)
+        try:
+            try:
+                limit.start()
+                t0 = time.perf_counter()
+                while time.perf_counter() - t0 < 0.002:
+                    pass
+            finally:
+                limit.stop()
+        except CaseTimeout:
+            pass
+        assert signal.getitimer(signal.ITIMER_REAL)[0] == 0
+        assert signal.getsignal(signal.SIGALRM) is before

@@ -24,7 +24,7 @@ import pytest
 
 from ..acceptance import accepted_reason, case_verdict
 from ..case import Case
-from ..outcome import CaseOutcome, CaseRow
+from ..outcome import CaseOutcome, CaseRow, all_unavoidable
 from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
 from .failure import failure_message, fmt_rho
@@ -167,8 +167,7 @@ def unfair(item: pytest.Function, campaign: Campaign, case: Case, outcome: CaseO
         return False
     judged = judge_avoidability(item, campaign, case, outcome, fixtures)
     campaign.judgements[(case.sampler, case.index)] = judged
-    return judged is not None and judged.error is None and bool(judged.avoidable) \
-        and all(v is False for v in judged.avoidable.values())
+    return judged is not None and judged.error is None and judged.all_unavoidable
 
 
 def starts_unsafe(outcome: CaseOutcome) -> bool:
@@ -277,10 +276,12 @@ def run_item(item: pytest.Function) -> ItemResult:
             shrink = shrink_case(item, plan, case_obj, outcome)
     minimized = shrink is not None and shrink.minimized is not None
     key = (case_obj.sampler, case_obj.index)
-    judged = campaign.judgements.pop(key) if key in campaign.judgements and case_obj.origin == "sampled" \
-        else judge_avoidability(item, campaign, case_obj, outcome)
+    known = case_obj.origin == "sampled" and key in campaign.judgements  # judged to tell a sampler
+    judged = campaign.judgements.pop(key) if known else None
     if shrink is not None and shrink.flaky:
-        judged = None
+        judged = None  # not a counterexample of the scenario: nothing to judge
+    elif not known:
+        judged = judge_avoidability(item, campaign, case_obj, outcome)
     row = make_row(item, case_obj, outcome,
                    minimized=shrink.minimized if minimized else None,
                    shrink_sims=shrink.sims if minimized else None,
@@ -515,24 +516,29 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
         driver = fixtures.get("avs_driver")
         if driver is None and "world" in argnames:
             driver = item._request.getfixturevalue("avs_driver")
-    if reference is not None:
-        return CaseJob(
-            nodeid=item.nodeid, module_path=str(item.path), rootdir=str(item.config.rootpath),
-            function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
-            case=case, monitor_set=plan.monitor_set, driver=reference, fresh_world=True,
-            timeout_s=plan.case_timeout_s,
-            make_world=lambda c: build_world(c, driver, item.nodeid, ego_driver=reference),
-            on_stuck=stuck_case_handler(
-                item, plan.case_timeout_s, lambda o: make_row(item, item.funcargs.get("case", case), o),
-                plan.info()))
+    during = ("" if case.origin != "shrink" else "while it was being minimized") if reference is None \
+        else f"while the {reference} reference driver replayed it"
+    if reference is None and case.origin == "sampled" and case.index != getattr(slot_of(item), "index", case.index):
+        during = f"while case {case.index} of its active campaign was simulated first"
     return CaseJob(
         nodeid=item.nodeid, module_path=str(item.path), rootdir=str(item.config.rootpath),
         function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
-        case=case, monitor_set=plan.monitor_set, driver=driver, fresh_world=fresh_world,
-        timeout_s=plan.case_timeout_s, make_world=lambda c: build_world(c, driver, item.nodeid),
+        case=case, monitor_set=plan.monitor_set, driver=driver if reference is None else reference,
+        fresh_world=fresh_world or reference is not None, timeout_s=plan.case_timeout_s,
+        make_world=lambda c: build_world(c, driver, item.nodeid, ego_driver=reference),
         on_stuck=None if prefetch else stuck_case_handler(
-            item, plan.case_timeout_s, lambda o: make_row(item, item.funcargs.get("case", case), o), plan.info()),
+            item, plan.case_timeout_s, lambda o: make_row(item, item_case(item), o), plan.info, during),
     )
+
+
+def item_case(item: pytest.Item) -> Case:
+    """The item's own case: its ``case`` fixture's value, or, before its fixtures exist (or
+    when they failed), its slot's (the values an active sampler has not asked yet are {})."""
+    own = getattr(item, "funcargs", {}).get("case")
+    if isinstance(own, Case):
+        return own
+    slot = slot_of(item)
+    return slot.case(item.nodeid, slot.params if slot.params is not None else {})
 
 
 def attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]) -> None:
@@ -606,6 +612,10 @@ class Avoidability:
     reference_rho: dict[str, float]
     unsafe_first: dict[str, Any] | None = None  # {"agent": ..., "t": ...}
     error: str | None = None  # the reference run could not be judged
+
+    @property
+    def all_unavoidable(self) -> bool:
+        return all_unavoidable(self.avoidable)
 
     def text(self) -> str:
         lines = []

@@ -173,7 +173,10 @@ class RunState:
 
     # -- state ----------------------------------------------------------------------------
     def add(self, row: CaseRow, info: dict[str, Any]) -> None:
-        self.tests.setdefault(row.test, info)
+        if row.test not in self.tests or self.tests[row.test].get("unknown"):
+            # the first row of the test, or the first one to know the test (a crashed
+            # worker's row knows nothing of its declaration)
+            self.tests[row.test] = info
         self.rows.append(row)
         folder = self.claim()
         if folder is None:

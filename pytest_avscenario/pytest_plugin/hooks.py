@@ -307,14 +307,11 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 def record_error_row(item: pytest.Item, error: str) -> None:
     """Give ``item`` an error row, unless it has its row already."""
     from ..outcome import CaseOutcome
-    from .campaign import make_row
+    from .campaign import item_case, make_row
 
     if row_key in item.stash:
         return
-    case_obj = item.funcargs.get("case")
-    if not isinstance(case_obj, Case):  # its fixtures failed: the slot's values, if known
-        slot = slot_of(item)
-        case_obj = slot.case(item.nodeid, slot.params if slot.params is not None else {})
+    case_obj = item_case(item)
     item.stash[row_key] = make_row(item, case_obj, CaseOutcome(params=dict(case_obj.params),
                                                                verdict="error", error=error))
 

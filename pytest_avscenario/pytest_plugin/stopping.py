@@ -34,16 +34,18 @@ TERM_GRACE_S = 5.0
 
 
 def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Callable[[Any], CaseRow],
-                       info: dict[str, Any]) -> Callable[[float], None]:
-    """``on_stuck`` for the runner's time limit of ``item``'s cases (called from a thread).
-
-    ``make_row(outcome)`` is the item's row for an outcome; ``info`` its test's summary data."""
+                       info: Callable[[], dict[str, Any]], during: str = "") -> Callable[[float], None]:
+    """``on_stuck`` for the runner's time limit of one simulation of ``item`` (called from a
+    thread). ``make_row(outcome)`` is the item's row for an outcome; ``info()`` its test's
+    summary data; ``during`` says which simulation it was when not the item's case itself
+    ("while it was being minimized", "while the careful reference driver replayed it")."""
 
     def on_stuck(ran_s: float) -> None:
         from ..outcome import CaseOutcome
         from .stash import row_key
 
-        message = (f"CaseTimeout: the case ran past its time limit of {limit_s:g} s and did not "
+        what = f"a simulation {during} ran" if during else "the case ran"
+        message = (f"CaseTimeout: {what} past its time limit of {limit_s:g} s and did not "
                    f"stop when interrupted (it swallows the interrupt, or is stuck in a long C "
                    f"call); the process running it was ended after {ran_s:.1f} s")
         capman = item.config.pluginmanager.getplugin("capturemanager")
@@ -61,7 +63,7 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
                 report.avs_row = row.to_json()
                 report.avs_shrink_rows = []
                 report.avs_pictures = {}
-                report.avs_test = info
+                report.avs_test = info()
                 item.ihook.pytest_runtest_logreport(report=report)
         finally:
             where = "this xdist worker" if hasattr(item.config, "workerinput") else "the test run"
@@ -301,4 +303,4 @@ def unknown_test_info(sampler: str) -> dict[str, Any]:
     from ..space import FeatureSpace
 
     return {"metrics": [], "space": FeatureSpace({}).describe(), "accept": Criteria().to_json(),
-            "samplers": [sampler]}
+            "samplers": [sampler], "unknown": True}

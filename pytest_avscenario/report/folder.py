@@ -274,12 +274,16 @@ def claim_report_dir(requested: str | os.PathLike, *,
             reasons.append(f"{path} is in use by another pytest run{pid}")
             continue
         folder = _reread(folder)  # the manifest as the previous holder left it
-        foreign = folder.foreign()
-        if foreign:
-            folder.release()
-            reasons.append(_foreign_reason(path, foreign, folder))
-            continue
-        folder.clear()
+        try:
+            foreign = folder.foreign()
+            if foreign:
+                folder.release()
+                reasons.append(_foreign_reason(path, foreign, folder))
+                continue
+            folder.clear()
+        except BaseException:
+            folder.release()  # a folder this run cannot use stays free for the next
+            raise
         return folder, reasons
     raise ReportDirBusy("; ".join(reasons) + f"; no free directory among {requested} … "
                         f"{_sibling(requested, max_siblings)}")

@@ -226,8 +226,7 @@ def summarize(
                 failed_items=tuple(sorted(failing_items)),
                 reasons=None if verdicts is None else tuple(verdicts.get((test, sampler), ())),
                 judged=sum(1 for r in failing if r.avoidable),
-                unavoidable=sum(1 for r in failing if r.avoidable
-                                and all(v is False for v in r.avoidable.values())),
+                unavoidable=sum(1 for r in failing if r.unavoidable),
             )
         )
     return out
