@@ -24,7 +24,7 @@ from typing import Any, Mapping
 
 from .codec import jsonable, rho_from_json, rho_to_json
 
-__all__ = ["CaseOutcome", "CaseRow", "ORIGINS", "VERDICTS", "all_unavoidable"]
+__all__ = ["CaseOutcome", "CaseRow", "ORIGINS", "VERDICTS", "all_unavoidable", "violations_of"]
 
 ORIGINS = ("sampled", "replay", "example", "pinned", "shrink")
 VERDICTS = ("pass", "fail", "error")
@@ -164,6 +164,10 @@ class CaseRow:
     #: the agent that entered an RSS-unsafe state first by its own responsibility, and when
     #: ({"agent": name or "both", "t": seconds}); None: not judged or nobody did
     unsafe_first: Mapping[str, Any] | None = None
+    #: per violated metric, where it was violated: {"t": seconds of the first violation (or
+    #: of the deciding moment when the monitor cannot tell), "agent": the agent involved,
+    #: "threshold": the bound}; None for a case that violated nothing or was not simulated
+    violations: Mapping[str, Mapping[str, Any]] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -194,6 +198,8 @@ class CaseRow:
             out["avoidable"] = dict(self.avoidable)
         if self.unsafe_first is not None:
             out["unsafe_first"] = dict(self.unsafe_first)
+        if self.violations is not None:
+            out["violations"] = {k: jsonable(dict(v)) for k, v in self.violations.items()}
         return out
 
     @classmethod
@@ -220,6 +226,7 @@ class CaseRow:
             flaky=bool(data.get("flaky", False)),
             avoidable=_avoidable(data.get("avoidable")),
             unsafe_first=data.get("unsafe_first") if isinstance(data.get("unsafe_first"), Mapping) else None,
+            violations=_violations(data.get("violations")),
         )
 
     @property
@@ -238,6 +245,26 @@ def _avoidable(data: Any) -> dict[str, bool | None] | None:
     if not isinstance(data, Mapping):
         return None
     return {str(k): v if isinstance(v, bool) else None for k, v in data.items()}
+
+
+def _violations(data: Any) -> dict[str, dict[str, Any]] | None:
+    if not isinstance(data, Mapping):
+        return None
+    return {str(k): dict(v) for k, v in data.items() if isinstance(v, Mapping)}
+
+
+def violations_of(results: Mapping[str, Any]) -> dict[str, dict[str, Any]] | None:
+    """The ``violations`` of a row from a case's monitor results (violated metrics only)."""
+    out = {}
+    for name, res in results.items():
+        rho = getattr(res, "rho", None)
+        if rho is None or not rho < 0:
+            continue
+        t = getattr(res, "first_t", None)
+        t = getattr(res, "t", None) if t is None else t
+        out[name] = {"t": None if t is None else float(t), "agent": getattr(res, "agent", None),
+                     "threshold": getattr(res, "threshold", None)}
+    return out or None
 
 
 def all_unavoidable(avoidable: Mapping[str, bool | None] | None) -> bool:

@@ -24,7 +24,7 @@ import pytest
 
 from ..acceptance import accepted_reason, case_verdict
 from ..case import Case
-from ..outcome import CaseOutcome, CaseRow, all_unavoidable
+from ..outcome import CaseOutcome, CaseRow, all_unavoidable, violations_of
 from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
 from .failure import failure_message, fmt_rho
@@ -706,4 +706,4 @@ def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
         seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
         verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
         minimized=minimized, shrink_sims=shrink_sims, flaky=flaky, avoidable=avoidable,
-        unsafe_first=unsafe_first)
+        unsafe_first=unsafe_first, violations=violations_of(outcome.results))
