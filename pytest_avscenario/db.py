@@ -330,8 +330,9 @@ class ReplayDB:
 def space_changes(old: Mapping[str, Any], new: FeatureSpace) -> list[str]:
     """Names of parameters added, removed or changed between a stored space description
     and the current space: new parameters in declaration order, then removed ones."""
-    new_desc = new.describe()
+    new_desc = {n: {k: v for k, v in d.items() if k != "unit"} for n, d in new.describe().items()}
     old = dict(old) if isinstance(old, Mapping) else {}
+    old = {n: {k: v for k, v in d.items() if k != "unit"} if isinstance(d, Mapping) else d for n, d in old.items()}
     changed = [n for n, d in new_desc.items() if n not in old or _canon(old[n]) != _canon(d)]
     removed = [n for n in old if n not in new_desc]
     return changed + removed

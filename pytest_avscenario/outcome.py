@@ -52,6 +52,7 @@ class CaseOutcome:
     trajectory: Any = None  # in the process that ran it only
     world: Any = None  # the World that ran (in-process only), for rendering pictures
     worker_pid: int = 0  # the process that simulated it (0: this one)
+    drawn: dict[str, Any] | None = None  # the case.rng draws (RecordingGenerator.log())
 
     @property
     def signature(self) -> tuple[Any, ...]:
@@ -168,6 +169,9 @@ class CaseRow:
     #: of the deciding moment when the monitor cannot tell), "agent": the agent involved,
     #: "threshold": the bound}; None for a case that violated nothing or was not simulated
     violations: Mapping[str, Mapping[str, Any]] | None = None
+    #: what the run drew from ``case.rng``: {"count": N, "draws": [{"n", "call", "value",
+    #: "t"}, ...]} (the first draws in full); None when it drew nothing
+    drawn: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -200,6 +204,8 @@ class CaseRow:
             out["unsafe_first"] = dict(self.unsafe_first)
         if self.violations is not None:
             out["violations"] = {k: jsonable(dict(v)) for k, v in self.violations.items()}
+        if self.drawn is not None:
+            out["drawn"] = jsonable(dict(self.drawn))
         return out
 
     @classmethod
@@ -227,6 +233,7 @@ class CaseRow:
             avoidable=_avoidable(data.get("avoidable")),
             unsafe_first=data.get("unsafe_first") if isinstance(data.get("unsafe_first"), Mapping) else None,
             violations=_violations(data.get("violations")),
+            drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
         )
 
     @property

@@ -168,6 +168,8 @@ def run_case(
             outcome.error = f"{type(exc).__name__}: {_one_line(exc)}"
     finally:
         outcome.sim_time_s = time.perf_counter() - t0
+        log = getattr(case.rng, "log", None)
+        outcome.drawn = log() if callable(log) else None
 
     traj = ret if isinstance(ret, Trajectory) else getattr(world, "trajectory", None)
     outcome.trajectory = traj

@@ -151,6 +151,7 @@ class Distribution:
     """
 
     kind: str = "continuous"
+    unit: str | None = None
     #: why the arguments were invalid (None when valid); see :meth:`check`
     error: str | None = None
 
@@ -160,6 +161,13 @@ class Distribution:
         # feature space (and so the plugin, at collection) raises with the parameter's name.
         self._args = (args, kwargs)
         name = type(self).__name__
+        unit = kwargs.pop("unit", None)
+        if unit is not None and not (isinstance(unit, str) and unit.strip() and len(unit) <= 20
+                                     and unit.isprintable()):
+            self.error = f"{name}: unit must be a short text such as 'm' or 'm/s^2', got {unit!r}"
+            return
+        #: the parameter's unit for reports (``"m"``, ``"m/s"``); None: not declared
+        self.unit: str | None = unit.strip() if unit is not None else None
         if type(self)._setup is Distribution._setup:
             self.error = (f"{name} is {'the abstract base class' if type(self) is Distribution else 'a subclass of Distribution without _setup'}; "
                           "use one of Uniform, Normal, IntRange, Choice, Constant")
@@ -181,7 +189,8 @@ class Distribution:
         if "_setup" in cls.__dict__:
             # help(Uniform) and IDEs show the real arguments, not (*args, **kwargs)
             params = list(inspect.signature(cls._setup).parameters.values())
-            cls.__signature__ = inspect.Signature(params[1:])
+            unit = inspect.Parameter("unit", inspect.Parameter.KEYWORD_ONLY, default=None)
+            cls.__signature__ = inspect.Signature([*params[1:], unit])
 
     def _setup(self, *args: Any, **kwargs: Any) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -211,6 +220,11 @@ class Distribution:
     def describe(self) -> dict[str, Any]:  # pragma: no cover
         """A JSON-able description; two equal descriptions mean the same distribution."""
         raise NotImplementedError
+
+    def _with_unit(self, description: dict[str, Any]) -> dict[str, Any]:
+        if self.unit is not None:
+            description["unit"] = self.unit
+        return description
 
     def __repr__(self) -> str:
         if self.error is not None:
@@ -256,7 +270,7 @@ class Uniform(Distribution):
         return _within(value, self.lo, self.hi)
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "Uniform", "lo": self.lo, "hi": self.hi, "nominal": self._nominal}
+        return self._with_unit({"type": "Uniform", "lo": self.lo, "hi": self.hi, "nominal": self._nominal})
 
 
 class Normal(Distribution):
@@ -297,7 +311,7 @@ class Normal(Distribution):
         return _within(value, self.lo, self.hi)
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "Normal", "mean": self.mean, "sd": self.sd, "lo": self.lo, "hi": self.hi}
+        return self._with_unit({"type": "Normal", "mean": self.mean, "sd": self.sd, "lo": self.lo, "hi": self.hi})
 
 
 def _bounded_int(value: Any, what: str) -> int:
@@ -352,7 +366,7 @@ class IntRange(Distribution):
         return isinstance(value, (int, np.integer)) and self.lo <= value <= self.hi
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "IntRange", "lo": self.lo, "hi": self.hi, "nominal": self._nominal}
+        return self._with_unit({"type": "IntRange", "lo": self.lo, "hi": self.hi, "nominal": self._nominal})
 
 
 class Choice(Distribution):
@@ -435,7 +449,7 @@ class Choice(Distribution):
         return True
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "Choice", "options": copy.deepcopy(list(self.options)), "weights": list(self.weights)}
+        return self._with_unit({"type": "Choice", "options": copy.deepcopy(list(self.options)), "weights": list(self.weights)})
 
 
 class Constant(Distribution):
@@ -463,7 +477,7 @@ class Constant(Distribution):
         return (key is not None and key == _key(self.value)) or value == self.value
 
     def describe(self) -> dict[str, Any]:
-        return {"type": "Constant", "value": copy.deepcopy(self.value)}
+        return self._with_unit({"type": "Constant", "value": copy.deepcopy(self.value)})
 
 
 def as_distribution(name: str, value: Any) -> Distribution:
@@ -604,7 +618,9 @@ class FeatureSpace:
                     "Uniform, Normal, IntRange, Choice or Constant")
 
     def fingerprint(self) -> str:
-        blob = json.dumps(self.describe(), sort_keys=True, default=repr).encode()
+        """Identifies the distributions (units left aside: they change no case)."""
+        plain = {n: {k: v for k, v in d.items() if k != "unit"} for n, d in self.describe().items()}
+        blob = json.dumps(plain, sort_keys=True, default=repr).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
     def __repr__(self) -> str:

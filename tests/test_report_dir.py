@@ -185,12 +185,15 @@ def test_xdist_workers_case_pictures_land_in_the_claimed_directory(pytester, mon
                                            "-p", "no:cacheprovider")
     result.assert_outcomes(passed=3, failed=1)
     pictures = sorted(p.name for p in (pytester.path / "avs-report-2" / "cases").iterdir())
-    assert [p.rpartition(".")[2] for p in pictures] == ["gif", "png"]
+    assert sorted(p.rpartition(".")[2] for p in pictures) == ["gif", "html", "png"]  # and the card
     manifest = json.loads((pytester.path / "avs-report-2" / ".avs-manifest.json").read_text())
     assert {f"cases/{p}" for p in pictures} <= set(manifest["files"])
     assert list(tmp.iterdir()) == [] and sorted(p.name for p in report.iterdir()) == ["index.html"]
     page = (pytester.path / "avs-report-2" / "index.html").read_text()
-    assert all(f"cases/{p}" in page for p in pictures)
+    card = next(p for p in pictures if p.endswith(".html"))
+    assert f"cases/{card}" in page
+    card_page = (pytester.path / "avs-report-2" / "cases" / card).read_text()
+    assert all(p in card_page for p in pictures if not p.endswith(".html"))
 
 
 # --------------------------------------------------------------------------- item 3
@@ -288,3 +291,27 @@ def test_a_failing_report_part_is_a_warning_and_the_rest_is_written(pytester, mo
         result.stdout.fnmatch_lines(["*= avscenario =*", "test_gap *halton*4*"])
     if "JUnit" not in part:
         assert "avs.test[test_gap.py::test_gap][halton].samples" in (pytester.path / "out.xml").read_text()
+
+
+@pytest.mark.parametrize("how", [["-k", "test_a and halton-002"], ["test_two.py::test_a[halton-002]"],
+                                 ["-n", "2", "-k", "test_a and halton-002"]],
+                         ids=["keyword", "case-id", "xdist"])
+def test_re_running_one_case_keeps_the_campaign_report(pytester, how):
+    # issue #17 item 6: a run of some cases of a campaign writes DIR/rerun; DIR stays
+    pytester.makepyfile(test_two=SCENARIOS)
+    args = ["--avs-report=rep", "--avs-db=none", "--avs-seed=1", "-p", "no:cacheprovider"]
+    pytester.runpytest(*args).assert_outcomes(passed=12)
+    rep = pytester.path / "rep"
+    campaign = (rep / "errors.jsonl").read_text(), (rep / "summary.json").read_text(), (rep / "index.html").read_text()
+    again = pytester.runpytest(*args, *how)
+    again.assert_outcomes(passed=1)
+    again.stdout.fnmatch_lines(["*avscenario report: *rep/rerun/index.html*"])
+    assert ((rep / "errors.jsonl").read_text(), (rep / "summary.json").read_text()) == campaign[:2]
+    assert [r["item"].rpartition("::")[2] for r in _rows(rep / "rerun")] == ["test_a[halton-002]"]
+    # the campaign's page is as it was; the re-run's page says what it is and links back
+    assert (rep / "index.html").read_text() == campaign[2]
+    page = (rep / "rerun" / "index.html").read_text()
+    assert "../index.html" in page and "runs 1 of the 6 halton cases" in page
+    # a whole campaign again (a test chosen whole is not a re-run) replaces the campaign report
+    pytester.runpytest(*args, "-k", "test_b").assert_outcomes(passed=5)
+    assert _samples(rep) == {"test_b": 5} and (rep / "rerun" / "errors.jsonl").exists()

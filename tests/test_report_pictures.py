@@ -17,8 +17,10 @@ from pytest_avscenario.report.summary import TestInfo, summarize
 from pytest_avscenario.report.table import ErrorTable
 from pytest_avscenario.space import Choice, FeatureSpace, Uniform
 
-PASS_RGB = (0x00, 0x72, 0xB2)
-FAIL_RGB = (0xD5, 0x5E, 0x00)
+PASS_RGB = (0x00, 0x72, 0xB2)  # the ρ plot's passing cases
+FAIL_RGB = (0xD5, 0x5E, 0x00)  # failures (in the space plot: those that violated distance first)
+SPACE_PASS_RGB = (0x9E, 0xC5, 0xE8)  # the space plot's passing cases
+TTC_FIRST_RGB = (0xE6, 0x9F, 0x00)  # the space plot's failures that violated ttc first
 NASTY = "tests/test_x.py::test_follow[<img src=x onerror=alert(1)>&\"q\"]"
 
 
@@ -49,13 +51,22 @@ def _count_colour(pixels, rgb, tol=90):
 
 
 def test_feature_space_plot_shows_passing_and_failing_cases(tmp_path):
-    path = plot_feature_space(tmp_path / "space.png", make_rows())
+    path = plot_feature_space(tmp_path / "space.png", make_rows(), metrics=["distance", "ttc"])
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     px = _pixels(path)
-    assert _count_colour(px, PASS_RGB) > 50 and _count_colour(px, FAIL_RGB) > 50
+    assert _count_colour(px, SPACE_PASS_RGB, tol=40) > 50 and _count_colour(px, FAIL_RGB, tol=40) > 50
+    # failures are coloured by the metric they violated first: without times, the first in
+    # declaration order; cases that violated ttc before distance take ttc's colour
+    rows = make_rows()
+    both = [r for r in rows if r["rho"]["ttc"] < 0 and r["rho"]["distance"] < 0]
+    assert both
+    for r in both:
+        r["violations"] = {"ttc": {"t": 1.0}, "distance": {"t": 2.0}}
+    px2 = _pixels(plot_feature_space(tmp_path / "space2.png", rows, metrics=["distance", "ttc"]))
+    assert _count_colour(px2, TTC_FIRST_RGB, tol=40) > _count_colour(px, TTC_FIRST_RGB, tol=40) + 20
     # Only passing cases: no failure colour anywhere.
     passing = [r for r in make_rows() if r["verdict"] == "pass"]
-    assert _count_colour(_pixels(plot_feature_space(tmp_path / "p.png", passing)), FAIL_RGB) == 0
+    assert _count_colour(_pixels(plot_feature_space(tmp_path / "p.png", passing)), FAIL_RGB, tol=40) == 0
 
 
 def test_rho_plot_handles_infinities_and_missing_values(tmp_path):
@@ -105,9 +116,12 @@ def test_index_escapes_everything_and_links_relatively(tmp_path):
     assert "seed: &lt;7&gt;" in text
     hrefs = re.findall(r"(?:href|src)='([^']*)'", text)
     assert hrefs and all(not h.startswith(("/", "http")) for h in hrefs)
-    for h in hrefs:  # every link resolves to a file we wrote
+    for h in hrefs:  # every link resolves to a file we wrote, or to a section of the page
         from urllib.parse import unquote
 
+        if h.startswith("#"):
+            assert f"id='{h[1:]}'" in text, h
+            continue
         assert (index.parent / unquote(h)).is_file(), h
     n_images = sum(len(v) for v in images.values())
     assert text.count("<img ") == n_images == 4

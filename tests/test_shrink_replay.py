@@ -58,7 +58,8 @@ def test_shrinking_respects_the_budget(pytester):
     result = pytester.runpytest("--avs-seed=1", "-k", "halton-001")  # gap 17.5 fails
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*minimized (3 simulations): gap=*"])
-    rows = (pytester.path / "avs-report" / "shrink.jsonl").read_text().splitlines()
+    # a re-run of one case: its report is apart from the campaign's
+    rows = (pytester.path / "avs-report" / "rerun" / "shrink.jsonl").read_text().splitlines()
     assert len(rows) == 1 + 3  # one replay for flakiness, then the budget
 
 
@@ -67,7 +68,7 @@ def test_budget_zero_disables_shrinking(pytester):
     result = pytester.runpytest("--avs-seed=1", "--avs-shrink-budget=0", "-k", "halton-001")
     result.assert_outcomes(failed=1)
     assert "pin it as a regression" not in result.stdout.str()
-    assert (pytester.path / "avs-report" / "shrink.jsonl").read_text() == ""
+    assert (pytester.path / "avs-report" / "rerun" / "shrink.jsonl").read_text() == ""
 
 
 def test_flaky_failure_is_reported_not_shrunk(pytester):

@@ -207,6 +207,26 @@ def note_selection(session: pytest.Session) -> None:
             campaign.run_of(name).cached = {j: p for j, p in enumerate(kept) if isinstance(p, dict)}
 
 
+def left_out(session: pytest.Session) -> str | None:
+    """Why this run re-runs some cases of a campaign (one scenario test with one sampler)
+    rather than whole campaigns, or None: it runs some but not all of a campaign's sampled
+    cases (``-k halton-003``, ``--lf``, a case id on the command line). Leaving out whole
+    tests or samplers is not a re-run."""
+    counts: dict[tuple[str, str], int] = {}
+    plans: dict[str, Any] = {}
+    for item in session.items:
+        slot = slot_of(item)
+        if slot is None or slot.origin != "sampled":
+            continue
+        test = function_id(item)
+        plans.setdefault(test, plan_of(item))
+        counts[(test, slot.sampler)] = counts.get((test, slot.sampler), 0) + 1
+    for (test, name), n in counts.items():
+        if n < plans[test].samples:
+            return f"it runs {n} of the {plans[test].samples} {name} cases of {test}"
+    return None
+
+
 def keep_drawn_values(config: pytest.Config) -> None:
     """Put the values each active campaign drew into pytest's cache, for re-runs of single ids."""
     cache = getattr(config, "cache", None)
@@ -440,12 +460,11 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
         import numpy as np
 
         step = int(np.argmin(np.abs(traj.t - worst.t)))
-    what = "minimized" if shown is not outcome else "as found"
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
-        pictures[f"{item.name}: worst moment ({what})"] = world.render_png(f"{base}.png", step=step)
+        pictures["moment"] = world.render_png(f"{base}.moment.png", step=step)
         if campaign.gifs < item.config.stash[settings_key].gifs:
-            pictures[f"{item.name}: the run ({what})"] = world.render_gif(f"{base}.gif", every=2)
+            pictures["gif"] = world.render_gif(f"{base}.gif", every=2)
             campaign.gifs += 1
     except Exception as exc:  # a picture is a convenience: never fail the case over it
         warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not render the case: {exc}"))
@@ -542,13 +561,16 @@ def item_case(item: pytest.Item) -> Case:
 
 
 def attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]) -> None:
-    """Show a failing case's pictures in its pytest-html row (embedded, so the page travels)."""
+    """Show a failing case's pictures in its pytest-html row (embedded, so the page travels);
+    ``pictures``: ``{kind: path}`` as :func:`render_case` gives them."""
     import base64
 
     from pytest_html import extras
 
     attached = list(getattr(report, "extras", []))
     for caption, path in pictures.items():
+        if not str(path).endswith((".png", ".gif")):
+            continue
         try:
             with open(path, "rb") as f:
                 data = base64.b64encode(f.read()).decode()
@@ -706,4 +728,4 @@ def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
         seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
         verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
         minimized=minimized, shrink_sims=shrink_sims, flaky=flaky, avoidable=avoidable,
-        unsafe_first=unsafe_first, violations=violations_of(outcome.results))
+        unsafe_first=unsafe_first, violations=violations_of(outcome.results), drawn=outcome.drawn)

@@ -28,6 +28,10 @@ from ..outcome import CaseRow
 from ..space import FeatureSpace
 from .stash import settings_key
 
+#: where a run that re-runs some cases (``-k``, ``--lf``, a case id) writes its report, inside
+#: the report folder, so the campaign's report stays as it was
+RERUN_DIR = "rerun"
+
 #: the prefix of a worker's temporary picture folder (the controller moves what is inside)
 STAGING_PREFIX = "avs-cases-"
 
@@ -48,8 +52,11 @@ class RunState:
         self.rows: list[CaseRow] = []
         self.tests: dict[str, dict[str, Any]] = {}
         self.summary_rows: list[Any] | None = None
-        self.pictures: dict[str, dict[str, str]] = {}
+        self.case_files: dict[str, dict[str, str]] = {}  # item id -> {kind: path} (cards)
         self.order: dict[str, None] = {}  # scenario tests in collection order
+        #: why this run re-runs some cases rather than whole campaigns (None: it does not);
+        #: such a run writes its report to ``DIR/rerun`` and leaves the campaign's report be
+        self.partial: str | None = None
 
     @property
     def directory(self) -> Path | None:
@@ -75,14 +82,15 @@ class RunState:
         self._claim_tried = True
         from ..report.folder import claim_report_dir, describe_fallback
 
+        requested = self.requested if not self.partial else self.requested / RERUN_DIR
         try:
-            folder, passed_over = claim_report_dir(self.requested)
+            folder, passed_over = claim_report_dir(requested)
         except OSError as exc:
             self.report_failed(exc)
             return None
         self.folder = self._claimed = folder
         if passed_over:
-            self.warn(describe_fallback(self.requested, folder.path, passed_over))
+            self.warn(describe_fallback(requested, folder.path, passed_over))
         return folder
 
     def note_order(self, nodeids: Any) -> None:
@@ -97,13 +105,15 @@ class RunState:
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
         if data is not None and not self.is_worker:
+            if getattr(report, "avs_partial", None) and not self.partial:
+                self.partial = report.avs_partial  # an xdist worker's selection
             for shrink_row in getattr(report, "avs_shrink_rows", ()):
                 self.add(CaseRow.from_json(shrink_row), report.avs_test)
             row = CaseRow.from_json(data)
             self.add(row, report.avs_test)
             pictures = getattr(report, "avs_pictures", None)
             if pictures:
-                self.pictures.setdefault(row.test, {}).update(self.place_pictures(row.test, pictures))
+                self.case_files.setdefault(row.item, {}).update(self.place_pictures(row.test, pictures))
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
@@ -127,12 +137,20 @@ class RunState:
 
                 return finish_report(self.folder.path, infos, rows=self.rows, folder=self.folder,
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
-                                     case_images=self.pictures, verdicts=verdicts)
+                                     case_files=self.case_files, verdicts=verdicts,
+                                     rerun=self.rerun_command, partial=self.partial)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
             self.summary_rows = self.guarded("the summary", None, lambda: self.summary(verdicts, infos)) or []
         self.guarded("the JUnit suite properties", None, self.add_suite_properties)
+
+    def rerun_command(self, row: CaseRow) -> str:
+        """The command that re-runs the case of ``row`` (for its card)."""
+        from .failure import rerun_text
+
+        space = (self.tests.get(row.test) or {}).get("space") or {}
+        return rerun_text(self.config.stash[settings_key], row.item, row.params, space)
 
     def add_suite_properties(self) -> None:
         from _pytest.junitxml import xml_key

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import pytest
 
@@ -66,6 +66,9 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
     if verbose:
         lines.append(f"  case: {case.sampler} #{case.index}, origin {case.origin}, seed {case.seed}, "
                      f"simulated in {outcome.sim_time_s:.3f} s")
+    drawn = draws_text(outcome.drawn, 3 if not verbose else 10)
+    if drawn:
+        lines.append(f"  {drawn}")
     if avoidability:
         lines += [f"  {line}" for line in avoidability.splitlines()]
     if note:
@@ -98,13 +101,30 @@ def _full_tables(item: pytest.Item, case: Case, outcome: CaseOutcome, shrink: An
     return lines
 
 
+def draws_text(drawn: Any, shown: int = 3) -> str | None:
+    """One line of what the run drew from ``case.rng`` (its first ``shown`` draws)."""
+    if not drawn or not drawn.get("count"):
+        return None
+    parts = []
+    for d in list(drawn.get("draws") or ())[:shown]:
+        at = "" if d.get("t") is None else f" at {d['t']:g} s"
+        parts.append(f"{d.get('call')} -> {fmt_value(d.get('value'))}{at}")
+    n = int(drawn["count"])
+    more = f", … ({n - len(parts)} more; all in the report)" if n > len(parts) else ""
+    return f"drawn from case.rng ({n}): " + "; ".join(parts) + more
+
+
 def rerun_command(item: pytest.Item, case: Case) -> str:
     """A command that re-runs just this case, with the same values."""
-    settings = item.config.stash[settings_key]
-    cmd = f"pytest '{item.nodeid}' --avs-seed={settings.seed}"
-    plan = plan_of(item)
+    return rerun_text(item.config.stash[settings_key], item.nodeid, case.params, plan_of(item).space.parameters)
+
+
+def rerun_text(settings: Any, nodeid: str, params: Mapping[str, Any], names: Any) -> str:
+    """The re-run command of case ``nodeid`` with ``params`` under the run's ``settings``;
+    ``names``: the test's parameter names (what ``--avs-params`` pins)."""
+    cmd = f"pytest '{nodeid}' --avs-seed={settings.seed}"
     if settings.pinned:
-        pinned = json.dumps({k: v for k, v in case.params.items() if k in plan.space.parameters})
+        pinned = json.dumps({k: v for k, v in params.items() if k in names})
         cmd += f" --avs-params '{pinned}'"
     for name in ("samples", "sampler", "driver"):  # they change which case an id names
         if name in settings.command_line:

@@ -24,6 +24,7 @@ from .campaign import (
     case_for,
     executor_of,
     keep_drawn_values,
+    left_out,
     note_selection,
     prefetch_passive_cases,
     run_item,
@@ -284,6 +285,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         if report.avs_pictures and item.config.pluginmanager.hasplugin("html"):
             attach_to_html_report(report, report.avs_pictures)
         report.avs_test = plan_of(item).info()
+        report.avs_partial = item.config.stash[controller_key].partial
     return report
 
 
@@ -292,6 +294,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     passive cases ahead, so its workers stay busy."""
     config = session.config
     note_selection(session)
+    config.stash[controller_key].partial = left_out(session)
     if config.stash[settings_key].executor == "inprocess" or hasattr(config, "workerinput"):
         return
     if not any(item.get_closest_marker("scenario") is not None for item in session.items):

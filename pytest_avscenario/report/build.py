@@ -46,6 +46,9 @@ def finish_report(
     tol: float = DEFAULT_TOL,
     within_radius: float | None = 0.1,
     verdicts: Mapping[tuple[str, str], Any] | None = None,
+    case_files: Mapping[str, Mapping[str, str]] | None = None,
+    rerun: Callable[[CaseRow], str | None] | None = None,
+    partial: str | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -58,7 +61,11 @@ def finish_report(
     ``index.html``. ``case_images``: ``{test: {caption: path}}`` pictures of single cases
     (e.g. the GIF and worst-moment PNG of each minimized counterexample), listed after the
     test's plots. ``verdicts``: the campaigns' rejection reasons (see
-    :func:`.summary.summarize`). Returns the summary rows (possibly empty).
+    :func:`.summary.summarize`). ``case_files``: ``{item id: {kind: path}}`` what each
+    failing case left (its pictures and recording; see :class:`.cards.CaseFiles`);
+    ``rerun(row)``: the command that re-runs a case, for its card. ``partial``: why this run
+    re-ran only some cases (its page says so and links to the campaign's report in ``..``).
+    Every counterexample gets a card page under ``cases/``. Returns the summary rows.
     """
     from .folder import ReportFolder
 
@@ -97,24 +104,71 @@ def finish_report(
         tables[test] = [p for p in (root / TABLES_DIR / f"{slug}.csv", root / TABLES_DIR / f"{slug}.shrink.csv") if p.exists()]
         if pictures and by_test.get(test):
             images[test] = part("the plots", test, lambda test=test: _plot(root, folder, test, by_test[test], tests))
-    for test, extra in (case_images or {}).items():
+    for test, extra in (case_images or {}).items():  # pictures a caller adds to a test's own
         merged = dict(images.get(test) or {})
         merged.update({caption: path for caption, path in extra.items() if Path(path).exists()})
         images[test] = merged
     images = {test: pics for test, pics in images.items() if pics}
 
+    sections: dict[str, list[str]] = {}
+    for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
+        made = part("the counterexample pages", test, lambda test=test: _cards(
+            root, folder, test, by_test.get(test, []), (tests or {}).get(test), case_files or {}, rerun))
+        if made:
+            sections[test] = made
+
     def write_page() -> None:
+        from .cards import e, href
         from .html import INDEX, write_index
 
         meta = {}
         if seed is not None:
             meta["seed"] = seed
         meta.update({k: v for k, v in (versions or {}).items()})
+        banner = None
+        if partial:
+            banner = (f"A re-run of some cases ({e(partial)}): this report holds them alone. "
+                      f"The campaign's report: <a href='../index.html'>../index.html</a>.")
+        elif (root / "rerun" / INDEX).exists():
+            banner = (f"The latest re-run of single cases has a report of its own: "
+                      f"<a href='{href(root, root / 'rerun' / INDEX)}'>rerun/index.html</a>.")
         folder.add(root / INDEX)
-        write_index(root, summary, images, tables, meta=meta)
+        write_index(root, summary, images, tables, meta=meta, sections=sections, banner=banner)
 
     part("index.html", None, write_page)
     return summary
+
+
+def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestInfo | None,
+           case_files: Mapping[str, Mapping[str, str]], rerun: Callable[[CaseRow], str | None] | None) -> list[str]:
+    """Write a card page per counterexample of ``test``; the index's HTML listing them."""
+    from .cards import CaseFiles, card_name, card_rows, counterexample_table, render_card
+
+    failing = card_rows(rows)
+    if not failing:
+        return []
+    cases = root / "cases"
+    cases.mkdir(parents=True, exist_ok=True)
+    space = info.space if info is not None else None
+    metrics = info.metrics if info is not None else ()
+
+    def slider(data: Mapping[str, Any], row: CaseRow) -> str:
+        from .replay import replay_html
+
+        where = [w for w in (row.violations or {}).values() if w.get("t") is not None]
+        first = min(where, key=lambda w: w["t"]) if where else {}
+        return replay_html(data, element_id="replay", critical=first.get("agent"), start_t=first.get("t"))
+
+    for row in failing:
+        page = render_card(cases, row, metrics=metrics, space=space,
+                           files=CaseFiles(dict(case_files.get(row.item) or {})),
+                           rerun=rerun(row) if rerun is not None else None,
+                           index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
+        atomic_write_text(folder.add(cases / card_name(row)), page)
+    minimized = sum(r.minimized is not None for r in failing)
+    return [f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"
+            f"{f' ({minimized} minimized)' if minimized else ''}: one page each</summary>",
+            counterexample_table(root, failing), "</details>"]
 
 
 def _plot(root: Path, folder: Any, test: str, rows: list[CaseRow],
@@ -123,5 +177,10 @@ def _plot(root: Path, folder: Any, test: str, rows: list[CaseRow],
 
     for path in plot_paths(root, test).values():
         folder.add(path)
+    from .cards import unit_of
+
     info = (tests or {}).get(test)
-    return plot_test(root, test, rows, metrics=(info.metrics or None) if info else None)
+    space = info.space if info is not None else None
+    units = {n: unit_of(space, n) for n in getattr(space, "parameters", {}) or {}}
+    return plot_test(root, test, rows, metrics=(info.metrics or None) if info else None,
+                     units={n: u for n, u in units.items() if u})

@@ -52,7 +52,8 @@ _TOP = {MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"}
 _SUB = {
     TABLES_DIR: re.compile(r"[^/]+-[0-9a-f]{8}(\.shrink)?\.csv"),
     "plots": re.compile(r"[^/]+-[0-9a-f]{8}\.(space|rho)\.png"),
-    "cases": re.compile(r"[^/]+-[0-9a-f]{8}\.(png|gif)"),
+    # a case's pictures, recording and card: "<slug>-<hash>[.<kind>].(png|gif|json|html)"
+    "cases": re.compile(r"[^/]+-[0-9a-f]{8}(\.[A-Za-z0-9_.-]+)?\.(png|gif|json|html)"),
 }
 
 

@@ -1,7 +1,8 @@
 """``index.html``: the report directory's front page, opened straight from the file system.
 
 After a run an engineer (or a CI artifact viewer) opens ``avs-report/index.html``: the paper's
-table with ε and its cross-checks, then per test its pictures and links to its tables. The
+table with a legend for every column, then per test its plots, its failure modes and a short
+table of its counterexamples, each linked to a card page of its own (:mod:`.cards`). The
 page is one static file with inline CSS and relative links — no server, no network, no
 external fonts or scripts — so it works from a zip of the artifact too. A few lines of inline
 script only report, on the page, whether every picture loaded (a broken link shows instead
@@ -11,34 +12,17 @@ HTML-escaped, and link targets are URL-quoted: node ids routinely contain ``<``,
 
 from __future__ import annotations
 
-import html
 import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
-from urllib.parse import quote
 
-from .summary import DASH, SummaryRow, metric_columns, table_cells
+from .cards import PAGE_CSS as _CSS, e as _e, href as _href
+from .summary import DASH, SummaryRow, metric_columns, short_names, table_cells
 from .table import atomic_write_text
 
 __all__ = ["write_index", "render_index", "INDEX"]
 
 INDEX = "index.html"
-
-_CSS = """
-body { font: 14px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.5em 2em; color: #222; }
-h1 { font-size: 1.4em; margin-bottom: .2em; }
-h2 { font-size: 1.15em; margin-top: 2em; border-bottom: 1px solid #ddd; word-break: break-all; }
-table { border-collapse: collapse; margin: .8em 0; }
-th, td { border: 1px solid #ccc; padding: .25em .6em; }
-th { background: #f3f3f3; white-space: nowrap; }
-td.num { text-align: right; white-space: nowrap; font-variant-numeric: tabular-nums; }
-td.bad { color: #b33c00; font-weight: 600; }
-.meta { color: #666; }
-figure { display: inline-block; margin: .5em 1em .5em 0; vertical-align: top; }
-figure img { max-width: 720px; width: 100%; border: 1px solid #eee; }
-figcaption { color: #666; font-size: .9em; }
-#image-status.broken { color: #b33c00; font-weight: 600; }
-"""
 
 # Reports on the page (and in the DOM, for automated checks) whether every picture decoded.
 _SCRIPT = """
@@ -57,15 +41,26 @@ window.addEventListener("load", function () {
 """
 
 
-def _e(value: Any) -> str:
-    return html.escape(str(value), quote=True)
-
-
-def _href(directory: Path, path: str | os.PathLike) -> str:
-    p = Path(path)
-    rel = os.path.relpath(p if p.is_absolute() else directory / p, directory)
-    # Forward slashes and percent-quoting give a link that works from file:// on any OS.
-    return quote(Path(rel).as_posix(), safe="/")
+#: what each column of the summary table means (metric columns are explained in one line)
+COLUMN_LEGEND = {
+    "test": "the scenario test (its function name; the full node id heads its section below)",
+    "sampler": "how its cases were chosen: halton (space-filling), or an active sampler that hunts failures "
+               "(mab, ce, sa, bo, random); replay / example / pinned: regression cases run first",
+    "samples": "cases of the campaign that were simulated and judged",
+    "ε": "ε-coverage of the continuous parameters scaled to [0, 1] (unit-cube distance; smaller: "
+         "the samples leave no big hole): the smallest ε such that every point of a mesh lies within ε of a sample",
+    "cex": "counterexamples: cases that violated a metric or failed the test body",
+    "min": "counterexamples minimized (shrunk to the smallest departure from the nominal scenario)",
+    "unavoid": "counterexamples the reference driver fails too (unavoidable for a driver of its standard)",
+    "modes": "failure modes: groups of counterexamples with the same violated metrics and agent, "
+             "near each other in parameter space",
+    "errors": "cases that could not be judged (an exception, a timeout, no trajectory)",
+    "sim s": "simulation time of the campaign's cases [s] (CPU time in the processes that ran them)",
+    "verdict": "the campaign against its acceptance criteria (accepted / REJECTED; — : not judged)",
+    "mesh r": "the mesh's covering radius: the largest distance from a mesh point to its nearest sample "
+              "(a cross-check of ε)",
+    "covered": "the share of the unit cube within the given radius of a sample",
+}
 
 
 def _summary_table(summary: Sequence[SummaryRow]) -> str:
@@ -73,8 +68,11 @@ def _summary_table(summary: Sequence[SummaryRow]) -> str:
         return "<p class='meta'>No scenario cases ran.</p>"
     header, body = table_cells(summary)
     header = header + ["mesh r", "covered"]
-    out = ["<table id='summary'>", "<thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
-    n_metrics = len(metric_columns(summary))
+    metrics = metric_columns(summary)
+    out = ["<div class='wide'><table id='summary'>",
+           "<thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
+    n_metrics = len(metrics)
+    names = short_names([s.test for s in summary])
     for s, cells in zip(summary, body):
         cover = DASH if s.covering_radius is None else f"{s.covering_radius:.3f}"
         frac = DASH if s.fraction_within is None else f"{100 * s.fraction_within:.1f}% within {s.within_radius:g}"
@@ -83,10 +81,29 @@ def _summary_table(summary: Sequence[SummaryRow]) -> str:
             cls = "num" if i >= 2 else ""
             if 3 <= i < 3 + n_metrics and cell not in ("0", DASH):
                 cls += " bad"  # a violated metric should catch the eye
-            tds.append(f"<td class='{cls.strip()}'>{_e(cell)}</td>" if cls else f"<td>{_e(cell)}</td>")
+            if i == 0:
+                cell_html = f"<a href='#{_anchor(s.test)}' title='{_e(s.test)}'>{_e(names[s.test])}</a>"
+            else:
+                cell_html = _e(cell)
+            tds.append(f"<td class='{cls.strip()}'>{cell_html}</td>" if cls else f"<td>{cell_html}</td>")
         out.append("<tr>" + "".join(tds) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
+    legend = ["<dl class='legend' id='legend'>"]
+    for h in header:
+        if h in COLUMN_LEGEND:
+            legend.append(f"<dt>{_e(h)}</dt><dd>{_e(COLUMN_LEGEND[h])}</dd>")
+    if metrics:
+        legend.append(f"<dt>{_e(', '.join(header[3:3 + n_metrics]))}</dt><dd>cases of the campaign that "
+                      "violated that metric (its robustness ρ &lt; 0)</dd>")
+    legend.append("</dl>")
+    out.append("\n".join(legend))
     return "\n".join(out)
+
+
+def _anchor(test: str) -> str:
+    from .table import file_slug
+
+    return "t-" + file_slug(test)
 
 
 def render_index(
@@ -97,6 +114,9 @@ def render_index(
     *,
     title: str = "avscenario report",
     meta: Mapping[str, Any] | None = None,
+    sections: Mapping[str, Sequence[str]] | None = None,
+    banner: str | None = None,
+    preamble: Sequence[str] = (),
 ) -> str:
     """The page's HTML text (see :func:`write_index` for the arguments)."""
     directory = Path(directory)
@@ -111,15 +131,19 @@ def render_index(
     ]
     if meta:
         parts.append("<p class='meta'>" + " · ".join(f"{_e(k)}: {_e(v)}" for k, v in meta.items()) + "</p>")
+    if banner:
+        parts.append(f"<p class='banner'>{banner}</p>")
     parts.append("<p id='image-status' class='meta'></p>")
+    parts.extend(preamble)
     parts.append(_summary_table(summary_rows))
     general = tables.get("", ())
     if general:
         parts.append("<p>Tables: " + ", ".join(
             f"<a href='{_href(directory, p)}'>{_e(Path(p).name)}</a>" for p in general) + "</p>")
-    tests = list(dict.fromkeys([*(s.test for s in summary_rows), *images, *(t for t in tables if t)]))
+    sections = sections or {}
+    tests = list(dict.fromkeys([*(s.test for s in summary_rows), *images, *(t for t in tables if t), *sections]))
     for test in tests:
-        parts.append(f"<section><h2>{_e(test)}</h2>")
+        parts.append(f"<section id='{_anchor(test)}'><h2>{_e(test)}</h2>")
         links = tables.get(test, ())
         if links:
             parts.append("<p>Error table: " + ", ".join(
@@ -132,6 +156,7 @@ def render_index(
                 f"<figure><a href='{href}'><img src='{href}' alt='{_e(caption)}: {_e(test)}'></a>"
                 f"<figcaption>{_e(caption)}</figcaption></figure>"
             )
+        parts.extend(sections.get(test, ()))
         parts.append("</section>")
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
@@ -145,6 +170,9 @@ def write_index(
     *,
     title: str = "avscenario report",
     meta: Mapping[str, Any] | None = None,
+    sections: Mapping[str, Sequence[str]] | None = None,
+    banner: str | None = None,
+    preamble: Sequence[str] = (),
 ) -> Path:
     """Write ``<directory>/index.html`` atomically and return its path.
 
@@ -153,10 +181,13 @@ def write_index(
     ``{test: [csv, …]}`` (e.g. :meth:`.table.ErrorTable.tables`), with key ``""`` for files
     of the whole run (``errors.jsonl``, ``shrink.jsonl``, ``summary.json``). Paths may be
     absolute or relative to ``directory``; links are written relative, so the directory can
-    be moved or zipped. ``meta``: a line of run facts (seed, versions, date).
+    be moved or zipped. ``meta``: a line of run facts (seed, versions, date). ``sections``:
+    more HTML per test (failure modes, the counterexamples), after its pictures; ``banner``
+    an HTML line at the top (a re-run's); ``preamble`` HTML before the table.
     """
     directory = Path(directory)
-    text = render_index(directory, summary_rows, images, tables, title=title, meta=meta)
+    text = render_index(directory, summary_rows, images, tables, title=title, meta=meta,
+                        sections=sections, banner=banner, preamble=preamble)
     path = directory / INDEX
     atomic_write_text(path, text)
     return path

@@ -3,8 +3,10 @@
 Two PNGs per scenario test, drawn from its error-table rows:
 
 * the sampled feature space as pairwise 2-D projections of its parameters (a scatter
-  matrix), passing cases blue, failing red, errored grey — the paper's point plots, showing
-  at a glance which region of (gap, speed, brake time) breaks the AV;
+  matrix) — the paper's point plots, showing at a glance which region of (gap, speed, brake
+  time) breaks the AV: passing cases light blue, failing ones coloured by the metric they
+  violated first, errored grey; one marker shape per sampler; a minimized counterexample is
+  a black star joined to the case it was found at; axes carry the parameters' units;
 * ρ per metric over the sample index, one panel per metric with the ρ = 0 boundary, so one
   sees an active sampler closing in on failures (ρ falling) or a passive one spreading out.
 
@@ -31,6 +33,13 @@ PLOTS_DIR = "plots"
 
 # Colour-blind-safe pair (blue / vermillion) plus grey for cases that did not simulate.
 _COLOURS = {"pass": "#0072B2", "fail": "#D55E00", "error": "#999999"}
+# failing cases by the metric violated first (Okabe-Ito's colours after blue, then more)
+_METRIC_COLOURS = ("#D55E00", "#E69F00", "#CC79A7", "#009E73", "#F0E442", "#56B4E9", "#8C1515",
+                   "#6A3D9A", "#B15928", "#000000")
+_PASS_SPACE = "#9ec5e8"
+_SAMPLER_MARKERS = {"halton": "o", "mab": "^", "ce": "s", "sa": "D", "bo": "P", "random": "X",
+                    "replay": "*", "example": "*", "pinned": "*"}
+_OTHER_MARKERS = ("v", "<", ">", "h", "p", "8")
 _MAX_PARAMS = 6  # 15 panels; more would make each panel too small to read
 
 
@@ -101,12 +110,73 @@ def _axis_scale(numbers: Sequence[float]) -> float:
     return 1.0 if top <= _AXIS_MAX else 10.0 ** math.floor(math.log10(top))
 
 
-def _axis_name(rows: Sequence[Mapping[str, Any]], name: str) -> str:
+def _axis_name(rows: Sequence[Mapping[str, Any]], name: str, unit: str | None = None) -> str:
     values = [r.params.get(name) for r in rows]
     if not all(_is_number(v) for v in values):
         return name
     scale = _axis_scale([float(v) for v in values])
-    return name if scale == 1.0 else f"{name} (×{scale:.0e})"
+    label = name if scale == 1.0 else f"{name} (×{scale:.0e})"
+    return f"{label} [{unit}]" if unit else label
+
+
+def first_violated(row: CaseRow, metrics: Sequence[str] | None = None) -> str | None:
+    """The metric ``row`` violated first: the earliest by its violation time, else the first
+    violated in ``metrics`` order (else in the row's)."""
+    violated = [m for m, v in row.rho.items() if v is not None and v < 0]
+    if not violated:
+        return None
+    times = {m: (row.violations or {}).get(m, {}).get("t") for m in violated}
+    order = list(metrics or ()) + [m for m in row.rho if m not in (metrics or ())]
+    return min(violated, key=lambda m: (times[m] is None, times[m] or 0.0, order.index(m) if m in order else 0))
+
+
+def _point_groups(rows: Sequence[CaseRow], metrics: Sequence[str] | None):
+    """(label, marker, colour, indexes, failing) per sampler and outcome, passing first."""
+    samplers = list(dict.fromkeys(r.sampler if r.origin == "sampled" else r.origin for r in rows))
+    extra = iter(_OTHER_MARKERS * 4)
+    markers = {s: _SAMPLER_MARKERS.get(s) or next(extra, "o") for s in samplers}
+    firsts = [first_violated(r, metrics) if r.verdict == "fail" else None for r in rows]
+    named = list(dict.fromkeys([*(metrics or ()), *(f for f in firsts if f)]))
+    colour = {m: _METRIC_COLOURS[i % len(_METRIC_COLOURS)] for i, m in enumerate(named)}
+    groups = []
+    for outcome in ("pass", "error", "fail"):
+        for s in samplers:
+            idx = [i for i, r in enumerate(rows) if r.verdict == outcome
+                   and (r.sampler if r.origin == "sampled" else r.origin) == s]
+            if not idx:
+                continue
+            if outcome != "fail":
+                c = _PASS_SPACE if outcome == "pass" else _COLOURS["error"]
+                groups.append((f"{s}: {outcome} ({len(idx)})", markers[s], c, idx, False))
+                continue
+            by_metric: dict[str, list[int]] = {}
+            for i in idx:
+                by_metric.setdefault(firsts[i] or "body failed", []).append(i)
+            for m, ids in by_metric.items():
+                c = colour.get(m, _COLOURS["fail"])
+                groups.append((f"{s}: fail, {m} first ({len(ids)})", markers[s], c, ids, True))
+    return groups
+
+
+def _minimized_values(rows: Sequence[CaseRow], name: str, plotted) -> dict[int, float]:
+    """Plot positions of the minimized values of ``name`` (numbers only; categories by label)."""
+    values, labels = plotted
+    out: dict[int, float] = {}
+    numbers = [float(r.params.get(name)) for r in rows if _is_number(r.params.get(name))]
+    scale = _axis_scale(numbers) if numbers else 1.0
+    for i, r in enumerate(rows):
+        if not r.minimized or name not in r.minimized:
+            continue
+        v = r.minimized[name]
+        if labels is None and _is_number(v):
+            out[i] = float(v) / scale
+        elif labels is not None:
+            keys = list(dict.fromkeys(str(r2.params.get(name)) for r2 in rows))
+            if str(v) in keys:
+                out[i] = float(keys.index(str(v)))  # no jitter: the category's own line
+            else:
+                out[i] = values[i]
+    return out
 
 
 def _varying(rows: Sequence[Mapping[str, Any]], names: Sequence[str]) -> list[str]:
@@ -120,8 +190,15 @@ def plot_feature_space(
     params: Sequence[str] | None = None,
     *,
     title: str | None = None,
+    metrics: Sequence[str] | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> Path | None:
-    """Pairwise projections of the sampled cases, coloured by verdict; returns the PNG path.
+    """Pairwise projections of the sampled cases; returns the PNG path.
+
+    Passing cases are light blue, failing ones coloured by the metric they violated first
+    (in ``metrics`` order when the rows do not say when), errors grey; each sampler has its
+    marker; a minimized counterexample is a black star joined to where it was found.
+    ``units``: ``{parameter: unit}`` for the axis labels.
 
     ``params`` chooses and orders the parameters (default: every parameter that varies, in
     the rows' order, at most six). One parameter gives a strip plot over the case index.
@@ -134,25 +211,34 @@ def plot_feature_space(
     names = _varying(rows, names)[:_MAX_PARAMS]
     if not names:
         return None
-    verdicts = [r.verdict for r in rows]
     cols = {n: _axis_values(rows, n) for n in names}
     k = len(names)
     size = 2.6 if k > 2 else 4.2
     n_panels = max(1, k - 1)
-    fig = _figure(size * n_panels + 0.6, size * n_panels + 0.4)
+    fig = _figure(size * n_panels + 0.6, size * n_panels + 0.4 + (0.25 if k > 2 else 0))
+    groups = _point_groups(rows, metrics)
+    minimized = [(i, r) for i, r in enumerate(rows) if r.minimized]
+    min_cols = {n: _minimized_values(rows, n, cols[n]) for n in names}
 
-    def scatter(ax, xs, ys):
-        # Draw failures last so a red point is never hidden under a cloud of blue ones.
-        for verdict in ("pass", "error", "fail"):
-            idx = [i for i, v in enumerate(verdicts) if v == verdict]
-            if idx:
-                ax.scatter([xs[i] for i in idx], [ys[i] for i in idx], s=14, alpha=0.85,
-                           color=_COLOURS[verdict], label=f"{verdict} ({len(idx)})",
-                           edgecolors="none")
+    def scatter(ax, xs, ys, xname=None, yname=None):
+        # passing first, failures on top, so a failure is never hidden under passing cases
+        for label, marker, colour, idx, filled in groups:
+            ax.scatter([xs[i] for i in idx], [ys[i] for i in idx], s=16 if filled else 12,
+                       alpha=1.0 if filled else 0.9, marker=marker, label=label, color=colour,
+                       edgecolors="none")
+        if xname is None or not minimized:
+            return
+        mx, my = min_cols[xname], min_cols[yname]
+        for i, _ in minimized:
+            if mx.get(i) is None or my.get(i) is None:
+                continue
+            ax.plot([xs[i], mx[i]], [ys[i], my[i]], color="black", lw=0.7, alpha=0.7)
+            ax.scatter([mx[i]], [my[i]], s=55, marker="*", color="black", edgecolors="none",
+                       label="minimized (joined to where found)")
 
     def label_axis(ax, which: str, name: str):
         _, labels = cols[name]
-        getattr(ax, f"set_{which}label")(_axis_name(rows, name))
+        getattr(ax, f"set_{which}label")(_axis_name(rows, name, (units or {}).get(name)))
         if labels is not None:
             getattr(ax, f"set_{which}ticks")(range(len(labels)))
             getattr(ax, f"set_{which}ticklabels")(labels)
@@ -176,7 +262,7 @@ def plot_feature_space(
                 ax = fig.add_subplot(grid[row_i, col_j])
                 first = first or ax
                 yi, xj = row_i + 1, col_j
-                scatter(ax, cols[names[xj]][0], cols[names[yi]][0])
+                scatter(ax, cols[names[xj]][0], cols[names[yi]][0], names[xj], names[yi])
                 ax.locator_params(nbins=4)
                 ax.tick_params(labelsize=7)
                 if row_i == n_panels - 1:
@@ -188,7 +274,9 @@ def plot_feature_space(
                 else:
                     _hide_labels(ax, "y", cols[names[yi]][1])
         handles, labels = first.get_legend_handles_labels()
-        fig.legend(handles, labels, loc="upper right", fontsize=8, frameon=False)
+        unique = dict(zip(labels, handles))
+        fig.legend(list(unique.values()), list(unique.keys()), loc="upper right", fontsize=8,
+                   frameon=False, ncol=1 if k > 2 else 2)
     fig.suptitle(title or "sampled feature space", fontsize=10)
     return _save(fig, path)
 
@@ -299,13 +387,15 @@ def plot_test(
     *,
     metrics: Sequence[str] | None = None,
     params: Sequence[str] | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> dict[str, Path]:
     """Both pictures of one test under ``<directory>/plots/``; returns ``{kind: path}``
     for the kinds written (``"space"``, ``"rho"``). Pass the test's main-table rows (not the
     shrink candidates, which crowd the failure region)."""
     paths = plot_paths(directory, test)
     out: dict[str, Path] = {}
-    space = plot_feature_space(paths["space"], rows, params, title=f"{test}: sampled cases")
+    space = plot_feature_space(paths["space"], rows, params, title=f"{test}: sampled cases",
+                               metrics=metrics, units=units)
     if space is not None:
         out["space"] = space
     rho = plot_rho_over_index(paths["rho"], rows, metrics, title=f"{test}: ρ per metric")

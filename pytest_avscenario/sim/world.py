@@ -49,6 +49,8 @@ class World:
         if self.seed < 0:
             raise SimError(f"World(seed={seed!r}): need an integer >= 0", test=str(name))
         self.rng = rng if rng is not None else np.random.default_rng(self.seed)
+        if hasattr(self.rng, "clock"):  # the case's recording rng: log draws with the time
+            self.rng.clock = lambda: self.t
         self.driver = driver
         self.ego_driver = ego_driver
         self.name = str(name)
