@@ -43,6 +43,21 @@ FILE_CAPTIONS = {
     "gif": "the run",
 }
 
+#: counts the page's script errors into ``<html data-script-errors>`` (and says so on the page),
+#: so a broken replay shows instead of silently doing nothing; automated checks read it too
+ERROR_PROBE = """
+(function () {
+  var root = document.documentElement, n = 0;
+  root.setAttribute("data-script-errors", "0");
+  window.addEventListener("error", function (ev) {
+    n += 1;
+    root.setAttribute("data-script-errors", String(n));
+    root.setAttribute("data-last-error", String(ev.message || ev));
+  });
+  window.addEventListener("load", function () { root.setAttribute("data-loaded", "yes"); });
+})();
+"""
+
 PAGE_CSS = """
 body { font: 14px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.2em 2em; color: #222; max-width: 1300px; }
 h1 { font-size: 1.3em; margin-bottom: .2em; word-break: break-all; }
@@ -278,7 +293,8 @@ def render_card(
     t, agent = _first(row)
     title = row.item
     parts = ["<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
-             f"<title>{e(title)}</title>", f"<style>{PAGE_CSS}</style>", "</head><body>",
+             f"<title>{e(title)}</title>", f"<style>{PAGE_CSS}</style>",
+             f"<script>{ERROR_PROBE}</script>", "</head><body>",
              f"<p class='meta'><a href='{e(index_href)}'>← the report</a> · {e(row.test)}</p>",
              f"<h1>{e(title)}</h1>"]
     what = f"violated {', '.join(violated)}" if violated else f"failed: {row.error or 'the test body failed'}"
