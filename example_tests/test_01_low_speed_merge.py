@@ -24,11 +24,11 @@ from subscenarios import crossing_traffic
 
 
 @scenario(
-    d_ego=Uniform(1.0, 15.0, nominal=5.0),  # [m] ego centre before its stop line
-    ego_speed=Uniform(0.0, 4.0, nominal=2.0),  # [m/s]
-    d_first=Uniform(5.0, 80.0, nominal=30.0),  # [m] first platoon car before the west stop line
-    platoon_gap=Uniform(10.0, 45.0, nominal=25.0),  # [m]
-    platoon_speed=Uniform(5.0, 12.0, nominal=9.0),  # [m/s]
+    d_ego=Uniform(1.0, 15.0, nominal=5.0, unit="m"),  # ego centre before its stop line
+    ego_speed=Uniform(0.0, 4.0, nominal=2.0, unit="m/s"),
+    d_first=Uniform(5.0, 80.0, nominal=30.0, unit="m"),  # first platoon car before the west stop line
+    platoon_gap=Uniform(10.0, 45.0, nominal=25.0, unit="m"),
+    platoon_speed=Uniform(5.0, 12.0, nominal=9.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

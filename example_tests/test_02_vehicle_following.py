@@ -25,11 +25,11 @@ from subscenarios import slow_down, wobble
 
 
 @scenario(
-    gap=Uniform(10.0, 40.0, nominal=30.0),  # [m] lead centre ahead of the ego centre
-    lead_speed=Uniform(5.0, 15.0, nominal=10.0),  # [m/s]
-    brake_at=Uniform(1.0, 5.0, nominal=3.0),  # [s]
-    lead_decel=Uniform(1.0, 8.0, nominal=2.5),  # [m/s^2]
-    lead_final_speed=Uniform(0.0, 8.0, nominal=5.0),  # [m/s]
+    gap=Uniform(10.0, 40.0, nominal=30.0, unit="m"),  # lead centre ahead of the ego centre
+    lead_speed=Uniform(5.0, 15.0, nominal=10.0, unit="m/s"),
+    brake_at=Uniform(1.0, 5.0, nominal=3.0, unit="s"),
+    lead_decel=Uniform(1.0, 8.0, nominal=2.5, unit="m/s²"),
+    lead_final_speed=Uniform(0.0, 8.0, nominal=5.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

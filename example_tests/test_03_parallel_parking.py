@@ -32,10 +32,10 @@ KERB_Y = -4.75  # [m] centre line of the forward parking lane (3.5 m lane + half
 
 
 @scenario(
-    slot_length=Uniform(5.5, 10.0, nominal=8.5),  # [m] free kerb between the parked cars
-    d_ego=Uniform(20.0, 60.0, nominal=40.0),  # [m] ego centre before the slot centre
-    oncoming_s=Uniform(20.0, 120.0, nominal=80.0),  # [m] oncoming car beyond the slot
-    oncoming_speed=Uniform(4.0, 12.0, nominal=8.0),  # [m/s]
+    slot_length=Uniform(5.5, 10.0, nominal=8.5, unit="m"),  # free kerb between the parked cars
+    d_ego=Uniform(20.0, 60.0, nominal=40.0, unit="m"),  # ego centre before the slot centre
+    oncoming_s=Uniform(20.0, 120.0, nominal=80.0, unit="m"),  # oncoming car beyond the slot
+    oncoming_speed=Uniform(4.0, 12.0, nominal=8.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(),

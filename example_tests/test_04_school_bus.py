@@ -28,12 +28,12 @@ EGO_S = 20.0  # [m]
 
 @scenario(
     bus_from=Choice(["ahead", "oncoming"]),
-    d_bus=Uniform(15.0, 110.0, nominal=70.0),  # [m] bus centre from the ego centre
-    bus_speed=Uniform(4.0, 13.0, nominal=7.0),  # [m/s]
-    bus_decel=Uniform(1.5, 6.0, nominal=3.0),  # [m/s^2]
-    bus_stop_at=Uniform(0.5, 6.0, nominal=3.0),  # [s]
-    arm_for=Uniform(3.0, 10.0, nominal=6.0),  # [s]
-    ego_speed=Uniform(8.0, 18.0, nominal=11.0),  # [m/s]
+    d_bus=Uniform(15.0, 110.0, nominal=70.0, unit="m"),  # bus centre from the ego centre
+    bus_speed=Uniform(4.0, 13.0, nominal=7.0, unit="m/s"),
+    bus_decel=Uniform(1.5, 6.0, nominal=3.0, unit="m/s²"),
+    bus_stop_at=Uniform(0.5, 6.0, nominal=3.0, unit="s"),
+    arm_for=Uniform(3.0, 10.0, nominal=6.0, unit="s"),
+    ego_speed=Uniform(8.0, 18.0, nominal=11.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(),

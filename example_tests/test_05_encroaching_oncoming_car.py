@@ -34,13 +34,13 @@ ROAD_LENGTH = 400.0  # [m]
 
 
 @scenario(
-    d_adv=Uniform(20.0, 70.0, nominal=50.0),  # [m] adversary beyond the junction
+    d_adv=Uniform(20.0, 70.0, nominal=50.0, unit="m"),  # adversary beyond the junction
     throttle=Uniform(0.2, 1.0, nominal=0.5),  # [-] of 3 m/s^2
-    d_ego=Uniform(20.0, 70.0, nominal=50.0),  # [m] ego before the junction
-    encroach=Uniform(0.0, 4.0, nominal=2.0),  # [m] left of its lane centre
-    encroach_at=Uniform(0.0, 8.0, nominal=1.0),  # [s]
-    encroach_for=Uniform(1.0, 5.0, nominal=2.0),  # [s]
-    ego_speed=Uniform(8.0, 13.0, nominal=10.0),  # [m/s]
+    d_ego=Uniform(20.0, 70.0, nominal=50.0, unit="m"),  # ego before the junction
+    encroach=Uniform(0.0, 4.0, nominal=2.0, unit="m"),  # left of its lane centre
+    encroach_at=Uniform(0.0, 8.0, nominal=1.0, unit="s"),
+    encroach_for=Uniform(1.0, 5.0, nominal=2.0, unit="s"),
+    ego_speed=Uniform(8.0, 13.0, nominal=10.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

@@ -26,11 +26,11 @@ CROSSWALK_W = 5.0  # [m]
 
 
 @scenario(
-    d_ego=Uniform(25.0, 70.0, nominal=45.0),  # [m] ego centre before the crosswalk centre
-    ped_wait=Uniform(0.0, 8.0, nominal=6.0),  # [s]
-    ped_wait_in_road=Uniform(0.0, 4.0, nominal=1.0),  # [s]
-    ped_speed=Uniform(1.0, 2.5, nominal=1.4),  # [m/s]
-    ego_speed=Uniform(8.0, 14.0, nominal=11.0),  # [m/s]
+    d_ego=Uniform(25.0, 70.0, nominal=45.0, unit="m"),  # ego centre before the crosswalk centre
+    ped_wait=Uniform(0.0, 8.0, nominal=6.0, unit="s"),
+    ped_wait_in_road=Uniform(0.0, 4.0, nominal=1.0, unit="s"),
+    ped_speed=Uniform(1.0, 2.5, nominal=1.4, unit="m/s"),
+    ego_speed=Uniform(8.0, 14.0, nominal=11.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

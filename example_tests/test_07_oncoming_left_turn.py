@@ -24,11 +24,11 @@ from pytest_avscenario.sim import behaviors as b
 
 
 @scenario(
-    d_ego=Uniform(5.0, 50.0, nominal=30.0),  # [m] ego centre before its stop line
-    ego_speed=Uniform(5.0, 11.0, nominal=8.0),  # [m/s]
-    d_adv=Uniform(5.0, 40.0, nominal=20.0),  # [m] adversary centre before its stop line
-    adv_speed=Uniform(4.0, 11.0, nominal=7.0),  # [m/s]
-    adv_go_within=Uniform(8.0, 40.0, nominal=35.0),  # [m] ego-to-centre distance that releases it
+    d_ego=Uniform(5.0, 50.0, nominal=30.0, unit="m"),  # ego centre before its stop line
+    ego_speed=Uniform(5.0, 11.0, nominal=8.0, unit="m/s"),
+    d_adv=Uniform(5.0, 40.0, nominal=20.0, unit="m"),  # adversary centre before its stop line
+    adv_speed=Uniform(4.0, 11.0, nominal=7.0, unit="m/s"),
+    adv_go_within=Uniform(8.0, 40.0, nominal=35.0, unit="m"),  # ego-to-centre distance that releases it
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

@@ -27,12 +27,12 @@ from subscenarios import crossing_traffic
 
 
 @scenario(
-    d_ego=Uniform(5.0, 40.0, nominal=20.0),  # [m] ego centre before its stop line
+    d_ego=Uniform(5.0, 40.0, nominal=20.0, unit="m"),  # ego centre before its stop line
     lateral_from=Choice(["west", "east"]),
-    d_lateral=Uniform(10.0, 80.0, nominal=70.0),  # [m] lateral car before its stop line
-    lateral_speed=Uniform(6.0, 14.0, nominal=10.0),  # [m/s]
-    lateral_delay=Uniform(0.0, 4.0, nominal=0.0),  # [s]
-    d_oncoming=Uniform(10.0, 60.0, nominal=40.0),  # [m] oncoming car before its stop line
+    d_lateral=Uniform(10.0, 80.0, nominal=70.0, unit="m"),  # lateral car before its stop line
+    lateral_speed=Uniform(6.0, 14.0, nominal=10.0, unit="m/s"),
+    lateral_delay=Uniform(0.0, 4.0, nominal=0.0, unit="s"),
+    d_oncoming=Uniform(10.0, 60.0, nominal=40.0, unit="m"),  # oncoming car before its stop line
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

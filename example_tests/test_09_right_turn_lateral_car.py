@@ -22,10 +22,10 @@ from subscenarios import crossing_traffic
 
 
 @scenario(
-    d_ego=Uniform(5.0, 40.0, nominal=20.0),  # [m] ego centre before its stop line
-    ego_speed=Uniform(4.0, 10.0, nominal=7.0),  # [m/s]
-    d_lateral=Uniform(10.0, 90.0, nominal=40.0),  # [m] lateral car before its stop line
-    lateral_speed=Uniform(6.0, 14.0, nominal=10.0),  # [m/s]
+    d_ego=Uniform(5.0, 40.0, nominal=20.0, unit="m"),  # ego centre before its stop line
+    ego_speed=Uniform(4.0, 10.0, nominal=7.0, unit="m/s"),
+    d_lateral=Uniform(10.0, 90.0, nominal=40.0, unit="m"),  # lateral car before its stop line
+    lateral_speed=Uniform(6.0, 14.0, nominal=10.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

@@ -27,12 +27,12 @@ from subscenarios import pedestrian_crossing
 
 
 @scenario(
-    d_ego=Uniform(5.0, 40.0, nominal=20.0),  # [m] ego centre before its stop line
+    d_ego=Uniform(5.0, 40.0, nominal=20.0, unit="m"),  # ego centre before its stop line
     ped_from=Choice(["south", "north"]),
-    ped_wait=Uniform(0.0, 14.0, nominal=10.0),  # [s]
-    ped_speed=Uniform(1.0, 2.2, nominal=1.4),  # [m/s]
-    ped_wait_in_road=Uniform(0.0, 3.0, nominal=0.0),  # [s]
-    d_oncoming=Uniform(10.0, 60.0, nominal=40.0),  # [m]
+    ped_wait=Uniform(0.0, 14.0, nominal=10.0, unit="s"),
+    ped_speed=Uniform(1.0, 2.2, nominal=1.4, unit="m/s"),
+    ped_wait_in_road=Uniform(0.0, 3.0, nominal=0.0, unit="s"),
+    d_oncoming=Uniform(10.0, 60.0, nominal=40.0, unit="m"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],

@@ -40,15 +40,15 @@ SPACING = 200.0  # [m] between the intersections' centres
 
 
 @scenario(
-    ego_speed=Uniform(8.0, 13.0, nominal=11.0),  # [m/s]
-    ped_wait=Uniform(0.0, 12.0, nominal=10.0),  # [s] after it appeared
-    ped_wait_in_road=Uniform(0.0, 3.0, nominal=1.0),  # [s]
-    oncoming_d=Uniform(0.0, 40.0, nominal=20.0),  # [m] down B's south exit
+    ego_speed=Uniform(8.0, 13.0, nominal=11.0, unit="m/s"),
+    ped_wait=Uniform(0.0, 12.0, nominal=10.0, unit="s"),  # after it appeared
+    ped_wait_in_road=Uniform(0.0, 3.0, nominal=1.0, unit="s"),
+    oncoming_d=Uniform(0.0, 40.0, nominal=20.0, unit="m"),  # down B's south exit
     throttle=Uniform(0.2, 1.0, nominal=0.5),  # [-] of 3 m/s^2
-    encroach=Uniform(0.0, 4.0, nominal=1.0),  # [m]
-    encroach_after=Uniform(0.0, 6.0, nominal=0.0),  # [s] after it appeared
-    cross_d=Uniform(10.0, 50.0, nominal=25.0),  # [m] before B's west stop line
-    cross_speed=Uniform(6.0, 13.0, nominal=9.0),  # [m/s]
+    encroach=Uniform(0.0, 4.0, nominal=1.0, unit="m"),
+    encroach_after=Uniform(0.0, 6.0, nominal=0.0, unit="s"),  # after it appeared
+    cross_d=Uniform(10.0, 50.0, nominal=25.0, unit="m"),  # before B's west stop line
+    cross_speed=Uniform(6.0, 13.0, nominal=9.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
     monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],
