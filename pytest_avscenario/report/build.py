@@ -159,12 +159,13 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
         first = min(where, key=lambda w: w["t"]) if where else {}
         return replay_html(data, element_id="replay", critical=first.get("agent"), start_t=first.get("t"))
 
+    folder.add_all(cases / card_name(row) for row in failing)
     for row in failing:
         page = render_card(cases, row, metrics=metrics, space=space,
                            files=CaseFiles(dict(case_files.get(row.item) or {})),
                            rerun=rerun(row) if rerun is not None else None,
                            index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
-        atomic_write_text(folder.add(cases / card_name(row)), page)
+        atomic_write_text(cases / card_name(row), page)
     minimized = sum(r.minimized is not None for r in failing)
     return [f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"
             f"{f' ({minimized} minimized)' if minimized else ''}: one page each</summary>",

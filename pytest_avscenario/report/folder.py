@@ -28,7 +28,7 @@ import os
 import re
 import tempfile
 from pathlib import Path
-from typing import IO
+from typing import Any, IO
 
 
 __all__ = ["ReportFolder", "ReportDirBusy", "claim_report_dir", "describe_fallback", "is_own_name",
@@ -164,6 +164,15 @@ class ReportFolder:
             self.files.add(rel)
             self._save()
         return Path(path)
+
+    def add_all(self, paths: Any) -> list[Path]:
+        """:meth:`add` for many files at once (one manifest write)."""
+        out = [Path(p) for p in paths]
+        new = {self._rel(p) for p in out} - self.files
+        if new:
+            self.files |= new
+            self._save()
+        return out
 
     def _save(self) -> None:
         atomic_write_text(self.path / MANIFEST, json.dumps(
