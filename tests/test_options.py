@@ -85,3 +85,15 @@ def test_follow(case, world):
     world.run(seconds=2)
 """)
     pytester.runpytest("--avs-driver=careful", "--avs-db=none", "-p", "no:xdist").assert_outcomes(passed=2)
+
+
+def test_pytest_help_lists_every_option(pytester):
+    # argparse formats help texts with %: a literal one (rate:METRIC<=1%@95%) once made
+    # `pytest --help` crash with the plugin installed
+    from pytest_avscenario.pytest_plugin.options import OPTIONS
+
+    result = pytester.runpytest("--help")
+    assert result.ret == 0, result.stderr.str()
+    text = result.stdout.str()
+    assert all(f"--avs-{o.name}" in text for o in OPTIONS)
+    assert "1%@95%" in text

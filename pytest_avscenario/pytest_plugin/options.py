@@ -31,6 +31,7 @@ DEFAULT_SAMPLER = "halton"
 DEFAULT_SHRINK_BUDGET = 20
 DEFAULT_REFERENCE = "careful"  # the reference driver of the avoidability check
 DEFAULT_GIFS = 3
+DEFAULT_CASE_PICTURES = 5
 MAX_SAMPLES = 100_000
 MAX_CASE_TIMEOUT_S = 86_400.0  # one day: beyond, a timer overflows and nobody means it
 EXECUTORS = ("inprocess", "dask")
@@ -281,9 +282,14 @@ OPTIONS = (
            "how often a case whose worker died is resubmitted (default 2)",
            "resubmissions of a case whose Dask worker died", _integer(0)),
     Option("gifs", "N",
-           "render a GIF of at most N minimized counterexamples per test (default 3; every "
-           "one gets a PNG of its worst moment)",
-           "GIFs rendered per scenario test for minimized counterexamples (0: none)",
+           "render a GIF of at most N counterexamples per test (default 3)",
+           "GIFs rendered per scenario test for counterexamples (0: none)",
+           _integer(0)),
+    Option("case-pictures", "N",
+           "draw the PNGs (time series, the first violation from above) of the minimized "
+           "counterexamples and of at most N more per test and sampler (default 5; every "
+           "counterexample still gets its card and its replay)",
+           "counterexamples per test and sampler drawn as PNGs besides the minimized ones",
            _integer(0)),
     Option("accept", "CRITERIA",
            "when a scenario campaign is accepted: any (default: every counterexample rejects "
@@ -311,7 +317,9 @@ _BY_KEY = {o.key: o for o in OPTIONS}
 def add_options(parser: pytest.Parser) -> None:
     group = parser.getgroup("avscenario", "scenario-based AV testing (pytest-avscenario)")
     for o in OPTIONS:
-        group.addoption(f"--avs-{o.name}", dest=o.dest, metavar=o.metavar, default=None, help=o.help)
+        # argparse formats help with %: a literal % (as in "rate:METRIC<=1%@95%") is doubled
+        group.addoption(f"--avs-{o.name}", dest=o.dest, metavar=o.metavar, default=None,
+                        help=o.help.replace("%", "%%"))
         if o.ini:
             parser.addini(o.dest, o.ini_help, type="string", default=None)
 
@@ -380,6 +388,7 @@ class Settings:
     dask_timeout_s: float | None
     dask_retries: int | None
     gifs: int
+    case_pictures: int
     params: Mapping[str, Any] | None  # --avs-params, not yet completed against a space
     baseline: Any  # acceptance.Baseline of --avs-baseline, or None
     junit: str  # "properties" or "strict"
@@ -465,6 +474,7 @@ def read_settings(config: pytest.Config) -> Settings:
         dask_timeout_s=value("dask_timeout"),
         dask_retries=value("dask_retries"),
         gifs=value("gifs", DEFAULT_GIFS),
+        case_pictures=value("case_pictures", DEFAULT_CASE_PICTURES),
         params=_pinned_params(found.get("params")),
         baseline=_baseline(found.get("baseline"), config),
         junit=value("junit", "properties"),
