@@ -67,6 +67,7 @@ class Campaign:
     active: dict[str, ActiveRun] = field(default_factory=dict)  # active sampler name -> its run
     shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
     gifs: int = 0  # GIFs rendered so far for this test
+    pictured: dict[str, int] = field(default_factory=dict)  # sampler -> cases drawn as PNGs
     started: dict[str, float] = field(default_factory=dict)  # sampler -> campaign start
     ran: dict[str, int] = field(default_factory=dict)  # sampler -> cases run
     judged: dict[str, int] = field(default_factory=dict)  # sampler -> avoidability checks run
@@ -460,15 +461,26 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
         import numpy as np
 
         step = int(np.argmin(np.abs(traj.t - worst.t)))
+    settings = item.config.stash[settings_key]
+    drawn = campaign.pictured.get(outcome_sampler(item), 0)
+    pngs = shown is not outcome or drawn < settings.case_pictures
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
-        pictures["moment"] = world.render_png(f"{base}.moment.png", step=step)
-        if campaign.gifs < item.config.stash[settings_key].gifs:
+        if pngs:
+            if shown is outcome:
+                campaign.pictured[outcome_sampler(item)] = drawn + 1
+            pictures["moment"] = world.render_png(f"{base}.moment.png", step=step)
+        if campaign.gifs < settings.gifs:
             pictures["gif"] = world.render_gif(f"{base}.gif", every=2)
             campaign.gifs += 1
     except Exception as exc:  # a picture is a convenience: never fail the case over it
         warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not render the case: {exc}"))
     return pictures
+
+
+def outcome_sampler(item: pytest.Item) -> str:
+    slot = slot_of(item)
+    return slot.sampler if slot is not None else ""
 
 
 def build_world(case: Case, driver: Any, name: str, ego_driver: Any = None) -> Any:
