@@ -53,6 +53,8 @@ class CaseOutcome:
     world: Any = None  # the World that ran (in-process only), for rendering pictures
     worker_pid: int = 0  # the process that simulated it (0: this one)
     drawn: dict[str, Any] | None = None  # the case.rng draws (RecordingGenerator.log())
+    #: violated metric -> (time [s], agent) of its first violation (monitors.first_violation)
+    first: dict[str, Any] = field(default_factory=dict)
 
     @property
     def signature(self) -> tuple[Any, ...]:
@@ -260,16 +262,18 @@ def _violations(data: Any) -> dict[str, dict[str, Any]] | None:
     return {str(k): dict(v) for k, v in data.items() if isinstance(v, Mapping)}
 
 
-def violations_of(results: Mapping[str, Any]) -> dict[str, dict[str, Any]] | None:
-    """The ``violations`` of a row from a case's monitor results (violated metrics only)."""
+def violations_of(results: Mapping[str, Any],
+                  first: Mapping[str, Any] | None = None) -> dict[str, dict[str, Any]] | None:
+    """The ``violations`` of a row from a case's monitor results (violated metrics only);
+    ``first``: {metric: (t, agent)} of the first violation, where known (else the result's
+    deciding moment)."""
     out = {}
     for name, res in results.items():
         rho = getattr(res, "rho", None)
         if rho is None or not rho < 0:
             continue
-        t = getattr(res, "first_t", None)
-        t = getattr(res, "t", None) if t is None else t
-        out[name] = {"t": None if t is None else float(t), "agent": getattr(res, "agent", None),
+        t, agent = (first or {}).get(name) or (getattr(res, "t", None), getattr(res, "agent", None))
+        out[name] = {"t": None if t is None else float(t), "agent": agent,
                      "threshold": getattr(res, "threshold", None)}
     return out or None
 

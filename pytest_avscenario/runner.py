@@ -196,6 +196,15 @@ def run_case(
     outcome.results = dict(verdict.results)
     outcome.rho = {k: float(v) for k, v in verdict.rho.items()}
     outcome.violated = list(verdict.violated)
+    from .monitors.base import first_violation
+
+    for monitor in monitor_set:  # when each violated requirement first failed (for reports)
+        res = outcome.results.get(monitor.name)
+        if res is not None and res.rho < 0:
+            try:
+                outcome.first[monitor.name] = first_violation(monitor, traj, res)
+            except Exception:  # a convenience of the report: never the verdict's business
+                pass
     if outcome.verdict == "pass" and outcome.violated:
         outcome.verdict = "fail"
     return outcome

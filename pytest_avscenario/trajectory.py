@@ -173,6 +173,15 @@ class Trajectory:
             out.append(Polygon(pts))
         return out
 
+    def prefix(self, steps: int) -> "Trajectory":
+        """The first ``steps`` steps of the recording (signals cut alike; meta kept)."""
+        from dataclasses import replace
+
+        k = max(1, min(int(steps), self.n_steps))
+        cut = {f: getattr(self, f)[:, :k] for f in _PER_STEP}
+        sig = {n: np.asarray(v)[:k] for n, v in self.signals.items()}
+        return replace(self, t=self.t[:k], signals=sig, **cut)
+
     # -- persistence ------------------------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:
         arrays = {k: getattr(self, k) for k in _PER_STEP}

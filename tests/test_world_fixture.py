@@ -86,7 +86,7 @@ def test_twice(case, world):
     result.stdout.fnmatch_lines(["*::test_twice: monitors: two monitors are named 'distance'*"])
 
 
-def test_minimized_counterexample_gets_a_worst_moment_png_and_a_gif(pytester):
+def test_minimized_counterexample_gets_a_first_violation_png_and_a_gif(pytester):
     pytester.makepyfile(test_close="""
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
@@ -106,7 +106,10 @@ def test_close(case, world):
     assert len(list(cases.glob("*.png"))) == failed
     assert len(list(cases.glob("*.gif"))) == 1  # the cap
     index = (pytester.path / "avs-report" / "index.html").read_text()
-    assert "cases/" in index and ".gif" in index
+    # the index links each counterexample's card; the card shows its PNG and GIF
+    cards = sorted(cases.glob("*.html"))
+    assert len(cards) == failed and all(f"cases/{c.name}" in index for c in cards)
+    assert any(".gif" in c.read_text() for c in cards)
     from PIL import Image
 
     png = Image.open(next(cases.glob("*.png")))
@@ -132,4 +135,4 @@ def test_close(case, world):
     assert result.parseoutcomes()["failed"] == 2  # gaps 23 m and 14.5 m are both under 25 m
     assert "ResourceWarning" not in result.stdout.str()  # every picture file read is closed
     page = (pytester.path / "page.html").read_text()
-    assert "worst moment" in page and "data:image/png;base64," in page and "image/gif" in page
+    assert "first violation" in page and "data:image/png;base64," in page and "image/gif" in page

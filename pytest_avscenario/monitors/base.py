@@ -22,7 +22,7 @@ import numpy as np
 
 from ..trajectory import Trajectory
 
-__all__ = ["MonitorError", "MonitorResult", "Monitor", "FunctionMonitor", "as_monitor"]
+__all__ = ["MonitorError", "MonitorResult", "Monitor", "FunctionMonitor", "as_monitor", "first_violation"]
 
 
 class MonitorError(ValueError):
@@ -264,3 +264,31 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
 
 def fmt_t(traj: Trajectory, step: int | None) -> float | None:
     return None if step is None else float(traj.t[step])
+
+
+def first_violation(monitor: "Monitor", traj: Trajectory,
+                    result: MonitorResult | None = None) -> tuple[float | None, str | None] | None:
+    """When and with whom ``monitor``'s requirement was first violated on ``traj``.
+
+    For an invariant (a monitor with ``invariant = True``: the requirement must hold at every
+    step, so ρ of a prefix never rises as the prefix grows) this is exact: the shortest prefix
+    whose ρ is below zero, found by bisection (about log2(steps) evaluations). For any other
+    monitor it is the result's own deciding moment. None when the requirement holds."""
+    result = result if result is not None else monitor.evaluate(traj)
+    if not result.rho < 0:
+        return None
+    if not getattr(monitor, "invariant", False) or traj.n_steps < 2:
+        return result.t, result.agent
+    lo, hi = 1, traj.n_steps  # ρ(prefix hi) < 0; find the smallest such length
+    found = result
+    while lo < hi:
+        mid = (lo + hi) // 2
+        try:
+            r = monitor.evaluate(traj.prefix(mid))
+        except Exception:
+            return result.t, result.agent  # a prefix it cannot judge: keep its own moment
+        if r.rho < 0:
+            hi, found = mid, r
+        else:
+            lo = mid + 1
+    return float(traj.t[hi - 1]), found.agent if found.agent is not None else result.agent

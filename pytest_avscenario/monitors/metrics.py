@@ -174,6 +174,8 @@ class _PairwiseMin(Monitor):
     _what = ""
     _unit = ""
 
+    invariant = True  # must hold at every step (first_violation bisects prefixes)
+
     def _values(self, traj: Trajectory) -> np.ndarray:
         raise NotImplementedError
 
@@ -279,6 +281,7 @@ def progress(threshold: float = 11.0, *, name: str = "progress") -> Monitor:
 
 
 class LaneKeepingMonitor(Monitor):
+    invariant = False  # a mean over the run: its first violation is not a prefix's
     def __init__(self, threshold: float = 0.5, *, name: str = "lane_keeping"):
         self.threshold = check_threshold(name, threshold)
         self.name = check_name(name)
@@ -328,6 +331,8 @@ class CollisionMonitor(Monitor):
     #: simulator's crash with a static object that is not in the trajectory)
     FLAG_RHO = -0.01
 
+    invariant = True  # must hold at every step (first_violation bisects prefixes)
+
     def __init__(self, *, use_crash_flag: bool = True, name: str = "collision"):
         self.use_crash_flag = bool(use_crash_flag)
         self.name = check_name(name)
@@ -367,6 +372,8 @@ def collision(*, use_crash_flag: bool = True, name: str = "collision") -> Monito
 
 
 class TimeHeadwayMonitor(Monitor):
+    invariant = True  # must hold at every step (first_violation bisects prefixes)
+
     def __init__(self, seconds: float = 1.0, *, min_speed: float = 0.1, name: str = "time_headway"):
         self.threshold = check_positive(name, seconds, "seconds", allow_zero=True)
         self.min_speed = check_positive(name, min_speed, "min_speed")
@@ -422,6 +429,8 @@ def time_headway(seconds: float = 1.0, *, min_speed: float = 0.1,
 
 class OffRoadMonitor(Monitor):
     threshold = 0.0
+
+    invariant = True  # must hold at every step (first_violation bisects prefixes)
 
     def __init__(self, *, name: str = "off_road"):
         self.name = check_name(name)

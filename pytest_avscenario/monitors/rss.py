@@ -298,6 +298,8 @@ class RSSMonitor(Monitor):
 
     threshold = 0.0
 
+    invariant = True  # must hold at every step (first_violation bisects prefixes)
+
     def __init__(self, params: RSSParams, axis: float | None, name: str):
         self.params = params
         self.axis = axis

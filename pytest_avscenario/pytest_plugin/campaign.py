@@ -439,7 +439,7 @@ def progress_writer(config: pytest.Config) -> Any:
 
 def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
                 shrink: ShrinkReport | None) -> dict[str, str]:
-    """PNG of the worst moment (and, within the per-test cap, a GIF) of a failing case.
+    """PNG of the first violation (and, within the per-test cap, a GIF) of a failing case.
 
     Drawn from the minimized case when there is one (that is the one an engineer studies),
     else from the case as found. Only in-process outcomes keep their world; nothing to draw
@@ -457,10 +457,12 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
     traj = world.trajectory
     step = traj.n_steps - 1
     worst = min(shown.results.values(), key=lambda r: r.rho, default=None)
-    if worst is not None and worst.t is not None:
+    firsts = [f[0] for f in (shown.first or {}).values() if f and f[0] is not None]
+    moment = min(firsts) if firsts else (worst.t if worst is not None else None)
+    if moment is not None:  # the first violation (or the deciding moment), not the end
         import numpy as np
 
-        step = int(np.argmin(np.abs(traj.t - worst.t)))
+        step = int(np.argmin(np.abs(traj.t - moment)))
     settings = item.config.stash[settings_key]
     drawn = campaign.pictured.get(outcome_sampler(item), 0)
     pngs = shown is not outcome or drawn < settings.case_pictures
@@ -580,9 +582,12 @@ def attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]
     from pytest_html import extras
 
     attached = list(getattr(report, "extras", []))
-    for caption, path in pictures.items():
+    from ..report.cards import FILE_CAPTIONS
+
+    for kind, path in pictures.items():
         if not str(path).endswith((".png", ".gif")):
             continue
+        caption = FILE_CAPTIONS.get(kind, kind)
         try:
             with open(path, "rb") as f:
                 data = base64.b64encode(f.read()).decode()
@@ -740,4 +745,4 @@ def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
         seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
         verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
         minimized=minimized, shrink_sims=shrink_sims, flaky=flaky, avoidable=avoidable,
-        unsafe_first=unsafe_first, violations=violations_of(outcome.results), drawn=outcome.drawn)
+        unsafe_first=unsafe_first, violations=violations_of(outcome.results, outcome.first), drawn=outcome.drawn)
