@@ -114,7 +114,7 @@ def _chromium() -> str:
     for name in ("chromium", "chromium-browser", "google-chrome"):
         if shutil.which(name):
             return shutil.which(name)
-    pytest.skip("Chromium is not installed: `apt-get install chromium` (Debian) to run the "
+    pytest.skip("Chromium is not installed: Debian's chromium package to run the "
                 "browser checks of the HTML report; .ci/run installs it")
 
 
