@@ -114,8 +114,8 @@ def _chromium() -> str:
     for name in ("chromium", "chromium-browser", "google-chrome"):
         if shutil.which(name):
             return shutil.which(name)
-    pytest.skip("Chromium is not installed: Debian's chromium package to run the "
-                "browser checks of the HTML report; .ci/run installs it")
+    pytest.skip("Chromium is not installed (Debian: the chromium package), so the browser "
+                "checks of the HTML report cannot run; .ci/run installs it")
 
 
 def _dom(url: str) -> str:
