@@ -44,3 +44,19 @@ def test_monitors_that_are_not_invariants_keep_their_deciding_moment():
     res = m.evaluate(traj)
     assert res.rho < 0 and first_violation(m, traj, res) == (res.t, res.agent)
     assert lane_keeping(0.5).invariant is False
+
+
+def test_time_series_of_a_case_marks_its_first_violation_and_thresholds(tmp_path):
+    from PIL import Image
+
+    from pytest_avscenario.monitors import ttc
+    from pytest_avscenario.report.casefigs import critical_agent, plot_case_timeseries
+
+    traj = _approach([20, 12, 8, 4.9, 4.0, 2.0, 3.0, 6.0, 9.0])
+    assert critical_agent(traj, "lead") == 1 and critical_agent(traj, None, 0.5) == 1
+    a = plot_case_timeseries(tmp_path / "a.png", traj, first_t=0.3, monitors=[distance(5.0), ttc(2.0)])
+    b = plot_case_timeseries(tmp_path / "b.png", traj, first_t=0.3, monitors=[distance(9.0), ttc(2.0)])
+    c = plot_case_timeseries(tmp_path / "c.png", traj, first_t=0.6, monitors=[distance(5.0), ttc(2.0)])
+    pix = {p: Image.open(p).convert("RGB").tobytes() for p in (a, b, c)}
+    assert len(set(pix.values())) == 3  # the threshold and the marked moment are drawn
+    assert a.stat().st_size < 40_000  # ~600 counterexamples per example-suite report

@@ -91,6 +91,10 @@ def test_a_card_shows_what_failed_where_and_how_to_see_it_again(campaign):
     assert "from pytest_avscenario import example" in page
     assert "@example(gap=" in page
     assert f"pytest &#x27;{row['item']}&#x27; --avs-seed=3" in page
+    # a minimized counterexample's pictures: its time series and its first violation
+    for kind in ("timeseries", "moment"):
+        link = re.search(rf"src='([^']*\.{kind}\.png)'", page)
+        assert link and (card.parent / link.group(1)).is_file(), kind
     # the terminal says what was drawn too
     assert "drawn from case.rng (1): uniform(-0.5, 0.5) -> " in proc.stdout
 

@@ -103,7 +103,7 @@ def test_close(case, world):
     failed = result.parseoutcomes()["failed"]
     assert failed >= 2
     cases = pytester.path / "avs-report" / "cases"
-    assert len(list(cases.glob("*.png"))) == failed
+    assert len(list(cases.glob("*.moment.png"))) == len(list(cases.glob("*.timeseries.png"))) == failed
     assert len(list(cases.glob("*.gif"))) == 1  # the cap
     index = (pytester.path / "avs-report" / "index.html").read_text()
     # the index links each counterexample's card; the card shows its PNG and GIF
@@ -112,7 +112,7 @@ def test_close(case, world):
     assert any(".gif" in c.read_text() for c in cards)
     from PIL import Image
 
-    png = Image.open(next(cases.glob("*.png")))
+    png = Image.open(next(cases.glob("*.moment.png")))
     colours = png.convert("RGB").getcolors(maxcolors=1 << 16) or []
     assert png.size[0] > 100 and len(colours) > 3  # not a blank frame
 

@@ -472,6 +472,12 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
             if shown is outcome:
                 campaign.pictured[outcome_sampler(item)] = drawn + 1
             pictures["moment"] = world.render_png(f"{base}.moment.png", step=step)
+            from ..report.casefigs import plot_case_timeseries
+
+            agents = [f[1] for f in (shown.first or {}).values() if f and f[0] == moment]
+            pictures["timeseries"] = str(plot_case_timeseries(
+                f"{base}.timeseries.png", traj, agent=agents[0] if agents else None, first_t=moment,
+                monitors=list(campaign.plan.monitor_set or ()), title=item.name))
         if campaign.gifs < settings.gifs:
             pictures["gif"] = world.render_gif(f"{base}.gif", every=2)
             campaign.gifs += 1

@@ -1,0 +1,114 @@
+"""The time series of one counterexample, as one matplotlib figure.
+
+Three panels over the run's time [s]: the ego's speed [m/s] and acceleration [m/s²]; the
+centre distance and the footprint gap [m] between the ego and the *critical agent* (the one
+its first violation involved); and their time to collision [s]. The thresholds of the test's
+distance and TTC monitors are drawn on their panels, and the first violation is marked on
+every panel. Drawn from the trajectory alone (nothing here imports the simulator); matplotlib
+is imported inside the function, through its object-oriented API only.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..trajectory import Trajectory
+from .table import atomic_write_bytes
+
+__all__ = ["critical_agent", "plot_case_timeseries", "TTC_CAP_S"]
+
+#: TTC above this [s] is drawn at the top of its panel (it is +inf when the pair recedes)
+TTC_CAP_S = 10.0
+
+
+def critical_agent(traj: Trajectory, agent: str | None, t: float | None = None) -> int | None:
+    """Index of the critical agent: ``agent`` when it is another road user of ``traj``,
+    else the one nearest the ego at ``t`` (or over the run); None when the ego is alone."""
+    if traj.n_agents < 2:
+        return None
+    if agent is not None and agent in traj.names[1:]:
+        return traj.names.index(agent)
+    from ..monitors.metrics import pairwise_distance
+
+    d = pairwise_distance(traj)
+    k = int(np.argmin(np.abs(traj.t - t))) if t is not None else None
+    col = d[:, k] if k is not None else d.min(axis=1)
+    if not np.isfinite(col).any():
+        col = d.min(axis=1)
+    return 1 + int(np.argmin(col))
+
+
+def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: str | None = None,
+                         first_t: float | None = None, monitors: Sequence[Any] = (),
+                         title: str | None = None) -> Path:
+    """Write the case's time series to ``path`` (PNG) and return the path.
+
+    ``agent``: the critical agent's name (default: the nearest to the ego at ``first_t``);
+    ``first_t`` [s]: the first violation, marked; ``monitors``: the test's monitors, whose
+    distance and TTC thresholds are drawn."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from ..monitors.metrics import DistanceMonitor, TTCMonitor, footprint_gap, pairwise_distance, pairwise_ttc
+
+    t = traj.t
+    fig = Figure(figsize=(7.5, 6.2), dpi=80)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(3, 1, sharex=True)
+    fig.subplots_adjust(left=0.11, right=0.88, top=0.92, bottom=0.08, hspace=0.18)
+    speed = traj.speed[0]
+    accel = np.gradient(speed, t) if traj.n_steps > 1 else np.zeros_like(speed)
+    ax = axes[0]
+    ax.plot(t, speed, color="#0072B2", lw=1.5, label="ego speed")
+    ax.set_ylabel("speed [m/s]", color="#0072B2")
+    twin = ax.twinx()
+    twin.plot(t, accel, color="#E69F00", lw=1.0, label="ego acceleration")
+    twin.axhline(0.0, color="#E69F00", lw=0.5, alpha=0.5)
+    twin.set_ylabel("acceleration [m/s²]", color="#E69F00")
+    k = critical_agent(traj, agent, first_t)
+    name = traj.names[k] if k is not None else None
+    if k is not None:
+        dist = pairwise_distance(traj)[k - 1]
+        gap = footprint_gap(traj)[k - 1]
+        axes[1].plot(t, np.where(np.isfinite(dist), dist, np.nan), color="#009E73", lw=1.5,
+                     label=f"centre distance to {name}")
+        axes[1].plot(t, np.where(np.isfinite(gap), gap, np.nan), color="#CC79A7", lw=1.2,
+                     label=f"footprint gap to {name}")
+        radius = next((m.radius for m in monitors if isinstance(m, TTCMonitor)), 5.0)
+        ttc = pairwise_ttc(traj, radius)[k - 1]
+        axes[2].plot(t, np.clip(np.where(np.isnan(ttc), np.inf, ttc), 0.0, TTC_CAP_S), color="#D55E00",
+                     lw=1.5, label=f"TTC with {name} (≥ {TTC_CAP_S:g} s drawn at the top)")
+        axes[2].set_ylim(-0.3, TTC_CAP_S + 0.5)
+    for m in monitors:
+        if isinstance(m, DistanceMonitor):
+            axes[1].axhline(m.threshold, color="black", ls="--", lw=0.9,
+                            label=f"{m.name} threshold ({'gap' if m.footprint else 'centre'}) {m.threshold:g} m")
+        elif isinstance(m, TTCMonitor):
+            axes[2].axhline(m.threshold, color="black", ls="--", lw=0.9, label=f"{m.name} threshold {m.threshold:g} s")
+    axes[1].set_ylabel("distance [m]")
+    axes[2].set_ylabel("TTC [s]")
+    axes[2].set_xlabel("time [s]")
+    for ax in axes:
+        if first_t is not None:
+            ax.axvline(first_t, color="#b30000", lw=1.2, alpha=0.8)
+        ax.grid(alpha=0.25)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
+    if first_t is not None:
+        axes[0].annotate(f"first violation {first_t:.2f} s", xy=(first_t, 1.0), xycoords=("data", "axes fraction"),
+                         xytext=(3, -12), textcoords="offset points", color="#b30000", fontsize=8)
+    fig.suptitle(title or f"ego and {name or 'no other agent'}", fontsize=9)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    buf.seek(0)
+    small = io.BytesIO()
+    Image.open(buf).convert("RGB").quantize(colors=64, method=Image.Quantize.MEDIANCUT).save(
+        small, format="PNG", optimize=True)
+    atomic_write_bytes(path, small.getvalue())
+    return Path(path)
