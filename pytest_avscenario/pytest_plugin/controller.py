@@ -17,6 +17,7 @@ run's exit status.
 from __future__ import annotations
 
 import shutil
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -101,6 +102,26 @@ class RunState:
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.note_order(item.nodeid for item in session.items)
+
+    @pytest.hookimpl(hookwrapper=True, specname="pytest_runtest_logreport")
+    def hold_signals_per_report(self, report: pytest.TestReport) -> Any:
+        """Every plugin's handling of one report (ours, JUnit's, the terminal's) happens whole:
+        a SIGTERM arriving meanwhile waits until they all have it, so the error table and the
+        JUnit file hold the same cases."""
+        from .stash import guard_key
+
+        guard = self.config.stash.get(guard_key, None)
+        hold = guard is not None and getattr(guard, "installed", False) and not guard.deferred
+        if hold:
+            guard.deferred = True
+        try:
+            yield
+        finally:
+            if hold:
+                guard.deferred = False
+                if guard.pending:
+                    guard.pending = False
+                    guard._handle(signal.SIGTERM, None)
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
