@@ -10,7 +10,6 @@ is imported inside the function, through its object-oriented API only.
 
 from __future__ import annotations
 
-import io
 import os
 from pathlib import Path
 from typing import Any, Sequence
@@ -18,7 +17,6 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..trajectory import Trajectory
-from .table import atomic_write_bytes
 
 __all__ = ["critical_agent", "plot_case_timeseries", "TTC_CAP_S"]
 
@@ -53,8 +51,6 @@ def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: st
     distance and TTC thresholds are drawn."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from PIL import Image
-
     from ..monitors.metrics import DistanceMonitor, TTCMonitor, footprint_gap, pairwise_distance, pairwise_ttc
 
     t = traj.t
@@ -104,11 +100,6 @@ def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: st
         axes[0].annotate(f"first violation {first_t:.2f} s", xy=(first_t, 1.0), xycoords=("data", "axes fraction"),
                          xytext=(3, -12), textcoords="offset points", color="#b30000", fontsize=8)
     fig.suptitle(title or f"ego and {name or 'no other agent'}", fontsize=9)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    buf.seek(0)
-    small = io.BytesIO()
-    Image.open(buf).convert("RGB").quantize(colors=64, method=Image.Quantize.MEDIANCUT).save(
-        small, format="PNG", optimize=True)
-    atomic_write_bytes(path, small.getvalue())
-    return Path(path)
+    from .plots import _save
+
+    return _save(fig, path, colors=64)

@@ -54,7 +54,8 @@ def _figure(width_in: float, height_in: float):
     return fig
 
 
-def _save(fig, path: str | os.PathLike) -> Path:
+def _save(fig, path: str | os.PathLike, colors: int = 128) -> Path:
+    """Write ``fig`` as a palette PNG of ``colors`` colours, atomically."""
     from PIL import Image
 
     buf = io.BytesIO()
@@ -63,7 +64,7 @@ def _save(fig, path: str | os.PathLike) -> Path:
     # (the report of the example suite has a few dozen such plots)
     buf.seek(0)
     small = io.BytesIO()
-    Image.open(buf).convert("RGB").quantize(colors=128, method=Image.Quantize.MEDIANCUT).save(
+    Image.open(buf).convert("RGB").quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
         small, format="PNG", optimize=True)
     atomic_write_bytes(path, small.getvalue())
     return Path(path)
