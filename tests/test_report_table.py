@@ -263,3 +263,19 @@ def test_only_our_names_listed_in_the_manifest_are_ever_deleted(tmp_path):
     prepare_report_dir(report)
     assert not (report / "errors.jsonl").exists() and not (report / "tables").exists()
     assert (report / "notes.txt").read_text() == "mine" and (tmp_path / "outside.txt").read_text() == "mine"
+
+
+def test_a_table_that_cannot_be_opened_leaks_no_file_handle(tmp_path):
+    # the shrink table's path is taken (by a folder): opening fails after errors.jsonl opened
+    import gc
+    import warnings
+
+    from pytest_avscenario.report.table import ErrorTable
+
+    (tmp_path / "shrink.jsonl").mkdir()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(OSError):
+            ErrorTable(tmp_path)
+        gc.collect()
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]
