@@ -129,10 +129,29 @@ BUILTIN_DRIVERS = ("autopilot", "idm", "careful")
 
 def _driver(raw: Any) -> str:
     value = str(raw).strip()
+    if value.startswith("sb3:"):
+        from ..sim.drivers import sb3
+
+        sb3.parse(value)  # the syntax here; the file and the environment in read_settings
+        return value
     if value not in BUILTIN_DRIVERS and ":" not in value:
         names = ", ".join(repr(n) for n in BUILTIN_DRIVERS)
-        raise ValueError(f"unknown driver {value!r}; use {names} or 'package.module:Name'")
+        raise ValueError(f"unknown driver {value!r}; use {names}, 'package.module:Name' or "
+                         "'sb3:PATH@ENV'")
     return value
+
+
+def _sb3_driver(found: Found, config: pytest.Config) -> str:
+    """``--avs-driver sb3:...`` checked (installed, file, algorithm, environment), its path
+    made absolute: relative to the working directory, or to the ini file for ``avs_driver``."""
+    from ..sim.drivers import sb3
+
+    base = (config.inipath.parent if found.source.startswith("ini") and config.inipath
+            else config.invocation_params.dir)
+    try:
+        return sb3.check(found.value, base)
+    except ValueError as exc:
+        raise pytest.UsageError(f"{found.source}: {exc}") from None
 
 
 def _reference(raw: Any) -> str | None:
@@ -212,9 +231,11 @@ OPTIONS = (
            _sampler_names, per_test=True, cli_first=True),
     Option("driver", "NAME",
            "driver of the ego: 'autopilot' (default), 'idm', 'careful' (UN R157's careful and "
-           "competent driver) or 'package.module:Name'; a conftest `avs_driver` fixture "
-           "overrides this",
-           "built-in driver of the ego (autopilot, idm or careful) when avs_driver is not overridden",
+           "competent driver), 'package.module:Name', or 'sb3:PATH@ENV' (a stable-baselines3 "
+           "model trained on the highway-env environment ENV, default highway-fast-v0; needs "
+           "pytest-avscenario[sb3]); a conftest `avs_driver` fixture overrides this",
+           "driver of the ego (autopilot, idm, careful, package.module:Name or sb3:PATH@ENV) "
+           "when avs_driver is not overridden",
            _driver),
     Option("report", "DIR",
            "write the scenario report under DIR (default avs-report; 'none' disables)",
@@ -463,9 +484,12 @@ def read_settings(config: pytest.Config) -> Settings:
             "every xdist worker would start a Dask cluster of its own")
     report = value("report", "avs-report")
     db = value("db")
+    driver = value("driver", "autopilot")
+    if driver.startswith("sb3:"):
+        driver = _sb3_driver(found["driver"], config)
     return Settings(
         seed=_session_seed(config),
-        driver=value("driver", "autopilot"),
+        driver=driver,
         report_dir=None if report.lower() == "none" else config.invocation_params.dir / report,
         db_path=(None if db is not None and db.lower() == "none" else
                  config.rootpath / ".avscenario" if db is None else config.invocation_params.dir / db),

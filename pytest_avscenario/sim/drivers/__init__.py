@@ -10,6 +10,9 @@
 * ``"careful"`` — the careful and competent human driver of UN R157 (:class:`CarefulDriver`,
   ``pytest_avscenario.sim.drivers.reference``): the reference a failure is judged against;
 * ``"package.module:Name"`` — a class (instantiated without arguments) or object found there;
+* ``"sb3:PATH@ENV"`` — a stable-baselines3 model saved at ``PATH``, trained on the highway-env
+  environment ``ENV`` (default ``highway-fast-v0``), driven by :func:`highway_env_agent`
+  (:mod:`.sb3`; needs the ``[sb3]`` extra);
 * a user object: anything with ``act(observation)``, an object with
   ``predict(observation)`` returning ``(action, state)``, or a plain callable
   ``policy(observation)``. Each gets the plugin's
@@ -152,11 +155,15 @@ def resolve(driver: Any) -> Any:
         name = driver.strip()
         if name == "idm":
             return IDMDriver()
+        if name.startswith("sb3:"):
+            from .sb3 import driver as sb3_driver
+
+            return sb3_driver(name)
         name = _PATHS.get(name, name)
         if ":" not in name:
             raise SimError(
                 f"unknown driver {driver!r}: use 'autopilot', 'idm', 'careful', "
-                "'package.module:Name', or pass a policy object")
+                "'package.module:Name', 'sb3:PATH@ENV', or pass a policy object")
         mod_name, _, attr = name.partition(":")
         try:
             obj = getattr(importlib.import_module(mod_name), attr)
