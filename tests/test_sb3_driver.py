@@ -1,0 +1,155 @@
+"""``--avs-driver sb3:PATH@ENV``: a saved stable-baselines3 model as the ego.
+
+Every mistake is a usage error at start-up naming the option, checked without torch: so
+these run without stable-baselines3 (the zips here are written as stable-baselines3 writes
+them: a ``data`` JSON beside ``policy.pth``). The tests that load a real model need
+stable-baselines3 and the model ``example_tests/train_dqn.py`` saved, and skip without.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import sys
+import types
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import pytest_avscenario.sim.drivers.highway_agent  # noqa: F401  (imported before any pytester run)
+from pytest_avscenario.sim.drivers import sb3
+from pytest_avscenario.sim.drivers.sb3 import SB3Spec, check, parse
+
+try:  # torch's C extensions load once per process: import it before a pytester run forgets it
+    import stable_baselines3  # noqa: F401
+except ImportError:
+    pass
+
+MODEL = Path(__file__).resolve().parent.parent / "example_tests" / "models" / "dqn_highway_fast.zip"
+
+SCENARIO = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(20, 40), samples=2)
+def test_follow(case, world):
+    road = world.straight_road(lanes=3, length=600, lane_width=4.0, speed_limit=30.0)
+    world.ego(road.lane(1), s=50.0, speed=25.0)
+    world.car(road.lane(1), s=50.0 + case.gap, speed=22.0)
+    world.run(seconds=3, dt=0.2)
+    ego = world.agent("ego")
+    assert "sb3:dqn_highway_fast.zip" in repr(ego.driver)
+    assert [t for t, _ in ego.decisions] == [0.0, 1.0, 2.0]
+"""
+
+
+def sb3_zip(path: Path, policy_module: str = "stable_baselines3.dqn.policies",
+            obs_shape: list[int] = (5, 5), n_actions: int = 5, **extra) -> Path:
+    """A zip laid out as stable-baselines3's ``model.save`` lays it out (no network in it)."""
+    data = {
+        "policy_class": {":type:": "<class 'abc.ABCMeta'>", "__module__": policy_module},
+        "observation_space": {":type:": "<class 'gymnasium.spaces.box.Box'>",
+                              "_shape": list(obs_shape), "dtype": "float32"},
+        "action_space": {":type:": "<class 'gymnasium.spaces.discrete.Discrete'>",
+                         "n": str(n_actions), "_shape": []},
+        **extra,
+    }
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("data", json.dumps(data))
+        z.writestr("policy.pth", b"")
+    return path
+
+
+@pytest.mark.parametrize("text, spec", [
+    ("sb3:models/dqn.zip", SB3Spec("models/dqn.zip", "highway-fast-v0", None)),
+    ("sb3:models/dqn.zip@highway-v0", SB3Spec("models/dqn.zip", "highway-v0", None)),
+    ("sb3:ppo:m.zip@merge-v0", SB3Spec("m.zip", "merge-v0", "PPO")),
+    ("sb3:C:\\models\\dqn.zip", SB3Spec("C:\\models\\dqn.zip", "highway-fast-v0", None)),
+    ("sb3:runs@3/dqn.zip", SB3Spec("runs@3/dqn.zip", "highway-fast-v0", None)),
+])
+def test_the_spec_names_a_file_an_environment_and_maybe_an_algorithm(text, spec):
+    assert parse(text) == spec
+
+
+def test_check_answers_an_absolute_path_and_reads_the_algorithm_from_the_zip(tmp_path, monkeypatch):
+    (tmp_path / "m").mkdir()
+    sb3_zip(tmp_path / "m" / "dqn.zip")
+    if sys.modules.get("stable_baselines3") is None:  # check() only asks whether it is there
+        monkeypatch.setitem(sys.modules, "stable_baselines3", types.ModuleType("stable_baselines3"))
+    assert check("sb3:m/dqn.zip", tmp_path) == f"sb3:{tmp_path / 'm' / 'dqn.zip'}@highway-fast-v0"
+    assert check("sb3:dqn:m/dqn.zip@highway-v0", tmp_path).startswith("sb3:DQN:/")
+
+
+@pytest.mark.parametrize("make, text, message", [
+    (None, "sb3:nope.zip", "driver 'sb3:nope.zip': no model file at */nope.zip"),
+    (lambda d: (d / "dir.zip").mkdir(), "sb3:dir.zip", "*dir.zip is not a file*"),
+    (lambda d: (d / "m.zip").write_text("hello"), "sb3:m.zip", "*m.zip is not a zip file*"),
+    (lambda d: zipfile.ZipFile(d / "m.zip", "w").close(), "sb3:m.zip",
+     "*m.zip is a zip but not a model saved by stable-baselines3*"),
+    (lambda d: sb3_zip(d / "m.zip"), "sb3:m.zip@highway-v9",
+     "*unknown environment 'highway-v9'; highway-env's are *highway-fast-v0*"),
+    (lambda d: sb3_zip(d / "m.zip", obs_shape=[7, 5]), "sb3:m.zip",
+     "*takes observations of shape (7, 5), but 'highway-fast-v0' in its default config gives (5, 5)*"),
+    (lambda d: sb3_zip(d / "m.zip", n_actions=3), "sb3:m.zip", "*chooses among 3 actions*has 5"),
+    (lambda d: sb3_zip(d / "m.zip", policy_module="my_algos.policies"), "sb3:m.zip",
+     "*cannot tell the algorithm*'my_algos.policies'*name it: sb3:ALGO:PATH@ENV*"),
+    (None, "sb3:xyz:m.zip", "*unknown algorithm 'xyz'; stable-baselines3's are A2C, *"),
+    (None, "sb3:", "*names no model file; write sb3:PATH*"),
+])
+def test_a_model_that_cannot_drive_is_a_usage_error_at_start_up(pytester, make, text, message):
+    pytester.makepyfile(SCENARIO)
+    if make is not None:
+        make(pytester.path)
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", f"--avs-driver={text}")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([f"ERROR: --avs-driver: {message}"])
+    assert "INTERNALERROR" not in result.stdout.str() + result.stderr.str()
+
+
+def test_without_stable_baselines3_the_error_says_what_to_install(pytester, monkeypatch):
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # as if not installed
+    pytester.makepyfile(SCENARIO)
+    (pytester.path / "models").mkdir()
+    sb3_zip(pytester.path / "models" / "dqn.zip")
+    pytester.makeini("[pytest]\navs_driver = sb3:models/dqn.zip@highway-fast-v0\n")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    assert ("ERROR: ini avs_driver: driver 'sb3:models/dqn.zip@highway-fast-v0' needs "
+            "stable-baselines3, which is not installed: pip install \"pytest-avscenario[sb3]\"") \
+        in result.stderr.str()
+
+
+# -- with stable-baselines3 and the trained model ----------------------------------------------------
+
+def _needs_model():
+    pytest.importorskip("stable_baselines3")
+    if not MODEL.is_file():
+        pytest.skip(f"no model at {MODEL} (python example_tests/train_dqn.py)")
+
+
+def test_the_saved_model_drives_the_ego_once_per_policy_period(pytester):
+    _needs_model()
+    pytester.makepyfile(SCENARIO)
+    # in a process of its own: torch's modules cannot be forgotten and imported again
+    result = pytester.runpytest_subprocess("--avs-db=none", "--avs-report=none", "-p", "no:xdist",
+                                           f"--avs-driver=sb3:{MODEL}")
+    result.assert_outcomes(passed=2)
+
+
+def test_the_driver_pickles_as_its_path_and_decides_as_the_model(tmp_path):
+    _needs_model()
+    import gymnasium
+    from stable_baselines3 import DQN
+
+    agent = sb3.driver(f"sb3:{MODEL}@highway-fast-v0")
+    assert sb3.driver(f"sb3:{MODEL}") is agent  # one per process and file
+    env = gymnasium.make("highway-fast-v0")
+    obs, _ = env.reset(seed=3)
+    env.close()
+    first = agent.predict(obs)  # loads the model
+    blob = pickle.dumps(agent)
+    assert len(blob) < 10_000  # the path, not the network
+    again = pickle.loads(blob)
+    assert again.model._model is None
+    reference = DQN.load(MODEL, device="cpu").predict(obs, deterministic=True)[0]
+    assert int(again.predict(obs)) == int(first) == int(reference)
