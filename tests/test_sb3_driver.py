@@ -88,6 +88,8 @@ def test_check_answers_an_absolute_path_and_reads_the_algorithm_from_the_zip(tmp
      "*m.zip is a zip but not a model saved by stable-baselines3*"),
     (lambda d: sb3_zip(d / "m.zip"), "sb3:m.zip@highway-v9",
      "*unknown environment 'highway-v9'; highway-env's are *highway-fast-v0*"),
+    (lambda d: sb3_zip(d / "m.zip"), "sb3:m.zip@parking-v0",
+     "*observation type 'KinematicsGoal' is not supported*the environment 'parking-v0'*"),
     (lambda d: sb3_zip(d / "m.zip", obs_shape=[7, 5]), "sb3:m.zip",
      "*takes observations of shape (7, 5), but 'highway-fast-v0' in its default config gives (5, 5)*"),
     (lambda d: sb3_zip(d / "m.zip", n_actions=3), "sb3:m.zip", "*chooses among 3 actions*has 5"),

@@ -197,9 +197,10 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
 
     Return a callable ``policy(observation) -> (acceleration, steering)``, an object with
     ``act(observation)`` or ``predict(observation)`` answering the plugin's ``Observation``,
-    a model trained on highway-env wrapped as ``highway_env_agent(model, env=...)``, or a
-    built-in name (``"autopilot"``, ``"idm"``, ``"careful"``). The default is ``--avs-driver``
-    / ini ``avs_driver`` or ``"autopilot"``.
+    a model trained on highway-env wrapped as ``highway_env_agent(model, env=...)``, a
+    built-in name (``"autopilot"``, ``"idm"``, ``"careful"``) or a saved stable-baselines3
+    model ``"sb3:PATH@ENV"``. The default is ``--avs-driver`` / ini ``avs_driver`` or
+    ``"autopilot"``.
     """
     return request.config.stash[settings_key].driver
 

@@ -201,8 +201,15 @@ def _check_env(env_id: str, data: dict, path: Path, shown: str) -> None:
                          f"{type(exc).__name__}: {exc}") from None
     try:
         obs_space, act_space = env.observation_space, env.action_space
+        config = dict(env.unwrapped.config)
     finally:
         env.close()
+    from .highway_agent import _check_config
+
+    try:  # what highway_env_agent refuses (images, other action types), said now
+        _check_config(config, f"driver {shown!r}", "", "")
+    except SimError as exc:
+        raise ValueError(f"{exc} — the environment {env_id!r} in its default config") from None
     want = _shape(data.get("observation_space"))
     if want is not None and tuple(obs_space.shape or ()) != want:
         raise ValueError(
