@@ -121,6 +121,16 @@ def test_without_stable_baselines3_the_error_says_what_to_install(pytester, monk
         in result.stderr.str()
 
 
+def test_the_trained_agent_example_skips_saying_why_without_stable_baselines3(pytester, monkeypatch):
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # as if not installed
+    example = MODEL.parent.parent / "test_trained_agent.py"
+    result = pytester.runpytest(str(example), "-m", "scenario", "-rs", "--avs-samples=1",
+                                "--avs-db=none", "--avs-report=none", "-p", "no:xdist")
+    result.assert_outcomes(skipped=4)  # 2 tests x 2 samplers
+    reason = 'the trained-agent example needs stable-baselines3: pip install -e ".[sb3]"'
+    assert result.stdout.str().count(reason) == 2  # one -rs line per test
+
+
 # -- with stable-baselines3 and the trained model ----------------------------------------------------
 
 def _needs_model():
