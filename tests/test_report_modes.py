@@ -1,0 +1,106 @@
+"""Failure modes: a campaign's counterexamples grouped by metric and agent and described by
+rules over the parameters, in the parameters' own units."""
+
+import re
+
+import numpy as np
+import pytest
+
+from pytest_avscenario.outcome import CaseRow
+from pytest_avscenario.report.modes import failure_modes
+from pytest_avscenario.space import Choice, FeatureSpace, IntRange, Uniform
+
+TEST = "tests/test_follow.py::test_follow"
+
+
+def space():
+    return FeatureSpace({"gap": Uniform(5.0, 40.0, unit="m"), "lead_decel": Uniform(1.0, 8.0, unit="m/s^2"),
+                         "speed": Uniform(5.0, 30.0, unit="m/s"), "road": Choice(["dry", "wet", "icy"]),
+                         "lanes": IntRange(1, 4)})
+
+
+def campaign(n=300, seed=0, fails=None):
+    """Two known failure regions with the lead car as the critical agent: distance is violated
+    when gap < 14 m and lead_decel > 5 m/s²; ttc when speed > 24 m/s on a wet or icy road."""
+    fails = fails or {
+        "distance": lambda p: p["gap"] < 14.0 and p["lead_decel"] > 5.0,
+        "ttc": lambda p: p["speed"] > 24.0 and p["road"] != "dry",
+    }
+    sp = space()
+    rng = np.random.default_rng(seed)
+    rows = []
+    for i in range(n):
+        p = sp.from_unit(rng.random(sp.d))
+        rho = {m: (-1.0 if f(p) else 1.0) for m, f in fails.items()}
+        violated = {m: {"t": 2.0, "agent": "lead", "threshold": 5.0} for m, v in rho.items() if v < 0}
+        rows.append(CaseRow(test=TEST, item=f"{TEST}[halton-{i:03d}]", sampler="halton", index=i, seed=i,
+                            origin="sampled", params=p, rho=rho, verdict="fail" if violated else "pass",
+                            violations=violated or None))
+    return rows
+
+
+def test_two_failure_regions_are_recovered_with_their_bounds():
+    rows = campaign()
+    modes = failure_modes(rows, space(), ["distance", "ttc"])
+    by_metrics = {m.metrics: m for m in modes}
+    assert set(by_metrics) >= {("distance",), ("ttc",)}
+    ttc, dist = by_metrics[("ttc",)], by_metrics[("distance",)]
+    # the rules name exactly the parameters that matter, on the right side, near the truth
+    (gap, decel) = dist.bounds
+    assert (gap.parameter, gap.lo, decel.parameter, decel.hi) == ("gap", None, "lead_decel", None)
+    assert gap.hi == pytest.approx(14.0, abs=1.5) and decel.lo == pytest.approx(5.0, abs=0.6)
+    (speed, road) = ttc.bounds
+    assert speed.parameter == "speed" and speed.hi is None and speed.lo == pytest.approx(24.0, abs=1.5)
+    assert road.values == ("wet", "icy")
+    for mode in (ttc, dist):
+        assert mode.agent == "lead" and mode.recall == 1.0 and mode.precision > 0.6
+        assert mode.representative in mode.items
+    # every counterexample belongs to exactly one mode; ids by decreasing count
+    failing = {r.item for r in rows if r.verdict == "fail"}
+    assert sorted(i for m in modes for i in m.items) == sorted(failing)
+    assert [m.id for m in modes] == [f"M{k}" for k in range(1, len(modes) + 1)]
+    assert [m.count for m in modes] == sorted((m.count for m in modes), reverse=True)
+    assert sum(m.share for m in modes) == pytest.approx(1.0)
+
+
+def test_rules_read_as_parameter_bounds_with_units():
+    modes = failure_modes(campaign(), space(), ["distance", "ttc"])
+    rules = {m.metrics: m.rule for m in modes}
+    assert re.fullmatch(r"gap < [\d.]+ m and lead_decel > [\d.]+ m/s²", rules[("distance",)])
+    assert re.fullmatch(r"speed > [\d.]+ m/s and road in \{wet, icy\}", rules[("ttc",)])
+    assert modes[0].to_json()["rule"] == modes[0].rule and "items" not in modes[0].to_json()
+
+
+def test_the_same_kind_of_failure_keeps_its_key_between_runs():
+    first = {m.key for m in failure_modes(campaign(seed=0), space(), ["distance", "ttc"])}
+    again = {m.key for m in failure_modes(campaign(seed=5), space(), ["distance", "ttc"])}
+    assert "distance|lead|gap<,lead_decel>" in first & again
+    assert "ttc|lead|speed>,road in" not in first  # the key has no spaces or values
+    assert "ttc|lead|speed>,roadin" in first & again
+
+
+def test_modes_are_deterministic_and_independent_of_row_order():
+    rows = campaign()
+    a = failure_modes(rows, space(), ["distance", "ttc"])
+    b = failure_modes(list(reversed(rows)), space(), ["distance", "ttc"])
+    assert [(m.key, m.count, m.rule) for m in a] == [(m.key, m.count, m.rule) for m in b]
+
+
+def test_a_small_group_is_one_mode_with_its_bounding_box():
+    sp = space()
+    rows = campaign(n=60, fails={"distance": lambda p: False})
+    bad = [dict(sp.from_unit([0.05, 0.5, 0.5, 0.5, 0.5]), gap=7.0 + k, lanes=2) for k in range(3)]
+    rows += [CaseRow(test=TEST, item=f"{TEST}[replay-{k}]", sampler="halton", index=k, seed=k, origin="replay",
+                     params=p, rho={"distance": -0.5}, verdict="fail") for k, p in enumerate(bad)]
+    (mode,) = failure_modes(rows, sp, ["distance"])
+    assert mode.kind == "box" and mode.count == 3 and mode.agent is None
+    assert "7 ≤ gap ≤ 9 m" in mode.rule and "lanes = 2" in mode.rule
+    assert mode.representative == f"{TEST}[replay-1]"  # the middle one
+
+
+def test_at_most_five_modes_and_none_without_counterexamples():
+    rows = campaign()
+    assert failure_modes([r for r in rows if r.verdict == "pass"], space(), ["distance"]) == []
+    many = {f"m{k}": (lambda k: lambda p: abs(p["gap"] - (6 + 4.5 * k)) < 1.0)(k) for k in range(7)}
+    modes = failure_modes(campaign(fails=many), space(), list(many))
+    assert len(modes) == 5
