@@ -104,3 +104,91 @@ def test_at_most_five_modes_and_none_without_counterexamples():
     many = {f"m{k}": (lambda k: lambda p: abs(p["gap"] - (6 + 4.5 * k)) < 1.0)(k) for k in range(7)}
     modes = failure_modes(campaign(fails=many), space(), list(many))
     assert len(modes) == 5
+
+
+# --------------------------------------------------------------------------- through pytest
+
+# The lead car stands `gap` + 0.5 m ahead, a second car `offset` m to the side: with a 4-m
+# distance threshold only the lead comes too close (gap < 3.5 m); with 8 m the side car does
+# too (offset < 8 m), a second failure mode.
+SCENARIO = """
+import os
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance
+from pytest_avscenario.trajectory import Trajectory
+
+LIMIT = float(os.environ.get("AVS_TEST_LIMIT", "4"))
+
+@scenario(gap=Uniform(0, 20, unit="m"), offset=Uniform(6, 20, unit="m"), samples=40, sampler="halton",
+          monitors=[distance(LIMIT)])
+def test_pair(case):
+    return Trajectory.from_arrays([0.0, 0.1], {
+        "ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
+        "lead": {"x": [case.gap + 0.5, case.gap + 0.5], "y": [0.0, 0.0]},
+        "side": {"x": [0.0, 0.0], "y": [case.offset, case.offset]},
+    })
+"""
+RUN = ("--avs-db=none", "--avs-seed=1", "--avs-shrink-budget=0", "--avs-case-pictures=0", "-p", "no:cacheprovider")
+
+
+def test_modes_and_the_comparison_with_a_baseline_run_reach_the_terminal_summary_json_and_index(
+        pytester, monkeypatch):
+    import json
+
+    pytester.makepyfile(test_pair=SCENARIO)
+    monkeypatch.setenv("AVS_TEST_LIMIT", "4")
+    before = pytester.runpytest(*RUN, "--avs-report=before")
+    monkeypatch.setenv("AVS_TEST_LIMIT", "8")
+    after = pytester.runpytest(*RUN, "--avs-report=after", "--avs-baseline=before/summary.json")
+    new = json.loads((pytester.path / "after" / "summary.json").read_text())
+
+    # the modes: counted in the terminal table, described in summary.json
+    before.stdout.fnmatch_lines(["test *cex  min  modes*", "test_pair  halton *8    0      1*",
+                                 "*modes: failure modes*"])
+    after.stdout.fnmatch_lines(["test_pair  halton *19    0      2*"])
+    (lead, side) = new["tests"][0]["modes"]
+    assert (lead["id"], lead["agent"], lead["key"]) == ("M1", "lead", "distance|lead|gap<")
+    assert (side["id"], side["agent"], side["key"]) == ("M2", "side", "distance|side|offset<")
+    assert re.fullmatch(r"gap < 7\.\d+ m", lead["rule"]) and re.fullmatch(r"offset < [78]\.?\d* m", side["rule"])
+    assert lead["count"] + side["count"] == new["tests"][0]["counterexamples"] == 19
+    assert "items" not in lead and lead["representative"]["item"].startswith("test_pair.py::test_pair[halton-")
+
+    # the index: a table of modes, each representative linked to its card; a mode column
+    index = (pytester.path / "after" / "index.html").read_text()
+    assert "2 failure modes" in index and "<code>gap &lt; 7." in index
+    card = re.search(r"<tr id='m-[^']+-halton-M1'>.*?<a href='(cases/[^']+)'>", index).group(1)
+    assert (pytester.path / "after" / card).is_file()
+    assert "<th>mode</th>" in index and "<td>M2</td>" in index
+
+    # the comparison with the baseline: in the terminal, summary.json and atop the index
+    after.stdout.fnmatch_lines([
+        "this run compared with *before*summary.json:",
+        "  test_pair  halton   distance  19/40 (47.5%)  8/40 (20.0%)  ↑ +27.5 pts",
+        "  new mode test_pair [[]halton] M2: distance with side, offset < * m (4 cases)",
+    ])
+    cmp = new["comparison"]
+    assert cmp["rates"] == [{"test": "test_pair.py::test_pair", "sampler": "halton", "metric": "distance",
+                             "now": {"violations": 19, "samples": 40}, "before": {"violations": 8, "samples": 40},
+                             "rate_now": 0.475, "rate_before": 0.2}]
+    assert [(m["status"], m["key"]) for m in cmp["modes"]] == [("kept", "distance|lead|gap<"),
+                                                               ("new", "distance|side|offset<")]
+    assert index.index("Compared with an earlier run") < index.index("<table id='summary'>")
+    assert "↑ +27.5 pts" in index
+    assert re.search(r"<td class='bad'>new</td>.*<a href='#m-[^']+-halton-M2'>M2</a>", index)
+
+    # the command on two finished runs, the other way round: the side car's mode is gone
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "pytest_avscenario.report", "compare", "after", "before/summary.json",
+                           "--html", "cmp/page.html"], cwd=pytester.path, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == "before/summary.json compared with after/summary.json:"
+    assert "  test_pair  halton   distance  8/40 (20.0%)  19/40 (47.5%)  ↓ -27.5 pts" in lines
+    assert any(l.startswith("  gone mode test_pair [halton] (was M2): distance with side, offset < ") for l in lines)
+    page = (pytester.path / "cmp" / "page.html").read_text()
+    assert "<td class='good'>gone</td>" in page and "was M2" in page
+    missing = subprocess.run([sys.executable, "-m", "pytest_avscenario.report", "compare", "nowhere", "before"],
+                             cwd=pytester.path, capture_output=True, text=True)
+    assert missing.returncode == 2 and "cannot read nowhere" in missing.stderr
