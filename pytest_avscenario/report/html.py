@@ -141,16 +141,21 @@ def mode_table(directory: Path, campaigns: Sequence[SummaryRow], rows: Sequence[
             how = "the cases' bounding box" if m.kind == "box" else "a rule separating them from the passing cases"
             precision = f"{100 * m.precision:.0f}%" if m.bounds else DASH
             outside = f" ({m.count - m.inside} outside the rule)" if m.bounds and m.inside < m.count else ""
+            also = ""
+            if m.also:
+                also = " <span class='meta'>(also " + _e(", ".join(f"{k} in {v}" for k, v in m.also.items())) + ")</span>"
             out.append(
                 f"<tr id='{mode_anchor(s.test, s.sampler, m.id)}'><td>{_e(label)}</td>"
-                f"<td>{_e(', '.join(m.metrics) or 'assertion')}</td><td>{_e(m.agent or DASH)}</td>"
+                f"<td>{_e(', '.join(m.metrics) or 'assertion')}{also}</td><td>{_e(m.agent or DASH)}</td>"
                 f"<td class='num'>{m.count} ({100 * m.share:.0f}%)</td>"
                 f"<td title='{_e(how)}'><code>{_e(m.rule)}</code>{_e(outside)}</td>"
                 f"<td class='num'>{precision}</td><td>{link}</td></tr>")
     out.append("</tbody></table></div>")
-    out.append("<p class='meta'>cases: the mode's counterexamples (share of the campaign's) · precision: of the "
-               "campaign's cases inside the rule, the share that fail this way · representative: the "
-               "counterexample nearest the centre of the mode's cases</p>")
+    out.append("<p class='meta'>violated: the metric that groups the mode's cases (the first one they violate, "
+               "in the declared order) and any others all of them violate · cases: the mode's counterexamples "
+               "(share of the campaign's) · precision: of the campaign's cases inside the rule, the share "
+               "violating that metric · representative: the counterexample nearest the centre of the "
+               "mode's cases</p>")
     return "\n".join(out)
 
 

@@ -5,9 +5,12 @@ engineer wants to read "12 cases: distance violated with the lead car, when
 ``gap < 14.2 m and lead_decel > 5.1 m/s²``" and look at one of them. :func:`failure_modes`
 does that for one test × sampler campaign:
 
-1. the failing cases are grouped by their violated metrics (in priority order) and the
-   critical agent (the agent of the first violated metric in that order, from
-   ``CaseRow.violations``); a failed assertion with no violated metric is a group of its own;
+1. the failing cases are grouped by their first violated metric in priority order (the
+   declared monitor order) and the critical agent (the agent of that violation, from
+   ``CaseRow.violations``); a failed assertion with no violated metric is a group of its own.
+   A case that also violates later metrics stays with its first one: where two kinds of
+   failure overlap, the overlap is not a third kind (the mode says which other metrics its
+   cases violate too);
 2. within a group, a shallow classification tree (CART, Gini impurity, depth ≤ 3; a few
    lines of numpy) separates the group's cases from the passing cases on the unit-cube
    coordinates of the parameters; sibling leaves of the same class are merged back; each
@@ -118,13 +121,15 @@ class FailureMode:
     """One kind of failure of a campaign.
 
     ``id``: ``M1``, ``M2``, … by decreasing count; ``key``: the content key that matches the
-    same mode in another run; ``metrics``: the violated metrics (priority order; empty for a
-    failed assertion); ``agent``: the critical agent (None when unknown); ``count``: its
-    counterexamples, ``share`` of the campaign's; ``bounds`` and ``rule``: where it happens;
-    ``inside``: its counterexamples that satisfy the rule; ``precision``: of the campaign's
-    judged cases satisfying the rule, the share that fail this way; ``recall``: of the
-    group's counterexamples, the share satisfying the rule; ``representative``: the item id of
-    the counterexample nearest the centre of the mode's cases; ``items``: every item id.
+    same mode in another run; ``metrics``: the metrics every case of it violates, in priority
+    order, the first one (its group's) first (empty for a failed assertion); ``also``: other
+    metrics some of its cases violate, with how many; ``agent``: the critical agent (None
+    when unknown); ``count``: its counterexamples, ``share`` of the campaign's; ``bounds``
+    and ``rule``: where it happens; ``inside``: its counterexamples that satisfy the rule;
+    ``precision``: of the campaign's judged cases satisfying the rule, the share violating
+    the mode's first metric; ``recall``: of the group's counterexamples, the share satisfying
+    the rule; ``representative``: the item id of the counterexample nearest the centre of
+    the mode's cases; ``items``: every item id.
     """
 
     id: str
@@ -141,6 +146,7 @@ class FailureMode:
     representative_params: Mapping[str, Any]
     items: tuple[str, ...]
     kind: str = "tree"  # "tree": a leaf of the tree; "box": a bounding box
+    also: Mapping[str, int] = field(default_factory=dict)
 
     @property
     def rule(self) -> str:
@@ -148,7 +154,7 @@ class FailureMode:
 
     @property
     def what(self) -> str:
-        """``distance, ttc with lead`` — the group, as one phrase."""
+        """``distance with lead`` — the group, as one phrase."""
         metrics = ", ".join(self.metrics) or "assertion"
         return f"{metrics} with {self.agent}" if self.agent else metrics
 
@@ -156,7 +162,8 @@ class FailureMode:
         """The mode for ``summary.json``: everything but the list of items."""
         from ..codec import jsonable
 
-        return {"id": self.id, "key": self.key, "metrics": list(self.metrics), "agent": self.agent,
+        return {"id": self.id, "key": self.key, "metrics": list(self.metrics), "also": dict(self.also),
+                "agent": self.agent,
                 "count": self.count, "share": round(self.share, 6), "rule": self.rule,
                 "bounds": [b.to_json() for b in self.bounds], "kind": self.kind,
                 "inside": self.inside, "precision": round(self.precision, 6),
@@ -437,22 +444,25 @@ def _distance_to(bounds: Sequence[Bound], dims: Sequence[_Dim], x: np.ndarray) -
 # --------------------------------------------------------------------------- modes
 
 
-def _group_of(row: CaseRow, priority: Sequence[str]) -> tuple[tuple[str, ...], str | None]:
+def _violated(row: CaseRow, priority: Sequence[str]) -> list[str]:
+    """The row's violated metrics in priority order (undeclared ones after, in row order)."""
     violated = [m for m, v in row.rho.items() if v is not None and not math.isnan(v) and v < 0]
     rank = {m: i for i, m in enumerate(priority)}
-    violated.sort(key=lambda m: (rank.get(m, len(rank)), list(row.rho).index(m)))
-    agent = None
-    for m in violated:
-        where = (row.violations or {}).get(m) or {}
-        if where.get("agent") is not None:
-            agent = str(where["agent"])
-            break
-    return tuple(violated), agent
+    names = list(row.rho)
+    return sorted(violated, key=lambda m: (rank.get(m, len(rank)), names.index(m)))
+
+
+def _group_of(row: CaseRow, violated: Sequence[str]) -> tuple[str | None, str | None]:
+    """(first violated metric, its agent); (None, None) for a failed assertion."""
+    if not violated:
+        return None, None
+    where = (row.violations or {}).get(violated[0]) or {}
+    return violated[0], None if where.get("agent") is None else str(where["agent"])
 
 
 @dataclass
 class _Draft:
-    group: tuple[tuple[str, ...], str | None]
+    group: tuple[str | None, str | None]
     bounds: list[Bound]
     kind: str
     members: list[int]  # positions in the campaign's rows
@@ -461,9 +471,9 @@ class _Draft:
     inside: int
 
 
-def _mode_key(metrics: Sequence[str], agent: str | None, bounds: Sequence[Bound]) -> str:
+def _mode_key(metric: str | None, agent: str | None, bounds: Sequence[Bound]) -> str:
     rule = ",".join(f"{b.parameter}{b.direction}" for b in bounds) or "*"
-    return f"{'+'.join(metrics) or 'assertion'}|{agent or '-'}|{rule}"
+    return f"{metric or 'assertion'}|{agent or '-'}|{rule}"
 
 
 def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None,
@@ -480,9 +490,10 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
     failing = [i for i, r in enumerate(rows) if r.verdict == "fail"]
     if not failing:
         return []
-    groups: dict[tuple[tuple[str, ...], str | None], list[int]] = {}
+    violated = {i: _violated(rows[i], metrics) for i in failing}
+    groups: dict[tuple[str | None, str | None], list[int]] = {}
     for i in failing:
-        groups.setdefault(_group_of(rows[i], metrics), []).append(i)
+        groups.setdefault(_group_of(rows[i], violated[i]), []).append(i)
 
     dims = _dims(space)
     coords: dict[int, np.ndarray] = {}
@@ -496,6 +507,11 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
     where = {i: k for k, i in enumerate(placed)}
     categorical = np.array([d.kind == "categorical" for d in dims or ()], dtype=bool)
     passing = np.array([rows[i].verdict == "pass" for i in placed], dtype=bool)
+
+    def violates(metric: str | None) -> np.ndarray:
+        """Which placed cases fail that way: violate ``metric`` (None: fail with none)."""
+        return np.array([i in violated and (metric in violated[i] if metric else not violated[i])
+                         for i in placed], dtype=bool)
 
     drafts: list[_Draft] = []
     for group, members in groups.items():
@@ -525,13 +541,14 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
         outside = [i for i in members if i not in where]
         if outside:  # parameters that do not fit the space: with the group's largest mode
             assigned[max(range(len(found)), key=lambda k: (len(assigned[k]), -k))].extend(outside)
+        same_way = violates(group[0])
         for (bounds, kind), reg, items in zip(found, regions, assigned):
             if not items:
                 continue
             n_in = int(reg.sum())
             hits = int((reg & mine).sum())
             drafts.append(_Draft(group, bounds, kind, sorted(items),
-                                 hits / n_in if n_in else 0.0, hits / len(in_space), hits))
+                                 int((reg & same_way).sum()) / n_in if n_in else 0.0, hits / len(in_space), hits))
 
     drafts.sort(key=lambda d: (-len(d.members), _mode_key(*d.group, d.bounds)))
     kept, dropped = drafts[:max_modes], drafts[max_modes:]
@@ -556,8 +573,16 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
         if keys[key] > 1:
             key += f"#{keys[key]}"
         rep = _representative(d.members, coords)
+        every = [m for m in violated[d.members[0]] if all(m in violated[i] for i in d.members)]
+        also: dict[str, int] = {}
+        for i in d.members:
+            for m in violated[i]:
+                if m not in every:
+                    also[m] = also.get(m, 0) + 1
+        rank = {m: k for k, m in enumerate(metrics)}
+        also = {m: also[m] for m in sorted(also, key=lambda m: (rank.get(m, len(rank)), m))}
         out.append(FailureMode(
-            id=f"M{n}", key=key, metrics=d.group[0], agent=d.group[1], count=len(d.members),
+            id=f"M{n}", key=key, metrics=tuple(every), also=also, agent=d.group[1], count=len(d.members),
             share=len(d.members) / n_fail, bounds=tuple(d.bounds), precision=d.precision,
             recall=d.recall, inside=d.inside, representative=rows[rep].item,
             representative_params=dict(rows[rep].params), items=tuple(rows[i].item for i in d.members),
