@@ -193,3 +193,15 @@ def test_modes_and_the_comparison_with_a_baseline_run_reach_the_terminal_summary
     missing = subprocess.run([sys.executable, "-m", "pytest_avscenario.report", "compare", "nowhere", "before"],
                              cwd=pytester.path, capture_output=True, text=True)
     assert missing.returncode == 2 and "cannot read nowhere" in missing.stderr
+
+
+def test_overlapping_failures_go_to_the_metric_first_in_priority():
+    rows = campaign()
+    both = sum(1 for r in rows if r.rho["distance"] < 0 and r.rho["ttc"] < 0)
+    by_order = {}
+    for order in (["distance", "ttc"], ["ttc", "distance"]):
+        modes = {m.metrics[0]: m for m in failure_modes(rows, space(), order)}
+        by_order[order[0]] = modes
+    assert by_order["distance"]["distance"].also == {"ttc": both}
+    assert by_order["ttc"]["ttc"].also == {"distance": both}
+    assert by_order["ttc"]["ttc"].count == by_order["distance"]["ttc"].count + both

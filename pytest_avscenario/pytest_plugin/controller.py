@@ -333,6 +333,7 @@ class RunState:
             space = self.guarded("the ε-coverage (rebuilding the parameter space)", test,
                                  lambda: FeatureSpace.from_description(info["space"]))
             infos[test] = TestInfo(metrics=tuple(info["metrics"]), space=space,
+                                   priority=tuple(info.get("priority") or ()),
                                    samplers=tuple(info["samplers"]))
         return infos
 

@@ -152,7 +152,7 @@ def mode_table(directory: Path, campaigns: Sequence[SummaryRow], rows: Sequence[
                 f"<td class='num'>{precision}</td><td>{link}</td></tr>")
     out.append("</tbody></table></div>")
     out.append("<p class='meta'>violated: the metric that groups the mode's cases (the first one they violate, "
-               "in the declared order) and any others all of them violate · cases: the mode's counterexamples "
+               "in priority order) and any others all of them violate · cases: the mode's counterexamples "
                "(share of the campaign's) · precision: of the campaign's cases inside the rule, the share "
                "violating that metric · representative: the counterexample nearest the centre of the "
                "mode's cases</p>")

@@ -6,7 +6,7 @@ engineer wants to read "12 cases: distance violated with the lead car, when
 does that for one test × sampler campaign:
 
 1. the failing cases are grouped by their first violated metric in priority order (the
-   declared monitor order) and the critical agent (the agent of that violation, from
+   scenario's ``priority=``, else the monitor order) and the critical agent (the agent of that violation, from
    ``CaseRow.violations``); a failed assertion with no violated metric is a group of its own.
    A case that also violates later metrics stays with its first one: where two kinds of
    failure overlap, the overlap is not a third kind (the mode says which other metrics its
@@ -441,6 +441,35 @@ def _distance_to(bounds: Sequence[Bound], dims: Sequence[_Dim], x: np.ndarray) -
     return math.sqrt(total)
 
 
+def _purity(bounds: Sequence[Bound], dims: Sequence[_Dim], X: np.ndarray, mine: np.ndarray,
+            passing: np.ndarray) -> tuple[float, int]:
+    inside = _inside(bounds, dims, X)
+    hits, misses = int((inside & mine).sum()), int((inside & passing).sum())
+    return (hits / (hits + misses) if hits + misses else 0.0), hits
+
+
+def _simplify(bounds: list[Bound], dims: Sequence[_Dim], X: np.ndarray, mine: np.ndarray,
+              passing: np.ndarray, slack: float = 0.02) -> list[Bound]:
+    """Drop the conditions a rule does not need: a tree path also carries the splits that
+    parted it from a sibling region of the same group. A condition goes when without it the
+    region is as pure as the tree's (group cases against passing cases, within ``slack``) and
+    holds at least as many of the group's cases; the one whose removal leaves the purest rule
+    first."""
+    bounds = list(bounds)
+    purity, hits = _purity(bounds, dims, X, mine, passing)
+    while len(bounds) > 1:
+        options = []
+        for k in range(len(bounds)):
+            rest = bounds[:k] + bounds[k + 1:]
+            p, h = _purity(rest, dims, X, mine, passing)
+            if p >= purity - slack and h >= hits:
+                options.append((-p, k, rest, h))
+        if not options:
+            break
+        _, _, bounds, hits = min(options, key=lambda o: (o[0], o[1]))
+    return bounds
+
+
 # --------------------------------------------------------------------------- modes
 
 
@@ -468,7 +497,7 @@ class _Draft:
     members: list[int]  # positions in the campaign's rows
     precision: float
     recall: float
-    inside: int
+    region: np.ndarray | None = None  # which placed cases satisfy the rule
 
 
 def _mode_key(metric: str | None, agent: str | None, bounds: Sequence[Bound]) -> str:
@@ -517,7 +546,7 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
     for group, members in groups.items():
         in_space = [i for i in members if i in where]
         if not dims or not in_space:
-            drafts.append(_Draft(group, [], "box", list(members), len(members) / max(len(rows), 1), 1.0, len(members)))
+            drafts.append(_Draft(group, [], "box", list(members), len(members) / max(len(rows), 1), 1.0))
             continue
         mine = np.zeros(len(placed), dtype=bool)
         mine[[where[i] for i in in_space]] = True
@@ -525,8 +554,11 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
         found: list[tuple[list[Bound], str]] = []
         if len(in_space) >= MIN_SPLIT and passing.any():
             tree = _grow(X, mine.astype(int), train, categorical, 0, max_depth)
-            found = [(_path_bounds(dims, path, X), "tree") for _, path in _failing_leaves(tree)]
-            found = [(b, k) for b, k in found if b]  # a root leaf says nothing a box would not
+            found = []
+            for _, path in _failing_leaves(tree):
+                bounds = _simplify(_path_bounds(dims, path, X), dims, X, mine, passing)
+                if bounds and all(bounds != other for other, _ in found):
+                    found.append((bounds, "tree"))
         if not found:
             found = [(_box_bounds(dims, X[mine], X), "box")]
         regions = [_inside(b, dims, X) for b, _ in found]
@@ -548,7 +580,7 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
             n_in = int(reg.sum())
             hits = int((reg & mine).sum())
             drafts.append(_Draft(group, bounds, kind, sorted(items),
-                                 int((reg & same_way).sum()) / n_in if n_in else 0.0, hits / len(in_space), hits))
+                                 int((reg & same_way).sum()) / n_in if n_in else 0.0, hits / len(in_space), reg))
 
     drafts.sort(key=lambda d: (-len(d.members), _mode_key(*d.group, d.bounds)))
     kept, dropped = drafts[:max_modes], drafts[max_modes:]
@@ -573,6 +605,8 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
         if keys[key] > 1:
             key += f"#{keys[key]}"
         rep = _representative(d.members, coords)
+        inside = len(d.members) if d.region is None else \
+            sum(1 for i in d.members if i in where and d.region[where[i]])
         every = [m for m in violated[d.members[0]] if all(m in violated[i] for i in d.members)]
         also: dict[str, int] = {}
         for i in d.members:
@@ -584,7 +618,7 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
         out.append(FailureMode(
             id=f"M{n}", key=key, metrics=tuple(every), also=also, agent=d.group[1], count=len(d.members),
             share=len(d.members) / n_fail, bounds=tuple(d.bounds), precision=d.precision,
-            recall=d.recall, inside=d.inside, representative=rows[rep].item,
+            recall=d.recall, inside=inside, representative=rows[rep].item,
             representative_params=dict(rows[rep].params), items=tuple(rows[i].item for i in d.members),
             kind=d.kind))
     return out

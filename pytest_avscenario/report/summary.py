@@ -63,6 +63,9 @@ class TestInfo:
     metrics: tuple[str, ...] = ()
     space: Any = None
     samplers: tuple[str, ...] = ()  # in the order the test declares them
+    #: the metrics in the order of the declared priority (``@scenario(priority=...)``;
+    #: empty: the declaration order), which groups failure modes by the first one violated
+    priority: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -216,7 +219,7 @@ def summarize(
             try:
                 from .modes import failure_modes
 
-                found = tuple(failure_modes(main, space, metrics))
+                found = tuple(failure_modes(main, space, list(info.priority) or metrics))
             except Exception as exc:
                 if on_error is None:
                     raise
