@@ -158,7 +158,7 @@ def test_modes_and_the_comparison_with_a_baseline_run_reach_the_terminal_summary
     index = (pytester.path / "after" / "index.html").read_text()
     assert "2 failure modes" in index and "<code>gap &lt; 7." in index
     card = re.search(r"<tr id='m-[^']+-halton-M1'>.*?<a href='(cases/[^']+)'>", index).group(1)
-    assert (pytester.path / "after" / card).is_file()
+    assert "failure mode M1 (distance with lead: gap &lt; 7." in (pytester.path / "after" / card).read_text()
     assert "<th>mode</th>" in index and "<td>M2</td>" in index
 
     # the comparison with the baseline: in the terminal, summary.json and atop the index

@@ -183,19 +183,21 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
         first = min(where, key=lambda w: w["t"]) if where else {}
         return replay_html(data, element_id="replay", critical=first.get("agent"), start_t=first.get("t"))
 
+    labels = mode_labels(campaigns)
+    described = {item: f"{labels[item]} ({m.what}: {m.rule})"
+                 for s in campaigns for m in s.modes for item in m.items if item in labels}
     folder.add_all(cases / card_name(row) for row in failing)
     for row in failing:
-        page = render_card(cases, row, metrics=metrics, space=space,
+        page = render_card(cases, row, metrics=metrics, space=space, mode=described.get(row.item),
                            files=CaseFiles(dict(case_files.get(row.item) or {})),
                            rerun=rerun(row) if rerun is not None else None,
                            index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
         atomic_write_text(cases / card_name(row), page)
     minimized = sum(r.minimized is not None for r in failing)
-    modes = mode_labels(campaigns)
     return [mode_table(root, campaigns, rows),
             f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"
             f"{f' ({minimized} minimized)' if minimized else ''}: one page each</summary>",
-            counterexample_table(root, failing, modes=modes or None), "</details>"]
+            counterexample_table(root, failing, modes=labels or None), "</details>"]
 
 
 def _plot(root: Path, folder: Any, test: str, rows: list[CaseRow],
