@@ -248,26 +248,29 @@ def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
                    f"<td>{e(r.metric)}</td><td class='num'>{e(_kn(r.now))}</td>"
                    f"<td class='num'>{e(_kn(r.before))}</td><td class='num{cls}'>{e(_change(r))}</td></tr>")
     out.append("</tbody></table></div>")
-    changed = [m for m in comparison.modes if m.status != "kept"]
-    kept = len(comparison.modes) - len(changed)
+    order = {"new": 0, "gone": 1, "kept": 2}
+    changed = sorted(comparison.modes, key=lambda m: order[m.status])  # stable: run order within
+    kept = sum(m.status == "kept" for m in comparison.modes)
     if changed:
         out.append("<table class='mode-changes'><thead><tr><th></th><th>test</th><th>sampler</th><th>mode</th>"
                    "<th>violated</th><th>where</th><th>cases</th></tr></thead><tbody>")
         for m in changed:
-            if m.status == "new":
+            if m.status == "gone":
+                ident, count = f"was {e(m.before_id)}", f"{m.before_count} before"
+            else:
                 target = link(m.test, m.sampler, m.now_id) if link else None
                 ident = f"<a href='{e(target)}'>{e(m.now_id)}</a>" if target else e(m.now_id)
-                count = f"{m.now_count}"
-            else:
-                ident, count = f"was {e(m.before_id)}", f"{m.before_count} before"
-            cls = "bad" if m.status == "new" else "good"
+                count = f"{m.now_count}" if m.status == "new" else f"{m.now_count} ({m.before_count} before)"
+                if m.status == "kept" and m.before_id != m.now_id:
+                    ident += f" (was {e(m.before_id)})"
+            cls = {"new": "bad", "gone": "good", "kept": "meta"}[m.status]
             out.append(f"<tr><td class='{cls}'>{e(m.status)}</td><td title='{e(m.test)}'>{e(names[m.test])}</td>"
                        f"<td>{e(m.sampler)}</td><td>{ident}</td><td>{e(m.what)}</td>"
                        f"<td><code>{e(m.rule)}</code></td><td class='num'>{e(count)}</td></tr>")
         out.append("</tbody></table>")
     if comparison.modes:
         out.append(f"<p class='meta'>{len(comparison.new_modes)} new, {len(comparison.gone_modes)} gone, "
-                   f"{kept} kept failure mode{'s' if kept != 1 else ''} (matched by metrics, agent and the "
+                   f"{kept} kept failure mode{'s' if kept != 1 else ''} (matched by metric, agent and the "
                    "rule's parameters)</p>")
     if comparison.modes_unknown:
         out.append(f"<p class='meta'>Failure modes of {len(comparison.modes_unknown)} campaign(s) cannot be "
