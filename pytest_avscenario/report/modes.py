@@ -516,6 +516,9 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
     order. Returns at most ``max_modes`` modes, the largest first.
     """
     rows = [r for r in map(CaseRow.coerce, rows) if r.origin != "shrink" and r.verdict in ("pass", "fail")]
+    # one order whatever order the rows came in (under xdist: as workers finished), so that
+    # ties in the tree and the representative fall the same way in every run
+    rows.sort(key=lambda r: (r.origin, r.index, r.item))
     failing = [i for i, r in enumerate(rows) if r.verdict == "fail"]
     if not failing:
         return []
