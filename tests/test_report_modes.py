@@ -205,3 +205,23 @@ def test_overlapping_failures_go_to_the_metric_first_in_priority():
     assert by_order["distance"]["distance"].also == {"ttc": both}
     assert by_order["ttc"]["ttc"].also == {"distance": both}
     assert by_order["ttc"]["ttc"].count == by_order["distance"]["ttc"].count + both
+
+
+def test_a_baseline_without_modes_compares_rates_and_says_the_modes_are_unknown(tmp_path):
+    import json
+
+    from pytest_avscenario.acceptance import load_baseline
+    from pytest_avscenario.report.compare import compare, format_comparison
+    from pytest_avscenario.report.summary import TestInfo, summarize
+
+    rows = campaign(n=60)
+    (now,) = summarize(rows, {TEST: TestInfo(("distance", "ttc"), space(), ("halton",))}, cross_check=False)
+    old = tmp_path / "summary.json"  # as a run before failure modes existed wrote it
+    old.write_text(json.dumps({"tests": [{"test": TEST, "sampler": "halton", "samples": 50,
+                                          "violations": {"distance": 1, "ttc": 0}}]}))
+    lines = format_comparison(compare([now], load_baseline(old)))
+    k = now.violations["distance"]
+    (line,) = [l for l in lines if " distance " in l]
+    assert line.split() == ["test_follow", "halton", "distance", f"{k}/60", f"({100 * k / 60:.1f}%)", "1/50",
+                            "(2.0%)", "↑", f"+{100 * (k / 60 - 0.02):.1f}", "pts"]
+    assert lines[-1] == "  test_follow [halton]: failure modes not recorded in one of the runs"

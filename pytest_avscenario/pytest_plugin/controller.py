@@ -207,7 +207,7 @@ class RunState:
 
         self.guarded("the terminal table", None, table)
         baseline = self.config.stash[settings_key].baseline
-        if baseline is not None and summary:
+        if baseline is not None and summary and not self.partial:  # a few cases have no rates
             def comparison() -> None:
                 from ..report.compare import compare, format_comparison
 

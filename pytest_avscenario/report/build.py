@@ -68,7 +68,7 @@ def finish_report(
     re-ran only some cases (its page says so and links to the campaign's report in ``..``).
     ``baseline``: an earlier run's summary (:func:`~pytest_avscenario.acceptance.load_baseline`,
     the file of ``--avs-baseline``): the index opens with the comparison (:mod:`.compare`) and
-    ``summary.json`` holds it as ``"comparison"``. Every counterexample gets a card page under
+    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). Every counterexample gets a card page under
     ``cases/``. Returns the summary rows.
     """
     from .folder import ReportFolder
@@ -93,7 +93,7 @@ def finish_report(
         rows, tests, tol=tol, within_radius=within_radius, verdicts=verdicts, on_error=on_error)) or []
 
     comparison = None
-    if baseline is not None:
+    if baseline is not None and not partial:  # some cases of a campaign: no rate to compare
         from .compare import compare
 
         comparison = part("the comparison with the baseline", None, lambda: compare(summary, baseline))
