@@ -14,8 +14,9 @@ does that for one test × sampler campaign:
 2. within a group, a shallow classification tree (CART, Gini impurity, depth ≤ 3; a few
    lines of numpy) separates the group's cases from the passing cases on the unit-cube
    coordinates of the parameters; sibling leaves of the same class are merged back; each
-   leaf where the group's cases are the majority becomes a mode, its path the mode's rule,
-   read as bounds in the parameter's own values and unit (``gap < 14.2 m``,
+   leaf where the group's cases are the majority becomes a mode, its path the mode's rule
+   (less the conditions it does not need to stay as pure), read as bounds in the
+   parameter's own values and unit (``gap < 14.2 m``,
    ``weather in {wet, snow}``); a group's cases outside every such leaf join the nearest of
    its modes;
 3. a group too small to split (fewer than :data:`MIN_SPLIT` cases, or no passing case to
