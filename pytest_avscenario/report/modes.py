@@ -6,30 +6,29 @@ engineer wants to read "12 cases: distance violated with the lead car, when
 does that for one test × sampler campaign:
 
 1. the failing cases are grouped by their first violated metric in priority order (the
-   scenario's ``priority=``, else the monitor order) and the critical agent (the agent of that violation, from
-   ``CaseRow.violations``); a failed assertion with no violated metric is a group of its own.
-   A case that also violates later metrics stays with its first one: where two kinds of
-   failure overlap, the overlap is not a third kind (the mode says which other metrics its
-   cases violate too);
+   scenario's ``priority=``, else the monitor order) and the critical agent (the agent of
+   that violation, from ``CaseRow.violations``); a failed assertion with no violated metric
+   is a group of its own. A case that also violates later metrics stays with its first one:
+   where two kinds of failure overlap, the overlap is not a third kind (the mode says which
+   other metrics its cases violate too);
 2. within a group, a shallow classification tree (CART, Gini impurity, depth ≤ 3; a few
    lines of numpy) separates the group's cases from the passing cases on the unit-cube
    coordinates of the parameters; sibling leaves of the same class are merged back; each
    leaf where the group's cases are the majority becomes a mode, its path the mode's rule
    (less the conditions it does not need to stay as pure), read as bounds in the
-   parameter's own values and unit (``gap < 14.2 m``,
-   ``weather in {wet, snow}``); a group's cases outside every such leaf join the nearest of
-   its modes;
+   parameter's own values and unit (``gap < 14.2 m``, ``weather in {wet, snow}``); a
+   group's cases outside every such leaf join the nearest of its modes;
 3. a group too small to split (fewer than :data:`MIN_SPLIT` cases, or no passing case to
    separate it from, or no leaf it dominates) is one mode, described by its bounding box on
    the parameters where the box is narrower than the campaign's cases.
 
 Modes are ordered by count (``M1`` is the largest); at most ``max_modes`` are kept, and the
 cases of a dropped mode join the nearest kept mode of their group, if any. Each mode has a
-content ``key`` — metrics, agent and the rule's parameters with their directions, not the
+content ``key`` — metric, agent and the rule's parameters with their directions, not the
 thresholds — that stays the same between runs finding the same kind of failure, so that
-:mod:`.compare` can tell new modes from gone ones. Everything is deterministic: the same
-rows give the same modes, whatever order equal scores come in. Nothing here imports pytest
-or anything heavier than numpy.
+:mod:`.compare` can tell new modes from gone ones. Everything is deterministic: the rows are
+put in one order first, so the same rows give the same modes in whatever order they come.
+Nothing here imports pytest or anything heavier than numpy.
 """
 
 from __future__ import annotations
