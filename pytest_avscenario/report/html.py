@@ -52,8 +52,8 @@ COLUMN_LEGEND = {
     "cex": "counterexamples: cases that violated a metric or failed the test body",
     "min": "counterexamples minimized (shrunk to the smallest departure from the nominal scenario)",
     "unavoid": "counterexamples the reference driver fails too (unavoidable for a driver of its standard)",
-    "modes": "failure modes: groups of counterexamples with the same violated metrics and agent, "
-             "near each other in parameter space",
+    "modes": "failure modes: groups of counterexamples with the same first violated metric and agent, "
+             "near each other in parameter space (each test's section lists them with their rules)",
     "errors": "cases that could not be judged (an exception, a timeout, no trajectory)",
     "sim s": "simulation time of the campaign's cases [s] (CPU time in the processes that ran them)",
     "verdict": "the campaign against its acceptance criteria (accepted / REJECTED; — : not judged)",
@@ -194,6 +194,8 @@ def render_index(
         parts.append(f"<p class='banner'>{banner}</p>")
     parts.append("<p id='image-status' class='meta'></p>")
     parts.extend(preamble)
+    if preamble:  # the table is this run's, not part of what came before it
+        parts.append("<h2>This run</h2>")
     parts.append(_summary_table(summary_rows))
     general = tables.get("", ())
     if general:
