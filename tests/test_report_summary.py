@@ -139,6 +139,7 @@ def test_suite_properties(rows, tests_info):
     key = f"avs.test[{FOLLOW}][halton]"
     assert props[f"{key}.samples"] == "6"
     assert props[f"{key}.violations.distance"] == "1"
+    assert props[f"{key}.modes"] == "3"  # distance, lane and the @example's progress
     assert float(props[f"{key}.epsilon"]) > 0
     assert props[f"avs.test[{PARK}][random].epsilon"] == "—"
     assert all(isinstance(v, str) for v in props.values())

@@ -409,7 +409,8 @@ def suite_properties(
     ``avs.seed``, ``avs.version.<package>`` for each entry of ``versions`` (e.g.
     ``{"pytest-avscenario": "0.1.0", "highway-env": "1.12.1"}``), then per test and sampler
     ``avs.test[<test>][<sampler>].samples`` / ``.violations.<metric>`` / ``.epsilon`` /
-    ``.counterexamples`` / ``.minimized`` / ``.sim_time_s`` / ``.verdict`` (``accepted``, or
+    ``.counterexamples`` / ``.minimized`` / ``.modes`` (failure modes) / ``.sim_time_s`` /
+    ``.verdict`` (``accepted``, or
     ``rejected; <reason>; …``). Brackets delimit the ids because
     node ids themselves contain dots and colons.
     """
@@ -426,6 +427,7 @@ def suite_properties(
         props[f"{key}.epsilon"] = _prop_value(s.epsilon)
         props[f"{key}.counterexamples"] = str(s.counterexamples)
         props[f"{key}.minimized"] = str(s.minimized)
+        props[f"{key}.modes"] = str(len(s.modes))
         if s.judged:
             props[f"{key}.unavoidable"] = str(s.unavoidable)
         props[f"{key}.sim_time_s"] = f"{s.sim_time_s:.3f}"
