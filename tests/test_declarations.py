@@ -47,6 +47,21 @@ def test_follow(case):
                                  "without parentheses*"])
 
 
+def test_example_without_scenario_is_a_collection_error_not_a_silent_pass(pytester):
+    pytester.makepyfile(test_lone="""
+from pytest_avscenario import example
+
+@example(gap=12.5)
+def test_follow():
+    pass
+""")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none")
+    _clean(result)
+    result.stdout.fnmatch_lines(["*test_lone.py::test_follow: @example pins a case of a @scenario "
+                                 "test, but this test has no @scenario(...)*"])
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+
+
 def test_stacked_scenarios_are_a_collection_error(pytester):
     # the upper declaration is even invalid: it used to be dropped without a word
     pytester.makepyfile(test_stack="""

@@ -237,7 +237,7 @@ def test_fsync_is_opt_in_and_covers_both_files(tmp_path, monkeypatch, fsync):
         table.append(make_row(index=0))
         calls.clear()
         table.append(make_row(index=1))
-    assert len(calls) == (2 if fsync else 0)  # the JSONL and the test's CSV
+        assert len(calls) == (2 if fsync else 0)  # per row: the JSONL and the test's CSV
 
 
 def test_rows_already_in_json_form_are_accepted(tmp_path):
@@ -263,3 +263,19 @@ def test_only_our_names_listed_in_the_manifest_are_ever_deleted(tmp_path):
     prepare_report_dir(report)
     assert not (report / "errors.jsonl").exists() and not (report / "tables").exists()
     assert (report / "notes.txt").read_text() == "mine" and (tmp_path / "outside.txt").read_text() == "mine"
+
+
+def test_a_table_that_cannot_be_opened_leaks_no_file_handle(tmp_path):
+    # the shrink table's path is taken (by a folder): opening fails after errors.jsonl opened
+    import gc
+    import warnings
+
+    from pytest_avscenario.report.table import ErrorTable
+
+    (tmp_path / "shrink.jsonl").mkdir()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(OSError):
+            ErrorTable(tmp_path)
+        gc.collect()
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning)]

@@ -355,8 +355,9 @@ class CollisionMonitor(Monitor):
             if flagged.any():
                 k = int(np.argmax(flagged))
                 res = MonitorResult(self.name, self.FLAG_RHO, 0.0, fmt_t(traj, k), None,
-                                    f"simulator reports an ego crash at t={traj.t[k]:.2f} s "
-                                    "with nothing in the trajectory")
+                                    f"simulator reports an ego crash at t={traj.t[k]:.2f} s, "
+                                    "but no recorded agent's footprint overlaps the ego's "
+                                    "(a static object or an unrecorded vehicle)")
         return res
 
 

@@ -20,6 +20,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -114,14 +115,24 @@ class RunState:
         hold = guard is not None and getattr(guard, "installed", False) and not guard.deferred
         if hold:
             guard.deferred = True
+        # Ctrl-C likewise: pytest's own SIGINT handling (KeyboardInterrupt) resumes after
+        interrupted: list[int] = []
+        hold_int = (hold and threading.current_thread() is threading.main_thread()
+                    and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+        if hold_int:
+            signal.signal(signal.SIGINT, lambda signum, frame: interrupted.append(signum))
         try:
             yield
         finally:
+            if hold_int:
+                signal.signal(signal.SIGINT, signal.default_int_handler)
             if hold:
                 guard.deferred = False
                 if guard.pending:
                     guard.pending = False
                     guard._handle(signal.SIGTERM, None)
+                if interrupted:
+                    raise KeyboardInterrupt
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)

@@ -144,6 +144,12 @@ def pytest_report_header(config: pytest.Config) -> str:
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
     marker = metafunc.definition.get_closest_marker("scenario")
     if marker is None:
+        if getattr(metafunc.function, "_avs_examples", None):
+            # a pinned case of no scenario would otherwise be silently ignored
+            raise pytest.Collector.CollectError(
+                f"{metafunc.definition.nodeid}: @example pins a case of a @scenario test, but "
+                "this test has no @scenario(...); add one (the parameters @example names are "
+                "declared there) or remove the @example")
         return
     test = metafunc.definition.nodeid
     config = metafunc.config

@@ -249,7 +249,8 @@ OPTIONS = (
            _reference, per_test=True),
     Option("reference-max", "N",
            "judge the avoidability of only the first N counterexamples of each scenario test "
-           "and sampler (one extra simulation each; default: all)",
+           "and sampler in each process — an xdist worker judges up to N of the cases it "
+           "runs (one extra simulation each; default: all)",
            "counterexamples per test and sampler whose avoidability is judged (default: all)",
            _integer(0), per_test=True),
     Option("unavoidable", "keep|discard",

@@ -192,7 +192,7 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
                            files=CaseFiles(dict(case_files.get(row.item) or {})),
                            rerun=rerun(row) if rerun is not None else None,
                            index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
-        atomic_write_text(cases / card_name(row), page)
+        atomic_write_text(cases / card_name(row), page, durable=False)  # one of many
     minimized = sum(r.minimized is not None for r in failing)
     return [mode_table(root, campaigns, rows),
             f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"

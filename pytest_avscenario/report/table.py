@@ -114,9 +114,13 @@ class _CsvFile:
         self.columns = columns
         self.fsync = fsync
         self.fh = open(path, "w", newline="", encoding="utf-8")
-        self.writer = csv.DictWriter(self.fh, fieldnames=columns, extrasaction="raise")
-        self.writer.writeheader()
-        self._sync()
+        try:
+            self.writer = csv.DictWriter(self.fh, fieldnames=columns, extrasaction="raise")
+            self.writer.writeheader()
+            self._sync()
+        except BaseException:  # e.g. a full disk: don't leak the handle of a table never kept
+            self.fh.close()
+            raise
 
     def _sync(self) -> None:
         self.fh.flush()
@@ -186,12 +190,20 @@ class ErrorTable:
         self.directory = Path(directory)
         self.fsync = fsync
         self.folder = folder if folder is not None else ReportFolder(self.directory)
+        self._own_folder = folder is None  # then closing the table ends the folder's run
         (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
-        self._jsonl = {
-            False: open(self.folder.add(self.directory / MAIN_JSONL), "w", encoding="utf-8"),
-            True: open(self.folder.add(self.directory / SHRINK_JSONL), "w", encoding="utf-8"),
-        }
+        self._jsonl: dict[bool, Any] = {}
+        try:
+            for shrink, name in ((False, MAIN_JSONL), (True, SHRINK_JSONL)):
+                self._jsonl[shrink] = open(self.folder.add(self.directory / name), "w",
+                                           encoding="utf-8")
+        except BaseException:  # the first file's handle must not outlive a failed second open
+            for fh in self._jsonl.values():
+                fh.close()
+            if self._own_folder:
+                self.folder.close()
+            raise
         self._csv: dict[tuple[str, bool], _CsvFile] = {}
         self.counts = {"main": 0, "shrink": 0}
 
@@ -244,6 +256,8 @@ class ErrorTable:
                     fh.close()
             for f in self._csv.values():
                 f.close()
+            if self._own_folder:
+                self.folder.close()
 
     def __enter__(self) -> "ErrorTable":
         return self
