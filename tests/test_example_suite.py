@@ -26,7 +26,7 @@ def test_example_suite_quick_mode(tmp_path):
     assert out.returncode == 0, (out.stdout[-3000:], out.stderr[-3000:])
     summary = json.loads((report / "summary.json").read_text())
     assert {t["sampler"] for t in summary["tests"]} >= {"halton", "mab"}
-    assert len({t["test"] for t in summary["tests"]}) == 11
+    assert len({t["test"] for t in summary["tests"]}) == 15
     assert all(t["samples"] == 5 and t["errors"] == 0 for t in summary["tests"])
     assert {t["verdict"] for t in summary["tests"]} == {"accepted"}
     assert (report / "index.html").exists()
