@@ -1,7 +1,8 @@
 """Settings of the example suite.
 
-The showcase runs 1,320 cases (11 scenario tests x 2 samplers x 60), and about half of them
-fail by design. Two of the plugin's per-failure extras would dominate its run time on 2 cores:
+The showcase runs 1,560 cases (11 scenario tests x 2 samplers x 60 and 4 highway tests x 2
+samplers x 30), and about half of them fail by design. Two of the plugin's per-failure extras
+would dominate its run time on 2 cores:
 
 * minimizing every failure (default 20 simulations each) takes the suite from under 2 minutes
   to over 30;

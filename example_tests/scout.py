@@ -102,7 +102,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.frames:
         for name in sorted(f[:-3] for f in os.listdir(HERE)
-                           if f.startswith("test_") and f[5:7].isdigit()):
+                           if f.startswith("test_") and (f[5:7].isdigit()
+                                                         or f.startswith("test_r157_"))):
             out = os.path.join(HERE, "frames", name.removeprefix("test_") + ".png")
             extra = ["--view", FRAME_VIEWS[name]] if name in FRAME_VIEWS else []
             main([name, "--png", out, "--quiet", "--driver", args.driver, *extra])

@@ -19,7 +19,8 @@ MODULES = [
     "test_04_school_bus", "test_05_encroaching_oncoming_car", "test_06_pedestrian_crossing",
     "test_07_oncoming_left_turn", "test_08_unprotected_left_lateral_car",
     "test_09_right_turn_lateral_car", "test_10_unprotected_left_pedestrian",
-    "test_11_composed_route",
+    "test_11_composed_route", "test_12_highway_merge", "test_r157_lead_deceleration", "test_r157_cut_in",
+    "test_r157_cut_out",
 ]
 EXEMPT = {"test_03_parallel_parking": {"distance", "ttc"}}
 

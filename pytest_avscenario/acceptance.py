@@ -216,11 +216,13 @@ def clopper_pearson_upper(k: int, n: int, confidence: float) -> float:
 
 @dataclass(frozen=True)
 class Baseline:
-    """Per (test, sampler): sampled cases and violations per metric of an earlier run."""
+    """Per (test, sampler): sampled cases and violations per metric of an earlier run, and
+    its failure modes (``summary.json``'s, as JSON data) where that run recorded them."""
 
     path: str
     campaigns: Mapping[tuple[str, str], tuple[int, Mapping[str, int]]]
     alpha: float = 0.05
+    modes: Mapping[tuple[str, str], tuple[Mapping[str, Any], ...]] = field(default_factory=dict)
 
 
 def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
@@ -232,11 +234,20 @@ def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
             (str(t["test"]), str(t["sampler"])): (int(t["samples"]), {str(k): int(v) for k, v in t["violations"].items()})
             for t in data["tests"]
         }
+        # a summary.json written before failure modes existed has none: unknown, not "none"
+        modes = {(str(t["test"]), str(t["sampler"])): tuple(_mode_json(m) for m in t["modes"])
+                 for t in data["tests"] if t.get("modes") is not None}
     except OSError as exc:
         raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
         raise ValueError(f"{path} is not a pytest-avscenario summary.json ({type(exc).__name__}: {exc})") from None
-    return Baseline(str(path), campaigns, alpha)
+    return Baseline(str(path), campaigns, alpha, modes)
+
+
+def _mode_json(data: Mapping[str, Any]) -> dict[str, Any]:
+    return {"id": str(data["id"]), "key": str(data["key"]), "metrics": [str(m) for m in data["metrics"]],
+            "agent": None if data.get("agent") is None else str(data["agent"]), "count": int(data["count"]),
+            "rule": str(data.get("rule", ""))}
 
 
 def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases: Sequence[tuple[str, str]],

@@ -316,3 +316,27 @@ def test_re_running_one_case_keeps_the_campaign_report(pytester, how):
     # a whole campaign again (a test chosen whole is not a re-run) replaces the campaign report
     pytester.runpytest(*args, "-k", "test_b").assert_outcomes(passed=5)
     assert _samples(rep) == {"test_b": 5} and (rep / "rerun" / "errors.jsonl").exists()
+
+
+def test_the_manifest_knows_a_killed_runs_files_and_is_not_rewritten_per_file(tmp_path):
+    from pytest_avscenario.report.folder import MANIFEST, ReportFolder, claim_report_dir
+
+    folder, _ = claim_report_dir(tmp_path / "rep")
+    root = folder.path
+    before = (root / MANIFEST).read_bytes()
+    names = [root / "cases" / f"test_x-{i:08x}.png" for i in range(50)]
+    for path in names:
+        folder.add(path)
+        path.parent.mkdir(exist_ok=True)
+        path.write_bytes(b"png")
+    # each file is on record before the run ends, without rewriting the whole manifest
+    assert (root / MANIFEST).read_bytes() == before
+    killed = ReportFolder(root)  # what the next run sees if this one were killed now
+    assert {f"cases/{p.name}" for p in names} <= killed.files
+    folder.release()
+    assert {f"cases/{p.name}" for p in names} <= set(json.loads((root / MANIFEST).read_text())["files"])
+    assert [p.name for p in root.iterdir() if p.name.startswith(".avs-manifest")] == [MANIFEST]
+    # and the next run deletes them as ours
+    again, _ = claim_report_dir(tmp_path / "rep")
+    assert again.path == root and not (root / "cases").exists()
+    again.release()

@@ -105,14 +105,14 @@ def test_terminal_table_text(rows, tests_info):
     header = lines[0].split()
     # The paper's metric order (as declared), then the extra metric of the second test.
     assert header == ["test", "sampler", "samples", "Progress", "Distance", "TTC", "Lane",
-                      "Collision", "ε", "cex", "min", "sim", "s"]
+                      "Collision", "ε", "cex", "min", "modes", "sim", "s"]
     assert set(lines[1]) == {"-", " "}
     assert lines[-1].startswith("ε: coverage")  # the legend
     halton, mab, park = (line.split() for line in lines[2:-1])
-    assert halton == [FOLLOW.rpartition("::")[2], "halton", "6", "0", "1", "1", "1", "—", halton[8], "3", "1", "4.0"]
+    assert halton == [FOLLOW.rpartition("::")[2], "halton", "6", "0", "1", "1", "1", "—", halton[8], "3", "1", "3", "4.0"]
     assert float(halton[8]) == pytest.approx(summarize(rows, tests_info)[0].epsilon, abs=5e-4)
     # A metric a test does not declare, and ε without continuous parameters, are "—".
-    assert park == [PARK.rpartition("::")[2], "random", "2", "—", "1", "—", "—", "0", "—", "1", "0", "1.0"]
+    assert park == [PARK.rpartition("::")[2], "random", "2", "—", "1", "—", "—", "0", "—", "1", "0", "1", "1.0"]
     # Columns line up: every numeric column ends at the same offset on every line.
     eps_end = lines[0].index("ε") + 1
     assert all(line[eps_end - 1] != " " for line in lines[2:-1])
@@ -139,6 +139,7 @@ def test_suite_properties(rows, tests_info):
     key = f"avs.test[{FOLLOW}][halton]"
     assert props[f"{key}.samples"] == "6"
     assert props[f"{key}.violations.distance"] == "1"
+    assert props[f"{key}.modes"] == "3"  # distance, lane and the @example's progress
     assert float(props[f"{key}.epsilon"]) > 0
     assert props[f"avs.test[{PARK}][random].epsilon"] == "—"
     assert all(isinstance(v, str) for v in props.values())

@@ -237,7 +237,7 @@ def test_fsync_is_opt_in_and_covers_both_files(tmp_path, monkeypatch, fsync):
         table.append(make_row(index=0))
         calls.clear()
         table.append(make_row(index=1))
-    assert len(calls) == (2 if fsync else 0)  # the JSONL and the test's CSV
+        assert len(calls) == (2 if fsync else 0)  # per row: the JSONL and the test's CSV
 
 
 def test_rows_already_in_json_form_are_accepted(tmp_path):

@@ -78,6 +78,7 @@ class ScenarioPlan:
     def info(self) -> dict[str, Any]:
         """What the controller needs to summarize this test (plain JSON)."""
         return {"metrics": list(self.metrics), "space": self.space.describe(),
+                "priority": list(self.monitor_set.priority_order) if self.monitor_set is not None else [],
                 "accept": self.accept.to_json(), "samplers": list(self.samplers)}
 
     def make_sampler(self, name: str) -> Any:

@@ -170,7 +170,8 @@ class RunState:
                 return finish_report(self.folder.path, infos, rows=self.rows, folder=self.folder,
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
                                      case_files=self.case_files, verdicts=verdicts,
-                                     rerun=self.rerun_command, partial=self.partial)
+                                     rerun=self.rerun_command, partial=self.partial,
+                                     baseline=settings.baseline)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
@@ -216,6 +217,15 @@ class RunState:
                 terminalreporter.write_line(line, red=True, bold=True)
 
         self.guarded("the terminal table", None, table)
+        baseline = self.config.stash[settings_key].baseline
+        if baseline is not None and summary and not self.partial:  # a few cases have no rates
+            def comparison() -> None:
+                from ..report.compare import compare, format_comparison
+
+                for line in format_comparison(compare(summary, baseline)):
+                    terminalreporter.write_line(line)
+
+            self.guarded("the comparison with the baseline", None, comparison)
         if self.folder is not None:
             from ..report.summary import format_pointer
 
@@ -334,6 +344,7 @@ class RunState:
             space = self.guarded("the ε-coverage (rebuilding the parameter space)", test,
                                  lambda: FeatureSpace.from_description(info["space"]))
             infos[test] = TestInfo(metrics=tuple(info["metrics"]), space=space,
+                                   priority=tuple(info.get("priority") or ()),
                                    samplers=tuple(info["samplers"]))
         return infos
 

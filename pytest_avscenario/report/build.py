@@ -49,6 +49,7 @@ def finish_report(
     case_files: Mapping[str, Mapping[str, str]] | None = None,
     rerun: Callable[[CaseRow], str | None] | None = None,
     partial: str | None = None,
+    baseline: Any = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -65,7 +66,10 @@ def finish_report(
     failing case left (its pictures and recording; see :class:`.cards.CaseFiles`);
     ``rerun(row)``: the command that re-runs a case, for its card. ``partial``: why this run
     re-ran only some cases (its page says so and links to the campaign's report in ``..``).
-    Every counterexample gets a card page under ``cases/``. Returns the summary rows.
+    ``baseline``: an earlier run's summary (:func:`~pytest_avscenario.acceptance.load_baseline`,
+    the file of ``--avs-baseline``): the index opens with the comparison (:mod:`.compare`) and
+    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). Every counterexample gets a card page under
+    ``cases/``. Returns the summary rows.
     """
     from .folder import ReportFolder
 
@@ -88,9 +92,17 @@ def finish_report(
     summary = part("the summary", None, lambda: summarize(
         rows, tests, tol=tol, within_radius=within_radius, verdicts=verdicts, on_error=on_error)) or []
 
+    comparison = None
+    if baseline is not None and not partial:  # some cases of a campaign: no rate to compare
+        from .compare import compare
+
+        comparison = part("the comparison with the baseline", None, lambda: compare(summary, baseline))
+
     def write_summary() -> None:
-        text = json.dumps({"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)},
-                          indent=2, allow_nan=False, default=str) + "\n"
+        data = {"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)}
+        if comparison is not None:
+            data["comparison"] = comparison.to_json()
+        text = json.dumps(data, indent=2, allow_nan=False, default=str) + "\n"
         atomic_write_text(folder.add(root / SUMMARY_JSON), text)
 
     part(SUMMARY_JSON, None, write_summary)
@@ -113,7 +125,8 @@ def finish_report(
     sections: dict[str, list[str]] = {}
     for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
         made = part("the counterexample pages", test, lambda test=test: _cards(
-            root, folder, test, by_test.get(test, []), (tests or {}).get(test), case_files or {}, rerun))
+            root, folder, test, by_test.get(test, []), (tests or {}).get(test), case_files or {}, rerun,
+            [s for s in summary if s.test == test]))
         if made:
             sections[test] = made
 
@@ -132,17 +145,28 @@ def finish_report(
         elif (root / "rerun" / INDEX).exists():
             banner = (f"The latest re-run of single cases has a report of its own: "
                       f"<a href='{href(root, root / 'rerun' / INDEX)}'>rerun/index.html</a>.")
+        preamble = []
+        if comparison is not None:
+            from .compare import comparison_html
+            from .html import mode_anchor
+
+            preamble.append(comparison_html(
+                comparison, link=lambda test, sampler, mode: f"#{mode_anchor(test, sampler, mode)}"))
         folder.add(root / INDEX)
-        write_index(root, summary, images, tables, meta=meta, sections=sections, banner=banner)
+        write_index(root, summary, images, tables, meta=meta, sections=sections, banner=banner,
+                    preamble=preamble)
 
     part("index.html", None, write_page)
     return summary
 
 
 def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestInfo | None,
-           case_files: Mapping[str, Mapping[str, str]], rerun: Callable[[CaseRow], str | None] | None) -> list[str]:
-    """Write a card page per counterexample of ``test``; the index's HTML listing them."""
+           case_files: Mapping[str, Mapping[str, str]], rerun: Callable[[CaseRow], str | None] | None,
+           campaigns: list[SummaryRow] = ()) -> list[str]:
+    """Write a card page per counterexample of ``test``; the index's HTML listing its failure
+    modes (of ``campaigns``, its summary rows) and its counterexamples."""
     from .cards import CaseFiles, card_name, card_rows, counterexample_table, render_card
+    from .html import mode_labels, mode_table
 
     failing = card_rows(rows)
     if not failing:
@@ -159,17 +183,21 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
         first = min(where, key=lambda w: w["t"]) if where else {}
         return replay_html(data, element_id="replay", critical=first.get("agent"), start_t=first.get("t"))
 
+    labels = mode_labels(campaigns)
+    described = {item: f"{labels[item]} ({m.what}: {m.rule})"
+                 for s in campaigns for m in s.modes for item in m.items if item in labels}
     folder.add_all(cases / card_name(row) for row in failing)
     for row in failing:
-        page = render_card(cases, row, metrics=metrics, space=space,
+        page = render_card(cases, row, metrics=metrics, space=space, mode=described.get(row.item),
                            files=CaseFiles(dict(case_files.get(row.item) or {})),
                            rerun=rerun(row) if rerun is not None else None,
                            index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
-        atomic_write_text(cases / card_name(row), page)
+        atomic_write_text(cases / card_name(row), page, durable=False)  # one of many
     minimized = sum(r.minimized is not None for r in failing)
-    return [f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"
+    return [mode_table(root, campaigns, rows),
+            f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"
             f"{f' ({minimized} minimized)' if minimized else ''}: one page each</summary>",
-            counterexample_table(root, failing), "</details>"]
+            counterexample_table(root, failing, modes=labels or None), "</details>"]
 
 
 def _plot(root: Path, folder: Any, test: str, rows: list[CaseRow],

@@ -68,6 +68,7 @@ th, td { border: 1px solid #ccc; padding: .2em .55em; vertical-align: top; }
 th { background: #f3f3f3; text-align: left; white-space: nowrap; }
 td.num { text-align: right; white-space: nowrap; font-variant-numeric: tabular-nums; }
 .bad { color: #b33c00; font-weight: 600; }
+.good { color: #2a7a2a; font-weight: 600; }
 .meta { color: #666; }
 .wide { overflow-x: auto; max-width: 100%; }
 pre { background: #f6f6f6; border: 1px solid #e2e2e2; padding: .5em .8em; overflow-x: auto; white-space: pre-wrap; word-break: break-all; }

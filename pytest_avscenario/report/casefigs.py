@@ -102,4 +102,4 @@ def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: st
     fig.suptitle(title or f"ego and {name or 'no other agent'}", fontsize=9)
     from .plots import _save
 
-    return _save(fig, path, colors=64)
+    return _save(fig, path, colors=64, durable=False)  # one of many per-case files

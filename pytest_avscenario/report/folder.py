@@ -10,7 +10,10 @@ the directory before it writes there (:func:`claim_report_dir`):
   run's warning. Where ``fcntl`` is missing (Windows) there is no lock;
 * ``DIR/.avs-manifest.json`` lists every file a run of ours wrote in the directory; a new
   run deletes exactly those (our files of the earlier run), and records each file it is
-  about to write *before* writing it, so a killed run's files are still known;
+  about to write *before* writing it, so a killed run's files are still known. A new name
+  is appended as one line to ``DIR/.avs-manifest.log`` (constant cost per file, however many
+  the report holds); the log is folded into the JSON when the run releases the directory,
+  and a killed run's log is read with its JSON;
 * a file at one of the names we write (``index.html``, ``tables/<slug>-1a2b3c4d.csv`` …)
   that the manifest does not list belongs to somebody else: we neither delete nor
   overwrite it, and neither do we touch a directory another live run holds. The run then
@@ -40,6 +43,7 @@ SHRINK_JSONL = "shrink.jsonl"
 TABLES_DIR = "tables"
 
 MANIFEST = ".avs-manifest.json"
+MANIFEST_LOG = ".avs-manifest.log"  # names added since the JSON was last written, one a line
 LOCK = ".avs-lock"
 
 #: ``DIR``, then ``DIR-2`` … ``DIR-<MAX_SIBLINGS>``: more concurrent runs than this is a loop
@@ -77,11 +81,15 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, durable: bool = True) -> None:
     """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
 
     Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
-    the target (atomic on POSIX and Windows within one file system).
+    the target (atomic on POSIX and Windows within one file system). ``durable=False`` skips
+    the two fsyncs (the file and the directory; ~10 ms per file on a busy disk): still whole
+    or absent after a killed process, but a power cut may lose it — for the many per-case
+    files of a report (cards, case pictures), which are held to the error table's rows'
+    standard (flushed, not fsynced).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -93,7 +101,8 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -101,12 +110,14 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         except OSError:
             pass
         raise
-    _fsync_dir(path.parent)
+    if durable:
+        _fsync_dir(path.parent)
 
 
-def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8") -> None:
+def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8",
+                      durable: bool = True) -> None:
     """:func:`atomic_write_bytes` for text."""
-    atomic_write_bytes(path, text.encode(encoding))
+    atomic_write_bytes(path, text.encode(encoding), durable=durable)
 
 
 def is_own_name(rel: str) -> bool:
@@ -135,6 +146,7 @@ class ReportFolder:
         self.files: set[str] = set()
         self.manifest_unreadable = False
         self._lock: IO[str] | None = None
+        self._log: IO[str] | None = None
         manifest = self.path / MANIFEST
         if manifest.exists():
             try:
@@ -142,6 +154,17 @@ class ReportFolder:
                 self.files = {f for f in data["files"] if isinstance(f, str)}
             except (OSError, ValueError, KeyError, TypeError):
                 self.manifest_unreadable = True  # then no file counts as ours
+            else:
+                self.files |= self._logged()
+
+    def _logged(self) -> set[str]:
+        """The names a run appended to the log (complete lines only: a line cut short by a
+        killed process names no file)."""
+        try:
+            text = (self.path / MANIFEST_LOG).read_text(encoding="utf-8")
+        except (OSError, ValueError):
+            return set()
+        return {line for line in text.split("\n")[:-1] if line}
 
     def _rel(self, path: str | os.PathLike) -> str:
         rel = Path(os.path.relpath(os.path.abspath(path), os.path.abspath(self.path))).as_posix()
@@ -161,22 +184,43 @@ class ReportFolder:
         """Record ``path`` (a file inside the directory) as ours, before writing it."""
         rel = self._rel(path)
         if rel not in self.files:
-            self.files.add(rel)
-            self._save()
+            self._append([rel])
         return Path(path)
 
     def add_all(self, paths: Any) -> list[Path]:
-        """:meth:`add` for many files at once (one manifest write)."""
+        """:meth:`add` for many files at once (one write to the log)."""
         out = [Path(p) for p in paths]
-        new = {self._rel(p) for p in out} - self.files
+        new = sorted({self._rel(p) for p in out} - self.files)
         if new:
-            self.files |= new
-            self._save()
+            self._append(new)
         return out
 
+    def _append(self, rels: list[str]) -> None:
+        if self._log is None:
+            if not (self.path / MANIFEST).exists():
+                self._save()  # the log only ever extends a manifest that exists
+            self._log = open(self.path / MANIFEST_LOG, "a", encoding="utf-8")
+        self._log.write("".join(f"{rel}\n" for rel in rels))
+        self._log.flush()  # in the OS's hands before the file is written: a killed run's too
+        self.files.update(rels)
+
     def _save(self) -> None:
+        """Write the whole manifest as JSON, then drop the log it now contains."""
         atomic_write_text(self.path / MANIFEST, json.dumps(
             {"written_by": "pytest-avscenario", "files": sorted(self.files)}, indent=1) + "\n")
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+        try:
+            (self.path / MANIFEST_LOG).unlink()  # ours: its names are in the JSON now
+        except FileNotFoundError:
+            pass
+
+    def compact(self) -> None:
+        """Fold this run's log into the JSON manifest (when the run ends; nothing to do when
+        it added no file)."""
+        if self._log is not None:
+            self._save()
 
     def foreign(self) -> list[str]:
         """Files at names we write that the manifest does not list (somebody else's)."""
@@ -239,8 +283,22 @@ class ReportFolder:
         self._lock = fh
         return True, ""
 
+    def close(self) -> None:
+        """This run adds no more files: fold its log into the JSON (when that fails, e.g. on
+        a full disk, the log stays and the next run reads it with the JSON)."""
+        try:
+            self.compact()
+        except OSError:
+            pass
+        finally:
+            if self._log is not None:
+                self._log.close()
+                self._log = None
+
     def release(self) -> None:
-        """Give the lock back (the kernel does so too when the process ends)."""
+        """:meth:`close`, and give the lock back (the kernel does so too when the process
+        ends)."""
+        self.close()
         if self._lock is not None:
             self._lock.close()
             self._lock = None

@@ -20,7 +20,7 @@ from .cards import PAGE_CSS as _CSS, e as _e, href as _href
 from .summary import DASH, SummaryRow, metric_columns, short_names, table_cells
 from .table import atomic_write_text
 
-__all__ = ["write_index", "render_index", "INDEX"]
+__all__ = ["write_index", "render_index", "mode_table", "mode_labels", "INDEX"]
 
 INDEX = "index.html"
 
@@ -52,8 +52,8 @@ COLUMN_LEGEND = {
     "cex": "counterexamples: cases that violated a metric or failed the test body",
     "min": "counterexamples minimized (shrunk to the smallest departure from the nominal scenario)",
     "unavoid": "counterexamples the reference driver fails too (unavoidable for a driver of its standard)",
-    "modes": "failure modes: groups of counterexamples with the same violated metrics and agent, "
-             "near each other in parameter space",
+    "modes": "failure modes: groups of counterexamples with the same first violated metric and agent, "
+             "near each other in parameter space (each test's section lists them with their rules)",
     "errors": "cases that could not be judged (an exception, a timeout, no trajectory)",
     "sim s": "simulation time of the campaign's cases [s] (CPU time in the processes that ran them)",
     "verdict": "the campaign against its acceptance criteria (accepted / REJECTED; — : not judged)",
@@ -100,6 +100,65 @@ def _summary_table(summary: Sequence[SummaryRow]) -> str:
     return "\n".join(out)
 
 
+def mode_labels(campaigns: Sequence[SummaryRow]) -> dict[str, str]:
+    """``{item id: mode label}`` of one test's counterexamples: ``M1``, or ``halton M1`` when
+    more than one of the test's campaigns has modes (each campaign numbers its own)."""
+    with_modes = [s for s in campaigns if s.modes]
+    qualify = len(with_modes) > 1
+    return {item: f"{s.sampler} {m.id}" if qualify else m.id
+            for s in with_modes for m in s.modes for item in m.items}
+
+
+def mode_anchor(test: str, sampler: str, mode_id: str) -> str:
+    """The id of a mode's row in the index (``m-<test slug>-<sampler>-M1``)."""
+    import re
+
+    return f"m-{_anchor(test)[2:]}-{re.sub(r'[^A-Za-z0-9_-]+', '_', sampler)}-{mode_id}"
+
+
+def mode_table(directory: Path, campaigns: Sequence[SummaryRow], rows: Sequence[Any]) -> str:
+    """A test's failure modes: per mode its metrics, agent, count and share, rule, how well the
+    rule separates it (precision), and a representative counterexample linked to its card."""
+    from .cards import card_name
+
+    with_modes = [s for s in campaigns if s.modes]
+    if not with_modes:
+        return ""
+    by_item = {r.item: r for r in rows if r.origin != "shrink"}
+    labels = mode_labels(campaigns)
+    n = sum(len(s.modes) for s in with_modes)
+    out = [f"<h3>{n} failure mode{'s' if n != 1 else ''}</h3>",
+           "<div class='wide'><table class='modes'><thead><tr><th>mode</th><th>violated</th><th>agent</th>"
+           "<th>cases</th><th>where (rule over the parameters)</th><th>precision</th>"
+           "<th>representative</th></tr></thead><tbody>"]
+    for s in with_modes:
+        for m in s.modes:
+            label = labels.get(m.items[0], m.id) if m.items else m.id
+            rep = by_item.get(m.representative)
+            name = m.representative.partition("[")[2].rstrip("]") or m.representative
+            link = (f"<a href='{_href(directory, Path('cases') / card_name(rep))}'>{_e(name)}</a>"
+                    if rep is not None else _e(name))
+            how = "the cases' bounding box" if m.kind == "box" else "a rule separating them from the passing cases"
+            precision = f"{100 * m.precision:.0f}%" if m.bounds else DASH
+            outside = f" ({m.count - m.inside} outside the rule)" if m.bounds and m.inside < m.count else ""
+            also = ""
+            if m.also:
+                also = " <span class='meta'>(also " + _e(", ".join(f"{k} in {v}" for k, v in m.also.items())) + ")</span>"
+            out.append(
+                f"<tr id='{mode_anchor(s.test, s.sampler, m.id)}'><td>{_e(label)}</td>"
+                f"<td>{_e(', '.join(m.metrics) or 'assertion')}{also}</td><td>{_e(m.agent or DASH)}</td>"
+                f"<td class='num'>{m.count} ({100 * m.share:.0f}%)</td>"
+                f"<td title='{_e(how)}'><code>{_e(m.rule)}</code>{_e(outside)}</td>"
+                f"<td class='num'>{precision}</td><td>{link}</td></tr>")
+    out.append("</tbody></table></div>")
+    out.append("<p class='meta'>violated: the metric that groups the mode's cases (the first one they violate, "
+               "in priority order) and any others all of them violate · cases: the mode's counterexamples "
+               "(share of the campaign's) · precision: of the campaign's cases inside the rule, the share "
+               "violating that metric · representative: the counterexample nearest the centre of the "
+               "mode's cases</p>")
+    return "\n".join(out)
+
+
 def _anchor(test: str) -> str:
     from .table import file_slug
 
@@ -135,6 +194,8 @@ def render_index(
         parts.append(f"<p class='banner'>{banner}</p>")
     parts.append("<p id='image-status' class='meta'></p>")
     parts.extend(preamble)
+    if preamble:  # the table is this run's, not part of what came before it
+        parts.append("<h2>This run</h2>")
     parts.append(_summary_table(summary_rows))
     general = tables.get("", ())
     if general:

@@ -54,8 +54,9 @@ def _figure(width_in: float, height_in: float):
     return fig
 
 
-def _save(fig, path: str | os.PathLike, colors: int = 128) -> Path:
-    """Write ``fig`` as a palette PNG of ``colors`` colours, atomically."""
+def _save(fig, path: str | os.PathLike, colors: int = 128, durable: bool = True) -> Path:
+    """Write ``fig`` as a palette PNG of ``colors`` colours, atomically (``durable``: see
+    :func:`.folder.atomic_write_bytes`)."""
     from PIL import Image
 
     buf = io.BytesIO()
@@ -66,7 +67,7 @@ def _save(fig, path: str | os.PathLike, colors: int = 128) -> Path:
     small = io.BytesIO()
     Image.open(buf).convert("RGB").quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
         small, format="PNG", optimize=True)
-    atomic_write_bytes(path, small.getvalue())
+    atomic_write_bytes(path, small.getvalue(), durable=durable)
     return Path(path)
 
 

@@ -17,7 +17,9 @@ directory. Counting rules:
   ``"minimized"``;
 * ``sim_time_s`` is all simulation time of the test and sampler, shrinking included;
 * ε is :func:`.coverage.epsilon_coverage` over the sampled cases' continuous parameters in
-  the unit cube, ``None`` (shown "—") without continuous parameters or samples.
+  the unit cube, ``None`` (shown "—") without continuous parameters or samples;
+* ``modes`` are the campaign's failure modes (:func:`.modes.failure_modes` over its
+  counterexamples of every origin); the table shows how many.
 """
 
 from __future__ import annotations
@@ -61,6 +63,9 @@ class TestInfo:
     metrics: tuple[str, ...] = ()
     space: Any = None
     samplers: tuple[str, ...] = ()  # in the order the test declares them
+    #: the metrics in the order of the declared priority (``@scenario(priority=...)``;
+    #: empty: the declaration order), which groups failure modes by the first one violated
+    priority: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,8 @@ class SummaryRow:
     #: could not avoid either (every violated metric violated by the reference too)
     judged: int = 0
     unavoidable: int = 0
+    #: the campaign's failure modes (:func:`.modes.failure_modes`), the largest first
+    modes: tuple[Any, ...] = field(default=())
 
     @property
     def verdict(self) -> str | None:
@@ -143,6 +150,7 @@ def summarize(
     cross_check: bool = True,
     verdicts: Mapping[tuple[str, str], Sequence[str]] | None = None,
     on_error: Callable[[str, str | None, Exception], None] | None = None,
+    modes: bool = True,
 ) -> list[SummaryRow]:
     """Summary rows per (test, sampler), tests in the order of ``tests`` (collection order),
     then any others in order of first appearance; samplers in order of first appearance.
@@ -153,7 +161,8 @@ def summarize(
     to the reasons its campaign is rejected (see :mod:`pytest_avscenario.acceptance`).
     ``on_error(part, test, exception)``: when given, a coverage computation that raises is
     reported there and its figures are "—" (the other campaigns are still summarized);
-    without it the exception propagates.
+    without it the exception propagates. ``modes``: group each campaign's counterexamples
+    into failure modes (:mod:`.modes`; False leaves ``SummaryRow.modes`` empty).
     """
     from . import coverage
 
@@ -205,6 +214,16 @@ def summarize(
                     raise
                 on_error(f"the ε-coverage [{sampler}]", test, exc)
                 eps = cover = frac = None
+        found: tuple[Any, ...] = ()
+        if modes and failing:
+            try:
+                from .modes import failure_modes
+
+                found = tuple(failure_modes(main, space, list(info.priority) or metrics))
+            except Exception as exc:
+                if on_error is None:
+                    raise
+                on_error(f"the failure modes [{sampler}]", test, exc)
         out.append(
             SummaryRow(
                 test=test,
@@ -227,6 +246,7 @@ def summarize(
                 reasons=None if verdicts is None else tuple(verdicts.get((test, sampler), ())),
                 judged=sum(1 for r in failing if r.avoidable),
                 unavoidable=sum(1 for r in failing if r.unavoidable),
+                modes=found,
             )
         )
     return out
@@ -276,7 +296,7 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     header = ["test", "sampler", "samples", *(_metric_title(m) for m in metrics), "ε"]
     judged = any(s.verdict is not None for s in summary)
     show_unavoidable = any(s.judged for s in summary)
-    header += ["cex", "min"] + (["unavoid"] if show_unavoidable else []) \
+    header += ["cex", "min"] + (["unavoid"] if show_unavoidable else []) + ["modes"] \
         + (["errors"] if show_errors else []) + ["sim s"]
     header += ["verdict"] if judged else []
     body = []
@@ -285,6 +305,7 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
         line += [str(s.violations[m]) if m in s.violations else DASH for m in metrics]
         line += [_fmt_eps(s.epsilon), str(s.counterexamples), str(s.minimized)]
         line += [str(s.unavoidable) if s.judged else DASH] if show_unavoidable else []
+        line += [str(len(s.modes)) if s.modes else DASH]
         line += [str(s.errors)] if show_errors else []
         line += [_fmt_time(s.sim_time_s)]
         line += [{"rejected": "REJECTED", None: DASH}.get(s.verdict, s.verdict)] if judged else []
@@ -293,12 +314,15 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
 
 
 LEGEND = "ε: coverage of the continuous parameters (smaller: better) · cex: counterexamples · min: minimized"
+#: added when a column "modes" is shown
+LEGEND_MODES = " · modes: failure modes (kinds of counterexample, in the report)"
 #: added when a column "unavoid" is shown
 LEGEND_UNAVOIDABLE = " · unavoid: counterexamples the reference driver fails too"
 
 
 def _legend(header: Sequence[str]) -> str:
-    return LEGEND + (LEGEND_UNAVOIDABLE if "unavoid" in header else "")
+    return LEGEND + (LEGEND_UNAVOIDABLE if "unavoid" in header else "") \
+        + (LEGEND_MODES if "modes" in header else "")
 
 
 def short_names(tests: Sequence[str]) -> dict[str, str]:
@@ -337,7 +361,7 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
         return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), _legend(header)])
     # too wide: the figures on one line, the violations per metric on the next
     metrics = [h for h in header if h not in ("test", "sampler", "samples", "ε", "cex", "min",
-                                              "unavoid", "errors", "sim s", "verdict")]
+                                              "unavoid", "modes", "errors", "sim s", "verdict")]
     fixed = [i for i, h in enumerate(header) if h not in metrics]
     fheader = [header[i] for i in fixed]
     fbody = [[r[i] for i in fixed] for r in body]
@@ -385,7 +409,8 @@ def suite_properties(
     ``avs.seed``, ``avs.version.<package>`` for each entry of ``versions`` (e.g.
     ``{"pytest-avscenario": "0.1.0", "highway-env": "1.12.1"}``), then per test and sampler
     ``avs.test[<test>][<sampler>].samples`` / ``.violations.<metric>`` / ``.epsilon`` /
-    ``.counterexamples`` / ``.minimized`` / ``.sim_time_s`` / ``.verdict`` (``accepted``, or
+    ``.counterexamples`` / ``.minimized`` / ``.modes`` (failure modes) / ``.sim_time_s`` /
+    ``.verdict`` (``accepted``, or
     ``rejected; <reason>; …``). Brackets delimit the ids because
     node ids themselves contain dots and colons.
     """
@@ -402,6 +427,7 @@ def suite_properties(
         props[f"{key}.epsilon"] = _prop_value(s.epsilon)
         props[f"{key}.counterexamples"] = str(s.counterexamples)
         props[f"{key}.minimized"] = str(s.minimized)
+        props[f"{key}.modes"] = str(len(s.modes))
         if s.judged:
             props[f"{key}.unavoidable"] = str(s.unavoidable)
         props[f"{key}.sim_time_s"] = f"{s.sim_time_s:.3f}"
@@ -423,5 +449,6 @@ def summary_to_json(summary: Sequence[SummaryRow]) -> list[dict[str, Any]]:
         d["failed_items"] = list(s.failed_items)
         d["reasons"] = None if s.reasons is None else list(s.reasons)
         d["verdict"] = s.verdict
+        d["modes"] = [m.to_json() for m in s.modes]
         out.append(d)
     return out

@@ -190,6 +190,7 @@ class ErrorTable:
         self.directory = Path(directory)
         self.fsync = fsync
         self.folder = folder if folder is not None else ReportFolder(self.directory)
+        self._own_folder = folder is None  # then closing the table ends the folder's run
         (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
         self._jsonl: dict[bool, Any] = {}
@@ -200,6 +201,8 @@ class ErrorTable:
         except BaseException:  # the first file's handle must not outlive a failed second open
             for fh in self._jsonl.values():
                 fh.close()
+            if self._own_folder:
+                self.folder.close()
             raise
         self._csv: dict[tuple[str, bool], _CsvFile] = {}
         self.counts = {"main": 0, "shrink": 0}
@@ -253,6 +256,8 @@ class ErrorTable:
                     fh.close()
             for f in self._csv.values():
                 f.close()
+            if self._own_folder:
+                self.folder.close()
 
     def __enter__(self) -> "ErrorTable":
         return self

@@ -10,7 +10,8 @@ One concept per module; scenario code talks to :mod:`.world`, the rest talk to e
   small interface for the engine, roads and behaviours (``lane_index``, ``reindex``,
   ``movers``, ``observe``, ``turn_route``, ``all_way_stop``).
 * :mod:`.roads`, :mod:`.network` — the road types (straight, two-way, intersection) and a
-  network of intersections joined by links.
+  network of intersections joined by links; :mod:`.highway` — highways of straight and
+  curved segments with lane drops and on-ramps.
 * :mod:`.places` — lanes, spots, stop lines, crosswalks, routes: what scenarios name.
 * :mod:`.lanes` — lane tracking: the index of a road's lanes, stop marks, where agents are.
 * :mod:`.engine` — our highway-env lane, road and vehicle subclasses (the only module that

@@ -18,6 +18,13 @@ sub-scenario whose agents appear late (``appear=world.ego_within(place, 40)``) k
 timing wherever it is composed. A behaviour of your own should measure time with
 ``agent.age`` too.
 
+Triggers start a manoeuvre on a condition rather than at a time: ``gap_below(m)`` and
+``time_gap_below(s)`` (to the ego or another agent), ``condition(fn)`` for your own; pass one
+as ``when=`` to ``change_lane``, ``brake_at``, ``cut_in``, ``cut_out``. ``speed_profile``
+follows a list of (time, speed) or (distance, speed) points. On a lane that ends (a lane
+drop, an on-ramp's acceleration lane) ``keep_lane`` and the behaviours built on it merge
+when the gap is safe and otherwise wait at the lane's end.
+
 Every step the engine calls ``control(agent, world)``; vehicle behaviours return
 ``(acceleration [m/s^2], steering [rad])``, pedestrian behaviours a walking speed [m/s]. They
 drive with the laws in :mod:`.control` through a few agent helpers (``agent.follow()``,
@@ -30,6 +37,7 @@ Importing this module imports neither highway-env nor pygame.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -38,6 +46,7 @@ from . import control, right_of_way
 __all__ = [
     "Behavior", "keep_lane", "stopped", "brake_at", "change_lane", "turn", "turn_across",
     "cut_across", "encroach", "pull_out", "bus_stop", "cross", "walk", "uniform", "choice",
+    "Trigger", "gap_below", "time_gap_below", "condition", "cut_in", "cut_out", "speed_profile",
 ]
 
 VEHICLES = ("ego", "car", "bus", "parked")
@@ -69,8 +78,15 @@ class Behavior:
             if f.name == "state":
                 continue
             v = getattr(self, f.name)
-            values[f.name] = v(rng) if callable(v) and not isinstance(v, type) else v
-        return dataclasses.replace(self, **values, state={})
+            values[f.name] = (v(rng) if callable(v) and not isinstance(v, (type, Trigger))
+                              else v)
+        bound = dataclasses.replace(self, **values, state={})
+        bound.check()
+        return bound
+
+    def check(self) -> None:
+        """Raise ValueError naming the parameter when a (drawn) value cannot work; the world
+        reports it with the test and the agent when the agent is added."""
 
     def start(self, agent: Any, world: Any) -> None:
         """Called once when the run starts (after every agent is placed)."""
@@ -81,6 +97,139 @@ class Behavior:
     @property
     def name(self) -> str:
         return type(self).__name__
+
+
+# -- triggers ----------------------------------------------------------------------------------
+
+
+def _finite(value: Any, what: str, low: float = 0.0, strict: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not math.isfinite(v) or v < low or (strict and v == low):
+        raise ValueError(f"{what}={value!r}: need a finite number {'>' if strict else '>='} {low:g}")
+    return v
+
+
+@dataclass(frozen=True)
+class Trigger:
+    """A condition a behaviour waits for, asked every step with ``fired(agent, world)``.
+
+    Subclass it (a frozen dataclass) for your own, or wrap a function with :func:`condition`.
+    """
+
+    def fired(self, agent: Any, world: Any) -> bool:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def check(self) -> None:
+        """Raise ValueError naming the bad parameter."""
+
+
+def _other(agent: Any, world: Any, name: str) -> Any:
+    for a in world.movers:
+        if a.name == name:
+            return a
+    return None
+
+
+def _gap_and_follower_speed(agent: Any, other: Any) -> tuple[float, float]:
+    """Bumper-to-bumper gap [m] between two agents along ``agent``'s heading, and the speed
+    [m/s] of the one behind. Negative gap: they overlap lengthwise (side by side)."""
+    dx = float(other.position[0] - agent.position[0])
+    dy = float(other.position[1] - agent.position[1])
+    along = dx * math.cos(agent.heading) + dy * math.sin(agent.heading)
+    gap = abs(along) - (agent.LENGTH + other.LENGTH) / 2
+    behind = other if along < 0 else agent
+    return gap, float(behind.speed)
+
+
+@dataclass(frozen=True)
+class GapBelow(Trigger):
+    """Fires once the gap between the agent and ``other`` is below ``metres``."""
+
+    metres: float = 0.0
+    other: str = "ego"
+
+    def check(self) -> None:
+        _finite(self.metres, "gap_below(metres)")
+
+    def fired(self, agent, world):
+        o = _other(agent, world, self.other)
+        return o is not None and _gap_and_follower_speed(agent, o)[0] < self.metres
+
+
+@dataclass(frozen=True)
+class TimeGapBelow(Trigger):
+    """Fires once the time gap between the agent and ``other`` is below ``seconds``."""
+
+    seconds: float = 0.0
+    other: str = "ego"
+
+    def check(self) -> None:
+        _finite(self.seconds, "time_gap_below(seconds)")
+
+    def fired(self, agent, world):
+        o = _other(agent, world, self.other)
+        if o is None:
+            return False
+        gap, v = _gap_and_follower_speed(agent, o)
+        return gap < self.seconds * v
+
+
+@dataclass(frozen=True)
+class Condition(Trigger):
+    """Fires once ``fn(agent, world)`` is true."""
+
+    fn: Any = None
+
+    def check(self) -> None:
+        if not callable(self.fn):
+            raise ValueError(f"condition(fn={self.fn!r}): need a callable(agent, world) -> bool")
+
+    def fired(self, agent, world):
+        return bool(self.fn(agent, world))
+
+
+def gap_below(metres: float, other: str = "ego") -> GapBelow:
+    """A trigger: the bumper-to-bumper gap [m] between the agent and ``other`` (an agent's
+    name, default the ego), measured along the agent's heading in any lane, is below
+    ``metres``. Side by side counts as a gap below zero."""
+    return GapBelow(metres=metres, other=other)
+
+
+def time_gap_below(seconds: float, other: str = "ego") -> TimeGapBelow:
+    """A trigger: the time gap [s] — the gap of :func:`gap_below` divided by the speed of
+    whichever of the two is behind — is below ``seconds``. A cut-in "when the ego is within
+    1.5 s": ``time_gap_below(1.5)``."""
+    return TimeGapBelow(seconds=seconds, other=other)
+
+
+def condition(fn: Callable[[Any, Any], bool]) -> Condition:
+    """A trigger from your own ``fn(agent, world) -> bool``."""
+    return Condition(fn=fn)
+
+
+def _check_when(when: Any, what: str) -> None:
+    if when is not None and not isinstance(when, Trigger):
+        raise ValueError(f"{what}(when={when!r}): need a trigger (gap_below(...), "
+                         "time_gap_below(...), condition(fn)) or None")
+
+
+def _drive(st: dict, agent: Any, v: float, settle: float | None = None) -> tuple[float, float]:
+    """IDM along the route at ``v`` [m/s]; on a lane that ends, merge when the gap is safe
+    and otherwise wait at its end."""
+    if settle is None and st.get("merged"):
+        settle = 3.0  # finish a merge as a lane change, not a swerve
+    end = agent.lane_end_ahead()
+    if end is None:
+        return agent.idm(v), agent.follow(settle=settle)
+    d, side, on_it = end
+    if on_it and agent.gap_is_safe(side):
+        agent.change_lane(side)
+        st["merged"] = True
+        return agent.idm(v), agent.follow(settle=3.0)
+    return agent.idm(v, stop_in=max(d - agent.LENGTH / 2 - 1.0, 0.0)), agent.follow(settle=settle)
 
 
 # -- vehicles ----------------------------------------------------------------------------------
@@ -94,7 +243,7 @@ class KeepLane(Behavior):
 
     def control(self, agent, world):
         v = self.speed if self.speed is not None else agent.initial_speed
-        return agent.idm(v), agent.follow()
+        return _drive(self.state, agent, v)
 
 
 def keep_lane(speed: float | None = None) -> KeepLane:
@@ -125,10 +274,16 @@ class BrakeAt(Behavior):
     decel: float = 6.0
     at: Any = None
     speed: float | None = None
+    when: Any = None
+
+    def check(self):
+        _check_when(self.when, "brake_at")
+        if self.when is not None:
+            self.when.check()
 
     def start(self, agent, world):
-        if self.t is None and self.at is None:
-            raise ValueError("brake_at needs a time t [s] or a place at=")
+        if self.t is None and self.at is None and self.when is None:
+            raise ValueError("brake_at needs a time t [s], a place at= or a trigger when=")
         if not self.decel > 0:
             raise ValueError(f"brake_at decel must be > 0 m/s^2, got {self.decel!r}")
 
@@ -139,6 +294,8 @@ class BrakeAt(Behavior):
                 st["braking"] = True
             elif self.at is not None and agent.distance_along_route(self.at) <= 0.0:
                 st["braking"] = True
+            elif self.when is not None and self.when.fired(agent, world):
+                st["braking"] = True
         if st.get("braking"):
             return -float(self.decel), agent.follow()
         v = self.speed if self.speed is not None else agent.initial_speed
@@ -146,13 +303,14 @@ class BrakeAt(Behavior):
 
 
 def brake_at(t: float | None = None, decel: float = 6.0, *, at: Any = None,
-             speed: float | None = None) -> BrakeAt:
+             speed: float | None = None, when: Trigger | None = None) -> BrakeAt:
     """Drive at ``speed`` [m/s] (default initial), then brake at ``decel`` [m/s^2] to a stop.
 
-    Braking starts ``t`` [s] after the agent appeared or when it reaches the place ``at`` (a
-    spot or stop line on its route), whichever is given.
+    Braking starts ``t`` [s] after the agent appeared, when it reaches the place ``at`` (a
+    spot or stop line on its route) or when the trigger ``when`` fires (``gap_below(20)``),
+    whichever is given first.
     """
-    return BrakeAt(t=t, decel=decel, at=at, speed=speed)
+    return BrakeAt(t=t, decel=decel, at=at, speed=speed, when=when)
 
 
 @dataclass(frozen=True)
@@ -164,25 +322,187 @@ class ChangeLane(Behavior):
     at: float = 0.0
     duration: float = 3.0
     speed: float | None = None
+    when: Any = None
+    lateral_speed: float | None = None
+
+    def check(self):
+        what = type(self).__name__
+        _check_when(self.when, what)
+        if self.when is not None:
+            self.when.check()
+        _finite(self.at, f"{what}(at)")
+        _finite(self.duration, f"{what}(duration)", strict=True)
+        if self.lateral_speed is not None:
+            _finite(self.lateral_speed, f"{what}(lateral_speed)", strict=True)
+
+    def _target(self, agent, world):
+        return self.to
 
     def control(self, agent, world):
         st = self.state
-        if not st.get("done") and agent.age >= self.at - 1e-9:
-            agent.change_lane(self.to)
+        if (not st.get("done") and agent.age >= self.at - 1e-9
+                and (self.when is None or self.when.fired(agent, world))):
+            agent.change_lane(self._target(agent, world))
             st["done"] = True
+            st["r0"], st["t0"] = float(agent.route_r), agent.age
         v = self.speed if self.speed is not None else agent.initial_speed
-        return agent.idm(v), agent.follow(settle=self.duration if st.get("done") else None)
+        if not st.get("done"):
+            return _drive(st, agent, v)
+        if self.lateral_speed is not None:
+            # Move across at the given lateral speed: the reference offset from the new
+            # lane's centre shrinks linearly; the lane-keeping law tracks it.
+            r0 = st["r0"]
+            left = max(abs(r0) - self.lateral_speed * (agent.age - st["t0"]), 0.0)
+            return _drive(st, agent, v)[0], agent.follow(r=math.copysign(left, r0))
+        acc, _ = _drive(st, agent, v)
+        return acc, agent.follow(settle=self.duration)
 
 
 def change_lane(to: Any = "left", at: float = 0.0, duration: float = 3.0,
-                speed: float | None = None) -> ChangeLane:
+                speed: float | None = None, *, when: Trigger | None = None,
+                lateral_speed: float | None = None) -> ChangeLane:
     """Change to lane ``to`` ("left", "right", a lane number or a Lane) ``at`` [s] after the
-    agent appeared.
+    agent appeared, or (not before ``at``) when the trigger ``when`` fires.
 
-    The manoeuvre takes roughly ``duration`` [s]; the agent keeps ``speed`` [m/s] (default
-    initial) with IDM car following in its new lane.
+    The manoeuvre takes roughly ``duration`` [s], or moves across at ``lateral_speed``
+    [m/s] when that is given; the agent keeps ``speed`` [m/s] (default initial) with IDM
+    car following in its new lane.
     """
-    return ChangeLane(to=to, at=at, duration=duration, speed=speed)
+    return ChangeLane(to=to, at=at, duration=duration, speed=speed, when=when,
+                      lateral_speed=lateral_speed)
+
+
+@dataclass(frozen=True)
+class CutIn(ChangeLane):
+    """A lane change into the ego's lane (``to="ego"``) on a trigger."""
+
+    def _target(self, agent, world):
+        if self.to != "ego":
+            return self.to
+        ego = next((a for a in world.movers if a.kind == "ego"), None)
+        if ego is None:
+            raise ValueError("cut_in(to='ego'): there is no ego on the road")
+        return ego.route_lane.number
+
+
+def cut_in(time_gap: float | None = None, *, gap: float | None = None, to: Any = "ego",
+           lateral_speed: float = 1.0, speed: float | None = None, at: float = 0.0,
+           other: str = "ego") -> CutIn:
+    """Cut into lane ``to`` (default: the ego's lane) when the ego (or ``other``) comes
+    within ``time_gap`` [s] or ``gap`` [m] (give one), moving across at ``lateral_speed``
+    [m/s], at ``speed`` [m/s] (default initial) — UN R157's cut-in."""
+    if (time_gap is None) == (gap is None):
+        when = _Missing("cut_in needs exactly one of time_gap= [s] or gap= [m]")
+    else:
+        when = time_gap_below(time_gap, other) if time_gap is not None else gap_below(gap, other)
+    return CutIn(to=to, at=at, speed=speed, when=when, lateral_speed=lateral_speed)
+
+
+def cut_out(gap: float | None = None, *, time_gap: float | None = None,
+            ahead: str | None = None, to: Any = "left", lateral_speed: float = 1.0,
+            speed: float | None = None, at: float = 0.0) -> ChangeLane:
+    """Leave the lane to ``to`` ("left"/"right") when the agent comes within ``gap`` [m] or
+    ``time_gap`` [s] (give one) of the agent named ``ahead`` — the lead of UN R157's
+    cut-out, swerving round a stopped or slower vehicle it reveals to the ego behind."""
+    if (time_gap is None) == (gap is None) or ahead is None:
+        when = _Missing("cut_out needs ahead= (the name of the vehicle it swerves round) and "
+                        "exactly one of gap= [m] or time_gap= [s]")
+    else:
+        when = time_gap_below(time_gap, ahead) if time_gap is not None else gap_below(gap, ahead)
+    return ChangeLane(to=to, at=at, speed=speed, when=when, lateral_speed=lateral_speed)
+
+
+@dataclass(frozen=True)
+class _Missing(Trigger):
+    """A trigger that could not be made: its ``check`` reports why, when the agent is added."""
+
+    message: str = ""
+
+    def check(self) -> None:
+        raise ValueError(self.message)
+
+    def fired(self, agent, world):  # pragma: no cover - never runs: check() refuses it
+        return False
+
+
+@dataclass(frozen=True)
+class SpeedProfile(Behavior):
+    """Follow piecewise-linear speed ``points`` [(time [s] or distance [m], speed [m/s])]."""
+
+    points: Any = ()
+    by: str = "time"
+    max_accel: float = 3.0
+    max_decel: float = 8.0
+
+    def check(self):
+        if self.by not in ("time", "distance"):
+            raise ValueError(f"speed_profile(by={self.by!r}): use 'time' or 'distance'")
+        unit = "s" if self.by == "time" else "m"
+        try:
+            pts = [(float(x), float(v)) for x, v in self.points]
+        except (TypeError, ValueError):
+            raise ValueError(f"speed_profile(points={self.points!r}): give a list of "
+                             f"({self.by} [{unit}], speed [m/s]) pairs") from None
+        if not pts:
+            raise ValueError(f"speed_profile(points={self.points!r}): need at least one "
+                             f"({self.by} [{unit}], speed [m/s]) point")
+        for x, v in pts:
+            if not (math.isfinite(x) and x >= 0 and math.isfinite(v) and v >= 0):
+                raise ValueError(f"speed_profile(points=...): point ({x!r}, {v!r}) needs a "
+                                 f"{self.by} >= 0 [{unit}] and a speed >= 0 [m/s]")
+        xs = [x for x, _ in pts]
+        if any(b <= a for a, b in zip(xs, xs[1:])):
+            raise ValueError(f"speed_profile(points=...): the {self.by}s {xs} must increase "
+                             "strictly")
+        _finite(self.max_accel, "speed_profile(max_accel)", strict=True)
+        _finite(self.max_decel, "speed_profile(max_decel)", strict=True)
+
+    TAU = 0.5  # [s] speed error closed in this time, and the look-ahead into the profile
+
+    def target(self, x: float) -> float:
+        """Profile speed [m/s] at ``x`` (time [s] or distance [m]); flat beyond its ends."""
+        pts = self.points
+        if x <= pts[0][0]:
+            return float(pts[0][1])
+        for (x0, v0), (x1, v1) in zip(pts, pts[1:]):
+            if x <= x1:
+                return float(v0 + (v1 - v0) * (x - x0) / (x1 - x0))
+        return float(pts[-1][1])
+
+    def control(self, agent, world):
+        st = self.state
+        v = float(agent.speed)
+        if self.by == "time":
+            x, ahead = agent.age, self.TAU
+        else:
+            x, ahead = st.get("odometer", 0.0), max(v, 0.5) * self.TAU
+            st["odometer"] = x + v * world.dt
+        a = (self.target(x + ahead) - v) / self.TAU
+        a = min(max(a, -float(self.max_decel)), float(self.max_accel))
+        lead = agent.leader()
+        if lead is not None:  # never into the car ahead: IDM's interaction term caps it
+            a = min(a, control.idm_acceleration(v, 1e3, lead[0], lead[1]))
+        return a, agent.follow()
+
+
+def speed_profile(points: Any, by: str = "time", *, max_accel: float = 3.0,
+                  max_decel: float = 8.0) -> SpeedProfile:
+    """Follow a speed profile: ``points`` is a list of ``(time [s], speed [m/s])`` after the
+    agent appeared, or with ``by="distance"`` of ``(distance travelled [m], speed [m/s])``;
+    speeds are interpolated linearly between points and held beyond the ends. The agent
+    accelerates at most ``max_accel`` and brakes at most ``max_decel`` [m/s^2], looks 0.5 s
+    into the profile, keeps its lane and never drives into the car ahead."""
+    return SpeedProfile(points=tuple(tuple(p) if isinstance(p, (list, tuple)) else p
+                                     for p in points) if _iterable(points) else points,
+                        by=by, max_accel=max_accel, max_decel=max_decel)
+
+
+def _iterable(x: Any) -> bool:
+    try:
+        iter(x)
+    except TypeError:
+        return False
+    return not isinstance(x, (str, bytes))
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from ._hwenv import load_core
 
 load_core()  # roads and vehicles without highway-env's gym environments (see _hwenv)
 
-from highway_env.road.lane import CircularLane, LineType, StraightLane  # noqa: E402
+from highway_env.road.lane import CircularLane, LineType, SineLane, StraightLane  # noqa: E402
 from highway_env.road.road import Road  # noqa: E402
 from highway_env.vehicle.behavior import IDMVehicle  # noqa: E402
 from highway_env.vehicle.kinematics import Vehicle  # noqa: E402
@@ -34,7 +34,7 @@ from .drivers import action_pair
 from .errors import DriverError, SimError
 from .geometry import wrap_to_pi
 
-__all__ = ["Straight", "Arc", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian",
+__all__ = ["Straight", "Arc", "Sine", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian",
            "agent_class"]
 
 
@@ -89,6 +89,47 @@ class Arc(CircularLane):
         r = math.hypot(dx, dy)
         return (float(self.direction * (phi - self.start_phase) * self.radius),
                 float(self.direction * (self.radius - r)))
+
+
+class Sine(SineLane):
+    """highway-env's sinusoidal lane (an on-ramp's S-bend) with scalar-math transforms.
+
+    The centre line is ``amplitude * sin(pulsation * s + phase)`` [m] left of the straight
+    line from ``start`` to ``end``; ``s`` [m] is measured along that line (as highway-env's).
+    """
+
+    DEFAULT_WIDTH = 3.5
+    VEHICLE_LENGTH = 5.0
+
+    def __init__(self, start, end, amplitude: float, pulsation: float, phase: float,
+                 width: float = 3.5, line_types=None, speed_limit: float = 13.9) -> None:
+        super().__init__(start, end, amplitude, pulsation, phase, width=width,
+                         line_types=line_types, speed_limit=speed_limit)
+        self._sx, self._sy = float(self.start[0]), float(self.start[1])
+        self._dx, self._dy = float(self.direction[0]), float(self.direction[1])
+        self.length = float(self.length)
+        self.heading = float(self.heading)
+        self.radius = math.inf
+        self.amplitude, self.pulsation, self.phase = (float(amplitude), float(pulsation),
+                                                      float(phase))
+
+    def _offset(self, s: float) -> float:
+        return self.amplitude * math.sin(self.pulsation * s + self.phase)
+
+    def position(self, longitudinal: float, lateral: float) -> np.ndarray:
+        lat = lateral + self._offset(longitudinal)
+        return np.array([self._sx + longitudinal * self._dx - lat * self._dy,
+                         self._sy + longitudinal * self._dy + lat * self._dx])
+
+    def heading_at(self, longitudinal: float) -> float:
+        return self.heading + math.atan(self.amplitude * self.pulsation
+                                        * math.cos(self.pulsation * longitudinal + self.phase))
+
+    def local_coordinates(self, position) -> tuple[float, float]:
+        ex = position[0] - self._sx
+        ey = position[1] - self._sy
+        s = float(ex * self._dx + ey * self._dy)
+        return s, float(ey * self._dx - ex * self._dy) - self._offset(s)
 
 
 # -- the road -------------------------------------------------------------------------------------
@@ -325,6 +366,44 @@ class _Agent:
         self.route_index = 0
         s, r = target.geometry.local_coordinates(self.position)
         self.route_s, self.route_r = s, r
+
+    def lane_end_ahead(self) -> tuple[float, str, bool] | None:
+        """``(distance [m] from the centre, side, on_it)`` when the route ends in a lane that
+        ends with traffic in it (a lane drop, an on-ramp's acceleration lane): how far its end
+        is, the side ("left"/"right") to merge to, and whether the agent is on that lane
+        already. None when the route runs on."""
+        plan = self.plan
+        side = self.world.lane_index.drops.get(plan[-1].index)
+        if side is None:
+            return None
+        d = sum(plan[j].length for j in range(self.route_index, len(plan))) - self.route_s
+        return d, side, self.route_index == len(plan) - 1
+
+    def gap_is_safe(self, to: Any, decel: float = 3.0) -> bool:
+        """Whether moving into lane ``to`` ("left", "right", a number or a Lane) now is safe:
+        neither we behind the new leader nor the new follower behind us would have to brake
+        harder than ``decel`` [m/s^2] by the IDM (MOBIL's safety criterion)."""
+        target = self.world.lane_index.resolve_lane_change(self, to).geometry
+        s_me, _ = target.local_coordinates(self.position)
+        v = float(self.speed)
+        half = target.width_at(0.0) / 2 + 0.5
+        for o in self.world.movers:
+            if o is self:
+                continue
+            s_o, r_o = target.local_coordinates(o.position)
+            if abs(r_o) > half or abs(s_o - s_me) > 150.0:
+                continue
+            gap = abs(s_o - s_me) - (self.LENGTH + o.LENGTH) / 2
+            if gap < 1.0:
+                return False
+            if s_o > s_me:
+                acc = control.idm_acceleration(v, max(v, 0.1), gap, float(o.speed))
+            else:
+                vo = float(o.speed)
+                acc = control.idm_acceleration(vo, max(vo, 0.1), gap, v)
+            if acc < -decel:
+                return False
+        return True
 
     def take_turn(self, direction: str) -> None:
         """Route through the intersection ahead taking ``direction``."""

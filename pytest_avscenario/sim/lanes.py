@@ -35,10 +35,17 @@ class LaneIndex:
         self.order = list(self.lanes.values())
         self.code = {l.index: i for i, l in enumerate(self.order)}
         self.stop_marks: dict[tuple, list[tuple[float, str]]] = {}
+        # Roads whose lanes continue across nodes they share with other lanes (a highway's
+        # segments) name each lane's continuation here; :meth:`continue_route` follows it.
+        self.straight_on: dict[tuple, Lane] = {}
+        # Lanes that end with traffic still in them (a lane drop, an on-ramp's acceleration
+        # lane): the side ("left"/"right") their traffic merges to.
+        self.drops: dict[tuple, str] = {}
         boxes = []
         for lane in self.order:
             g = lane.geometry
-            curved = math.isfinite(getattr(g, "radius", math.inf))
+            curved = (math.isfinite(getattr(g, "radius", math.inf))
+                      or getattr(g, "amplitude", 0.0) != 0.0)
             ss = np.linspace(0.0, g.length, 17 if curved else 2)
             half = g.width_at(0.0) / 2 + 0.05
             pts = np.array([g.position(s, r) for s in ss for r in (-half, half)])
@@ -79,6 +86,14 @@ class LaneIndex:
             if abs(math.sin(o.geometry.heading - me.geometry.heading)) < 0.05:
                 out.append(o)
         return out
+
+    def link(self, lane: Lane, nxt: Lane) -> None:
+        """Declare ``nxt`` the lane that carries straight on from ``lane``."""
+        self.straight_on[lane.index] = nxt
+
+    def add_drop(self, lane: Lane, side: str = "left") -> None:
+        """Declare that ``lane`` ends and its traffic merges to ``side``."""
+        self.drops[lane.index] = side
 
     def add_stop(self, lane: Lane, s: float, kind: str) -> None:
         marks = self.stop_marks.setdefault(lane.index, [])
@@ -223,6 +238,12 @@ class LaneIndex:
         """``lane`` and the lanes that carry straight on from it (through intersections)."""
         route = [lane]
         while len(route) < limit:
+            nxt = self.straight_on.get(route[-1].index)
+            if nxt is not None:
+                if nxt in route:
+                    break
+                route.append(nxt)
+                continue
             g = route[-1].geometry
             h_end = g.heading_at(g.length)
             p_end = g.position(g.length, 0.0)

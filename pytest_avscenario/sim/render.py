@@ -87,6 +87,12 @@ def _view(world: Any, step: int, centre: Any = None,
         x0 = float(tr.x[0, step])
         cx = x0 + size[0] / scale / 6 if math.isfinite(x0) else 0.0
         cy = float(box[:, 1].min() + box[:, 3].max()) / 2
+        if road.kind == "highway":
+            # Curves and ramps: follow the ego both ways, a little ahead of it.
+            y0, h0 = float(tr.y[0, step]), float(tr.heading[0, step])
+            if math.isfinite(x0) and math.isfinite(y0):
+                ahead = size[0] / scale / 6
+                cx, cy = x0 + ahead * math.cos(h0), y0 + ahead * math.sin(h0)
     if width is not None:
         scale = size[0] / float(width)
     if centre is not None:
@@ -142,6 +148,14 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None)
         pygame.draw.polygon(surface, colour, _poly(surface, lane, -w / 2, w / 2, 0.0, lane.length))
     for lane in lanes:
         LaneGraphics.display(lane.geometry, surface)
+    for end in getattr(road, "lane_ends", []):
+        # Where a lane ends with traffic in it (a lane drop, an acceleration lane): a hatch.
+        g, w = end.lane.geometry, end.lane.width
+        for r in np.linspace(-w / 2, w / 2, 4):
+            pygame.draw.line(surface, WHITE, surface.vec2pix(g.position(end.s - 3.0, r)),
+                             surface.vec2pix(g.position(end.s, r - w / 4)), max(1, int(0.2 * scale)))
+        pygame.draw.line(surface, WHITE, surface.vec2pix(g.position(end.s, -w / 2)),
+                         surface.vec2pix(g.position(end.s, w / 2)), max(2, int(0.3 * scale)))
     for cw in getattr(road, "crosswalks", []):
         _draw_crosswalk(pygame, surface, cw)
     for sl in getattr(road, "stop_lines", []):

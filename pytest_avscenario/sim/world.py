@@ -107,6 +107,22 @@ class World:
         return self._finish_road(StraightRoad(self, net, lanes, float(length), lane_width,
                                               speed_limit), net)
 
+    def highway(self, lanes: int = 3, segments: Any = None, *, lane_width: float = 3.75,
+                speed_limit: float = 36.1) -> Any:
+        """A one-way highway of ``segments`` (``straight(length)``, ``arc(radius, angle)``
+        from :mod:`pytest_avscenario.sim.highway`; default one straight kilometre) starting at
+        the origin heading east, ``lanes`` lanes (0 leftmost). A segment with fewer lanes
+        drops the rightmost ones; ``road.on_ramp(at=...)`` adds an on-ramp. ``speed_limit``
+        [m/s] (default 130 km/h) is what IDM drivers cap their target speed at."""
+        from .highway import Highway
+
+        net = self._new_network("highway")
+        road = Highway(self, net, lanes, segments, lane_width, speed_limit)
+        self._finish_road(road, net)
+        # highway-env's own IDM (the "idm" ego) looks for its leader on the next segment too.
+        self._road.neighbour_vehicles_connected_lanes = True
+        return road
+
     def two_way_road(self, lanes: int = 1, length: float = 300.0, parking: bool = True, *,
                      lane_width: float = 3.5, parking_width: float = 2.5,
                      speed_limit: float = 13.9, median: float = 0.0) -> Any:
@@ -170,6 +186,8 @@ class World:
         if self._index is not None:
             for key, marks in self._index.stop_marks.items():
                 index.stop_marks[key] = list(marks)
+            index.straight_on.update(self._index.straight_on)
+            index.drops.update(self._index.drops)
         self._index = index
         return index
 
@@ -206,7 +224,7 @@ class World:
     def _need_road(self, what: str) -> None:
         if self.road is None or self._index is None:
             raise SimError(f"{what}: build a road first (world.straight_road(), "
-                           "world.two_way_road(), world.intersection() or an intersection "
+                           "world.highway(), world.two_way_road(), world.intersection() or an intersection "
                            "on world.road_network())", test=self.name)
         if self.trajectory is not None:
             raise SimError(f"{what}: the world has already run; a world runs once",
