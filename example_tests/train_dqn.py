@@ -276,7 +276,7 @@ def main(argv: list[str] | None = None) -> None:
         times[label] = took
     cmd = "python example_tests/train_dqn.py" + (" --no-train" if args.no_train else "") + \
         (f" --modules {' '.join(args.modules)}" if args.modules != p.get_default("modules") else "") + \
-        (f" --samples {args.samples}" if args.samples != 30 else "") + " --readme"
+        (f" --samples {args.samples}" if args.samples != 30 else "") + (" --readme" if args.readme else "")
     text = tables(trained, crash, runs, times, load, cmd)
     print()
     print(text)
