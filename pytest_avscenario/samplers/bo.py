@@ -3,9 +3,8 @@
 The first ``init`` cases are an initial design: ``corners`` of them (default 3 of 5) are
 corners of the box, spread out (see :mod:`.design`: failures of driving scenarios gather
 where parameters are extreme, which a uniform draw almost never reaches), the rest uniform
-random. After that, a Gaussian process with a Matérn-5/2
-(or RBF) kernel and one length scale per dimension is fitted to the standardized rho values,
-and the next case maximizes the acquisition — expected improvement below the best rho so
+random. After that, a Gaussian process with a Matérn-5/2 (or RBF) kernel and one length
+scale per dimension is fitted to the standardized rho values, and the next case maximizes the acquisition — expected improvement below the best rho so
 far, or the lower confidence bound ``mu - kappa * sigma``. The acquisition is screened on
 random and near-best candidates, then polished from the ``starts`` best of them with TNC
 (all starts in one call: the objective is their sum, which is separable).
