@@ -4,10 +4,11 @@ The first ``init`` cases are an initial design: ``corners`` of them (default 3 o
 corners of the box, spread out (see :mod:`.design`: failures of driving scenarios gather
 where parameters are extreme, which a uniform draw almost never reaches), the rest uniform
 random. After that, a Gaussian process with a Matérn-5/2 (or RBF) kernel and one length
-scale per dimension is fitted to the standardized rho values, and the next case maximizes the acquisition — expected improvement below the best rho so
-far, or the lower confidence bound ``mu - kappa * sigma``. The acquisition is screened on
-random and near-best candidates, then polished from the ``starts`` best of them with TNC
-(all starts in one call: the objective is their sum, which is separable).
+scale per dimension is fitted to the standardized rho values, and the next case maximizes
+the acquisition — expected improvement below the best rho so far, or the lower confidence
+bound ``mu - kappa * sigma``. The acquisition is screened on random and near-best
+candidates, then polished from the ``starts`` best of them with TNC (all starts in one
+call: the objective is their sum, which is separable).
 
 Bounded cost, whatever the number of cases told: the GP is fitted to at most ``max_points``
 of them — all while there are that few, then a tenth chosen to cover the space (greedy
