@@ -22,7 +22,8 @@ from the robustness values they are told. The public entry point, usable outside
            (``step``, ``min_step``, ``shrink``, ``temperature``, ``cooling``, ``restart``,
            ``jump``)
 ``bo``     Gaussian-process Bayesian optimization, EI or LCB (``kernel``, ``acquisition``,
-           ``kappa``, ``xi``, ``init``, ``starts``, ``candidates``, ``max_points``)
+           ``kappa``, ``xi``, ``init``, ``corners``, ``starts``, ``candidates``,
+           ``max_points``); starts from corners of the box
 =========  ==================================================================================
 
 Active samplers also take ``metrics=[names]`` and ``priority=`` (names highest first, or

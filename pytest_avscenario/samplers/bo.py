@@ -1,11 +1,14 @@
 """The Bayesian-optimization sampler (``bo``): a Gaussian process on rho, minimized actively.
 
-The first ``init`` cases are uniform random. After that, a Gaussian process with a Matérn-5/2
-(or RBF) kernel and one length scale per dimension is fitted to the standardized rho values,
-and the next case maximizes the acquisition — expected improvement below the best rho so
-far, or the lower confidence bound ``mu - kappa * sigma``. The acquisition is screened on
-random and near-best candidates, then polished from the ``starts`` best of them with TNC
-(all starts in one call: the objective is their sum, which is separable).
+The first ``init`` cases are an initial design: ``corners`` of them (default 3 of 5) are
+corners of the box, spread out (see :mod:`.design`: failures of driving scenarios gather
+where parameters are extreme, which a uniform draw almost never reaches), the rest uniform
+random. After that, a Gaussian process with a Matérn-5/2 (or RBF) kernel and one length
+scale per dimension is fitted to the standardized rho values, and the next case maximizes
+the acquisition — expected improvement below the best rho so far, or the lower confidence
+bound ``mu - kappa * sigma``. The acquisition is screened on random and near-best
+candidates, then polished from the ``starts`` best of them with TNC (all starts in one
+call: the objective is their sum, which is separable).
 
 Bounded cost, whatever the number of cases told: the GP is fitted to at most ``max_points``
 of them — all while there are that few, then a tenth chosen to cover the space (greedy
@@ -177,7 +180,9 @@ class BayesianOptimizationSampler(ActiveSampler):
 
     Options: ``kernel`` ("matern" or "rbf"), ``acquisition`` ("ei" or "lcb"), ``kappa``
     (LCB weight, default 2), ``xi`` (EI margin in standardized units, default 0.01),
-    ``init`` (random cases first, default 5), ``starts`` (local optimizer starts, default 5),
+    ``init`` (initial cases before the GP proposes, default 5), ``corners`` (how many of
+    them are corners of the box, the first asks, default 3; the rest are uniform random;
+    0: all uniform), ``starts`` (local optimizer starts, default 5),
     ``candidates`` (screening points, default 500), ``max_points`` (cases in the fit,
     default 100; with more cases told, a subset as the module says; it bounds the cost of
     an ask), plus ``metrics`` and ``priority`` (``bo`` minimizes the worst metric, or with a
@@ -186,11 +191,11 @@ class BayesianOptimizationSampler(ActiveSampler):
 
     name = "bo"
     options = ActiveSampler.options + ("kernel", "acquisition", "kappa", "xi", "init", "starts",
-                                       "candidates", "max_points")
+                                       "candidates", "max_points", "corners")
 
     def __init__(self, space, seed=0, kernel: str = "matern", acquisition: str = "ei",
                  kappa: float = 2.0, xi: float = 0.01, init: int = 5, starts: int = 5,
-                 candidates: int = 500, max_points: int = 100, **options: Any):
+                 candidates: int = 500, max_points: int = 100, corners: int = 3, **options: Any):
         super().__init__(space, seed=seed, **options)
         if kernel not in ("matern", "rbf"):
             raise SamplerError(f"bo kernel must be 'matern' or 'rbf', got {kernel!r}")
@@ -206,6 +211,11 @@ class BayesianOptimizationSampler(ActiveSampler):
         self.starts = check_int(starts, "bo starts")
         self.candidates = check_int(candidates, "bo candidates")
         self.max_points = check_int(max_points, "bo max_points", lo=4)
+        self.n_corners = check_int(corners, "bo corners", lo=0)
+        from .design import corner_design
+
+        # the first asks: corners of the box, the rest of the initial cases uniform
+        self._design = corner_design(self.space, min(self.n_corners, self.init), self.rng)
         self.gp = GaussianProcess(kernel, max(self.d, 1))
         # every told case (unit cube) and its rho (NaN: invalid), in arrays grown by doubling
         self._n = 0
@@ -233,7 +243,9 @@ class BayesianOptimizationSampler(ActiveSampler):
     def ask_unit(self) -> np.ndarray:
         self.n_asked += 1
         if self._n_valid < self.init or self.d == 0:
-            x = self.rng.random(self.d)
+            # a sampler told enough cases before its first ask (a history) skips the design
+            x = (self._design[self.n_asked - 1].copy() if self.n_asked <= len(self._design)
+                 else self.rng.random(self.d))
         else:
             x = self._propose()
         self.pending.append(x.tolist())
@@ -392,7 +404,7 @@ class BayesianOptimizationSampler(ActiveSampler):
         st = super().state()
         st.update(X=self.X.tolist(), y=[None if v is None else json_float(v) for v in self.y],
                   pending=self.pending, theta=self.gp.theta.tolist(), fits=self.gp.n_fits,
-                  next_fit=self._next_fit, fill=self._fill)
+                  next_fit=self._next_fit, fill=self._fill, design=self._design.tolist())
         return st
 
     def restore(self, state: Mapping[str, Any]) -> None:
@@ -408,5 +420,8 @@ class BayesianOptimizationSampler(ActiveSampler):
         # states written before the fit schedule existed re-optimize at the next ask
         self.gp.n_fits = int(state.get("fits", 0))
         self._next_fit = int(state.get("next_fit", 0))
+        if "design" in state:  # the design drawn at construction, whatever the seed's state
+            design = state["design"]
+            self._design = np.array(design, dtype=float).reshape(len(design), self.d)
         fill = state.get("fill")
         self._fill = None if fill is None else [int(i) for i in fill]
