@@ -177,11 +177,11 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     metrics = info.metrics if info is not None else ()
 
     def slider(data: Mapping[str, Any], row: CaseRow) -> str:
+        # the data knows its own first violation and critical agent: those of the case it
+        # recorded (the minimized one, when there is one), not necessarily the row's
         from .replay import replay_html
 
-        where = [w for w in (row.violations or {}).values() if w.get("t") is not None]
-        first = min(where, key=lambda w: w["t"]) if where else {}
-        return replay_html(data, element_id="replay", critical=first.get("agent"), start_t=first.get("t"))
+        return replay_html(data, element_id="replay")
 
     labels = mode_labels(campaigns)
     described = {item: f"{labels[item]} ({m.what}: {m.rule})"

@@ -1,0 +1,318 @@
+"""A compact recording of one run for the report's interactive replay and its annotated still.
+
+:func:`replay_data` turns a world (or a bare :class:`~pytest_avscenario.trajectory.Trajectory`)
+into plain JSON data: the road drawn once (lane centre lines with their widths and markings,
+intersection boxes, crosswalks, stop lines), every agent's position, heading and speed at a
+decimated rate (:data:`REPLAY_HZ`, the first violation's step always included), the critical
+agent, the violated metrics, and per frame the distance, footprint gap and time to collision
+between the ego and the critical agent, with the pointwise margin ρ(t) of the violated
+distance and TTC monitors. :func:`frame_lines` is the text shown beside a frame; the still
+(:func:`~pytest_avscenario.sim.render.render_moment`) and the card page's replay
+(:mod:`pytest_avscenario.report.replay`) both show exactly these values.
+
+The data is made small enough to keep one per counterexample: positions in centimetres,
+headings in degrees, speeds in decimetres per second, each series stored as its first value
+followed by differences (``null`` where the agent is absent), the road in decimetres.
+Decode a series with :func:`undelta`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..trajectory import Trajectory
+
+__all__ = ["REPLAY_HZ", "ARROW_S", "replay_data", "dumps", "undelta", "moment_step",
+           "frame_lines", "decoded_agents", "view_spec"]
+
+#: frames per second of the replay (the simulation records 10 Hz by default)
+REPLAY_HZ = 5.0
+
+#: a velocity arrow is as long as the distance the agent covers in this many seconds [s]
+ARROW_S = 1.0
+
+#: view of a replay without a road: this wide [m], following the ego
+_BARE_WIDTH_M = 120.0
+
+
+def _delta(values: np.ndarray, present: np.ndarray) -> list[int | None]:
+    """Integers as first value + differences; ``None`` at absent steps (the next present value
+    is a difference from the last present one)."""
+    out: list[int | None] = []
+    last = 0
+    for v, p in zip(values.tolist(), present.tolist()):
+        if not p or not math.isfinite(v):
+            out.append(None)
+            continue
+        iv = int(round(v))
+        out.append(iv - last)
+        last = iv
+    return out
+
+
+def undelta(series: Sequence[int | None], scale: float = 1.0) -> list[float | None]:
+    """The values of a delta-coded series (``None`` stays ``None``), divided by ``scale``."""
+    out: list[float | None] = []
+    acc = 0
+    for d in series:
+        if d is None:
+            out.append(None)
+            continue
+        acc += d
+        out.append(acc / scale)
+    return out
+
+
+def _round(values: np.ndarray, digits: int = 2) -> list[float | None]:
+    return [round(float(v), digits) if math.isfinite(v) else None for v in values.tolist()]
+
+
+def moment_step(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | None,
+                fallback_t: float | None = None) -> int:
+    """The step a still shows: the first violation; without a violation time, the first
+    contact (a crash flag); then ``fallback_t`` [s] (e.g. the worst ρ's moment); else the end."""
+    times = [float(w["t"]) for w in (violations or {}).values() if w.get("t") is not None]
+    if times:
+        t = min(times)
+    else:
+        crashed = np.flatnonzero(traj.crashed.any(axis=0))
+        if crashed.size:
+            return int(crashed[0])
+        if fallback_t is None:
+            return traj.n_steps - 1
+        t = float(fallback_t)
+    return int(np.argmin(np.abs(traj.t - t)))
+
+
+def _critical(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | None,
+              step: int) -> int | None:
+    from ..monitors.metrics import critical_agent
+
+    timed = sorted(((float(w["t"]), w.get("agent")) for w in (violations or {}).values()
+                    if w.get("t") is not None), key=lambda ta: ta[0])
+    agent = timed[0][1] if timed else next((w.get("agent") for w in (violations or {}).values()
+                                            if w.get("agent")), None)
+    return critical_agent(traj, agent, float(traj.t[step]))
+
+
+def _lane_points(lane: Any) -> list[tuple[float, float]]:
+    """A lane's centre line as few points as draw it within 5 cm."""
+    g = lane.geometry
+    length = float(lane.length)
+    n = max(2, int(math.ceil(length / 2.0)) + 1)
+    pts = [tuple(map(float, g.position(s, 0.0))) for s in np.linspace(0.0, length, n)]
+    if n > 2:
+        from shapely.geometry import LineString
+
+        pts = [tuple(p) for p in LineString(pts).simplify(0.05).coords]
+    return pts
+
+
+def _dm(points: Sequence[Sequence[float]]) -> list[int]:
+    """Points as decimetres, first point absolute and the others as differences."""
+    out: list[int] = []
+    lx = ly = 0
+    for x, y in points:
+        ix, iy = int(round(x * 10)), int(round(y * 10))
+        out += [ix - lx, iy - ly]
+        lx, ly = ix, iy
+    return out
+
+
+def _road(world: Any) -> dict[str, Any]:
+    road = world.road
+    lanes = []
+    for lane in world.lane_index.order:
+        types = [int(getattr(t, "value", t)) for t in getattr(lane.geometry, "line_types", (0, 0))]
+        lanes.append({"w": round(lane.width, 2), "park": lane.kind == "parking",
+                      "lines": types[:2], "p": _dm(_lane_points(lane))})
+    boxes = ([road] if road.kind == "intersection" else
+             list(road.intersections.values()) if road.kind == "network" else [])
+    out: dict[str, Any] = {
+        "lanes": lanes,
+        "boxes": [[round(float(b.centre.x), 2), round(float(b.centre.y), 2), round(float(b.half), 2)]
+                  for b in boxes],
+        "crosswalks": [],
+        "stop_lines": [],
+    }
+    for cw in getattr(road, "crosswalks", []):
+        pts = cw.path.array
+        out["crosswalks"].append([round(float(v), 2) for v in (*pts[0], *pts[-1])] + [round(cw.width, 2)])
+    for sl in getattr(road, "stop_lines", []):
+        g, w = sl.lane.geometry, sl.lane.width
+        a, b = g.position(sl.s, -w / 2), g.position(sl.s, w / 2)
+        out["stop_lines"].append([round(float(v), 2) for v in (*a, *b)])
+    return out
+
+
+def view_spec(world: Any) -> tuple[tuple[int, int], float, float | None, float | None, float, bool]:
+    """(size [px], scale [px/m], fixed centre x, fixed centre y, lead [m], along heading) of a
+    world's frames.
+
+    The whole intersection; on a road network a 110 m square following the ego; a 133 m
+    window following the ego on other roads, ``lead`` metres ahead of it in x — on a highway
+    (bends, ramps) ahead along its heading and following it both ways. A centre coordinate
+    that is None follows the ego (the replay draws the same view).
+    """
+    road = world.road
+    box = world.lane_index.boxes
+    if road.kind == "intersection":
+        size = (640, 640)
+        half = road.half + min(road.approach_length, 28.0)
+        return size, size[0] / (2 * half), 0.0, 0.0, 0.0, False
+    if road.kind == "network":
+        return (640, 640), 640 / 110.0, None, None, 0.0, False
+    size, scale = (800, 320), 6.0
+    if road.kind == "highway":
+        return size, scale, None, None, size[0] / scale / 6, True
+    return size, scale, None, float(box[:, 1].min() + box[:, 3].max()) / 2, size[0] / scale / 6, False
+
+
+def _view(world: Any | None) -> dict[str, Any]:
+    """Canvas size [px], scale [px/m] and the view's centre: fixed coordinates, or following
+    the ego (``cx``/``cy`` None) ``ahead`` metres ahead of it in x (``along``: along its
+    heading); as the still's view."""
+    if world is None:
+        return {"size": [800, 480], "scale": 800 / _BARE_WIDTH_M, "cx": None, "cy": None, "ahead": 0.0,
+                "along": False}
+    size, scale, cx, cy, ahead, along = view_spec(world)
+    return {"size": list(size), "scale": round(scale, 4),
+            "cx": None if cx is None else round(cx, 2), "cy": None if cy is None else round(cy, 2),
+            "ahead": round(ahead, 2), "along": along}
+
+
+def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None = None,
+                monitors: Sequence[Any] = (), title: str = "", hz: float = REPLAY_HZ,
+                fallback_t: float | None = None) -> dict[str, Any]:
+    """The replay of one recorded run as plain JSON data.
+
+    ``source``: a world after its run, or a Trajectory (then no road is drawn). ``violations``:
+    ``{metric: {"t", "agent", "threshold", "rho"}}`` as a case row holds them; the earliest one
+    gives the first violation and the critical agent. ``monitors``: the test's monitors, for the
+    TTC radius and the pointwise ρ(t) of violated distance and TTC monitors. ``hz``: frames per
+    second (the first violation's step is always a frame). ``fallback_t`` [s]: the moment to
+    start at when nothing says when the violation happened.
+    """
+    world = None if isinstance(source, Trajectory) else source
+    traj: Trajectory = source if world is None else world.trajectory
+    if traj is None:
+        raise ValueError("nothing to replay: the world has not run")
+    T = traj.n_steps
+    moment = moment_step(traj, violations, fallback_t)
+    every = max(1, int(round(1.0 / (float(hz) * traj.dt)))) if traj.dt > 0 else 1
+    steps = np.array(sorted(set(range(0, T, every)) | {moment, T - 1}), dtype=int)
+    k_first = int(np.searchsorted(steps, moment))
+    crit = _critical(traj, violations, moment)
+
+    agents = []
+    arms = {name[: -len(".stop_arm")]: v for name, v in traj.signals.items() if name.endswith(".stop_arm")}
+    for i, name in enumerate(traj.names):
+        present = traj.present[i, steps]
+        crashed = np.flatnonzero(traj.crashed[i, steps] & present)
+        agent = {
+            "name": name, "kind": traj.kinds[i],
+            "L": round(float(traj.length[i]), 2), "W": round(float(traj.width[i]), 2),
+            "x": _delta(traj.x[i, steps] * 100, present), "y": _delta(traj.y[i, steps] * 100, present),
+            "h": _delta(np.degrees(traj.heading[i, steps]), present),
+            "v": _delta(traj.speed[i, steps] * 10, present),
+            "crash": int(crashed[0]) if crashed.size else None,
+        }
+        if name in arms:
+            out = arms[name][steps] > 0.5
+            agent["arm"] = [int(k) for k in np.flatnonzero(out)]
+        agents.append(agent)
+
+    from ..monitors.metrics import DistanceMonitor, TTCMonitor, footprint_gap, pairwise_distance, pairwise_ttc
+
+    viol = []
+    for metric, where in (violations or {}).items():
+        rho = where.get("rho")
+        viol.append({"metric": metric, "t": where.get("t"), "agent": where.get("agent"),
+                     "threshold": where.get("threshold"),
+                     "rho": None if rho is None or not math.isfinite(rho) else round(float(rho), 3)})
+    viol.sort(key=lambda v: (v["t"] is None, v["t"] if v["t"] is not None else 0.0, v["metric"]))
+
+    values: dict[str, Any] = {}
+    rho_t: dict[str, Any] = {}
+    if traj.n_agents > 1:
+        radius = next((m.radius for m in monitors if isinstance(m, TTCMonitor)), 5.0)
+        dist = pairwise_distance(traj)
+        ttc = pairwise_ttc(traj, radius)
+        gap = footprint_gap(traj)
+        if crit is not None:
+            values = {"d": _round(dist[crit - 1, steps]), "gap": _round(gap[crit - 1, steps]),
+                      "ttc": _round(ttc[crit - 1, steps]), "radius": radius}
+        violated = {v["metric"] for v in viol}
+        for m in monitors:
+            if m.name not in violated:
+                continue
+            if isinstance(m, DistanceMonitor):
+                per = gap if m.footprint else dist
+            elif isinstance(m, TTCMonitor):
+                per = pairwise_ttc(traj, m.radius) if m.radius != radius else ttc
+            else:
+                continue  # a whole-run metric has no value per frame
+            with np.errstate(invalid="ignore"):
+                rho_t[m.name] = _round(np.nanmin(per[:, steps], axis=0) - m.threshold)
+
+    data: dict[str, Any] = {
+        "format": 1,
+        "title": title,
+        "t": _round(traj.t[steps]),
+        "first": k_first,
+        "first_t": round(float(traj.t[moment]), 2),
+        "first_kind": "violation" if viol and any(v["t"] is not None for v in viol) else
+                      "contact" if traj.crashed.any() else "moment",
+        "critical": traj.names[crit] if crit is not None else None,
+        "arrow_s": ARROW_S,
+        "view": _view(world),
+        "agents": agents,
+        "violations": viol,
+        "values": values,
+        "rho_t": rho_t,
+    }
+    if world is not None:
+        data["road"] = _road(world)
+    return data
+
+
+def dumps(data: Mapping[str, Any]) -> str:
+    """Compact JSON text of replay data (no spaces; NaN/inf were made ``null`` already)."""
+    return json.dumps(data, separators=(",", ":"), allow_nan=False)
+
+
+def decoded_agents(data: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The agents of replay ``data`` with plain per-frame values: x, y [m], heading [deg],
+    speed [m/s] (``None`` where absent)."""
+    return [{**a, "x": undelta(a["x"], 100), "y": undelta(a["y"], 100), "h": undelta(a["h"]),
+             "v": undelta(a["v"], 10)} for a in data["agents"]]
+
+
+def _num(v: float | None, unit: str, digits: int = 2) -> str:
+    return "—" if v is None else f"{v:.{digits}f} {unit}"
+
+
+def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
+    """The text shown beside frame ``k``: its time (and whether it is the first violation),
+    distance, gap and TTC to the critical agent, ρ(t) of the violated distance/TTC metrics and
+    each violated metric's ρ over the run. The card's replay script writes the same lines."""
+    t = data["t"][k]
+    mark = f" — first {data['first_kind']}" if k == data["first"] and data["first_kind"] != "moment" else ""
+    lines = [f"t = {t:.2f} s{mark}"]
+    values, crit = data.get("values") or {}, data.get("critical")
+    if crit and values:
+        ttc = values["ttc"][k]
+        d = values["d"][k]
+        ttc_text = "—" if d is None else ("∞" if ttc is None else f"{ttc:.2f} s")
+        lines.append(f"{crit}: distance {_num(d, 'm')}, gap {_num(values['gap'][k], 'm')}, TTC {ttc_text}")
+    for v in data["violations"]:
+        per = (data.get("rho_t") or {}).get(v["metric"])
+        now = f"ρ(t) {per[k]:+.2f}, " if per is not None and per[k] is not None else ""
+        when = "" if v["t"] is None else f", first at {v['t']:.2f} s"
+        rho = "—" if v["rho"] is None else f"{v['rho']:+.2f}"
+        lines.append(f"{v['metric']}: {now}run ρ {rho}{when}")
+    return lines
