@@ -39,21 +39,37 @@ REPLAY_JS = r"""
   var slider = root.querySelector("input[type=range]"), out = root.querySelector("output");
   var play = root.querySelector("button.play"), toFirst = root.querySelector("button.first");
   var valuesBox = root.querySelector("pre.values");
-  var W = canvas.width, H = canvas.height, S = D.view.scale, N = D.t.length;
+  var W = canvas.width, H = canvas.height, S = D.view.scale, N;
   var COLOURS = {ego: "rgb(60,200,80)", car: "rgb(90,150,230)", bus: "rgb(250,190,20)",
                  parked: "rgb(150,150,160)", pedestrian: "rgb(230,60,200)"};
   var HIGHLIGHT = "rgb(255,150,0)", INK = "rgb(25,25,28)", DARK = "rgb(35,35,40)";
-  function undelta(s, scale) {
+  function undelta(s, scale) {  // first value + differences; [item, count] is a run
     var o = [], acc = 0;
     for (var i = 0; i < s.length; i++) {
-      if (s[i] === null) { o.push(null); } else { acc += s[i]; o.push(acc / scale); }
+      var run = Array.isArray(s[i]), d = run ? s[i][0] : s[i], n = run ? s[i][1] : 1;
+      for (var j = 0; j < n; j++) {
+        if (d === null) { o.push(null); } else { acc += d; o.push(acc / scale); }
+      }
     }
     return o;
   }
+  function frames(a, s, scale) {  // a series over the agent's frames k0 .. -> every frame
+    var o = [], body = undelta(s, scale), i;
+    for (i = 0; i < N; i++) o.push(i >= a.k0 && i - a.k0 < body.length ? body[i - a.k0] : null);
+    return o;
+  }
+  D.t = undelta(D.t, 100);
+  N = D.t.length;
   var agents = D.agents.map(function (a) {
     return {name: a.name, kind: a.kind, L: a.L, W: a.W, crash: a.crash, arm: a.arm || [],
-            x: undelta(a.x, 100), y: undelta(a.y, 100), h: undelta(a.h, 1), v: undelta(a.v, 10)};
+            x: frames(a, a.x, 100), y: frames(a, a.y, 100), h: frames(a, a.h, 1), v: frames(a, a.v, 10)};
   });
+  var V = {};
+  Object.keys(D.values || {}).forEach(function (key) {
+    V[key] = Array.isArray(D.values[key]) ? undelta(D.values[key], 100) : D.values[key];
+  });
+  var RT = {};
+  Object.keys(D.rho_t || {}).forEach(function (key) { RT[key] = undelta(D.rho_t[key], 100); });
   var road = D.road || {lanes: [], boxes: [], crosswalks: [], stop_lines: []};
   var lanes = road.lanes.map(function (l) {
     var pts = [], x = 0, y = 0;  // decimetres, x and y each as first value + differences
@@ -133,7 +149,7 @@ REPLAY_JS = r"""
   function signed(v) { return (v >= 0 ? "+" : "") + v.toFixed(2); }
   function lines(k) {  // the same lines as sim.replay.frame_lines
     var mark = (k === D.first && D.first_kind !== "moment") ? " \u2014 first " + D.first_kind : "";
-    var o = ["t = " + D.t[k].toFixed(2) + " s" + mark], V = D.values || {};
+    var o = ["t = " + D.t[k].toFixed(2) + " s" + mark];
     if (D.critical && V.d) {
       var d = V.d[k], ttc = V.ttc[k];
       var ttcText = d === null ? "\u2014" : (ttc === null ? "\u221e" : ttc.toFixed(2) + " s");
@@ -141,7 +157,7 @@ REPLAY_JS = r"""
              (V.gap[k] === null ? "\u2014" : V.gap[k].toFixed(2) + " m") + ", TTC " + ttcText);
     }
     D.violations.forEach(function (v) {
-      var per = (D.rho_t || {})[v.metric];
+      var per = RT[v.metric];
       var now = per && per[k] !== null ? "\u03c1(t) " + signed(per[k]) + ", " : "";
       var when = v.t === null ? "" : ", first at " + v.t.toFixed(2) + " s";
       o.push(v.metric + ": " + now + "run \u03c1 " + (v.rho === null ? "\u2014" : signed(v.rho)) + when);
@@ -214,8 +230,9 @@ REPLAY_JS = r"""
     ids.forEach(function (i) {
       var a = agents[i];
       if (a.x[k] === null) return;
-      var text = a.name + " " + (a.v[k] === null ? 0 : a.v[k]).toFixed(1) + " m/s";
       var hot = a.name === D.critical, q = P(a.x[k], a.y[k]);
+      var text = a.name + " " + (a.v[k] === null ? 0 : a.v[k]).toFixed(1) + " m/s" +
+        (q[0] < 0 || q[0] >= W || q[1] < 0 || q[1] >= H ? " (out of view)" : "");
       var w = ctx.measureText(text).width + 6, h = 17, off = (Math.max(a.L, a.W) / 2 + 1.5) * S + 4;
       var r = {x: q[0] - w / 2, y: i === 0 ? q[1] + off : q[1] - off - h, w: w, h: h};
       var step = i === 0 ? h + 2 : -(h + 2);
@@ -302,12 +319,12 @@ def replay_html(data: Mapping[str, Any], element_id: str = "replay") -> str:
     """The replay section of a card page for replay ``data``: canvas, slider, play/pause,
     the frame's metric values, the data itself and the script, self-contained."""
     eid = html.escape(element_id, quote=True)
-    n = len(data["t"])
+    n = sum(item[1] if isinstance(item, list) else 1 for item in data["t"])  # runs: [item, count]
     first = int(data["first"])
     size = data["view"]["size"]
     what = {"violation": "first violation", "contact": "first contact"}.get(data.get("first_kind"), "moment shown")
     critical = data.get("critical")
-    legend = (f"Starts at the {what} (t = {data['t'][first]:.2f} s). Arrows: where each agent is "
+    legend = (f"Starts at the {what} (t = {data['first_t']:.2f} s). Arrows: where each agent is "
               f"{data.get('arrow_s', 1.0):g} s later at its current speed; "
               + (f"ringed: {html.escape(critical)}, the critical agent; " if critical else "")
               + "red outline: crashed. Drag the slider or use ← → on it; "
@@ -322,7 +339,7 @@ def replay_html(data: Mapping[str, Any], element_id: str = "replay") -> str:
         f"<input type='range' min='0' max='{n - 1}' step='1' value='{first}' list='{eid}-marks' "
         f"aria-label='time'>",
         f"<datalist id='{eid}-marks'><option value='{first}'></option></datalist>",
-        f"<output>t = {data['t'][first]:.2f} s</output>",
+        f"<output>t = {data['first_t']:.2f} s</output>",
         f"<button type='button' class='first'>{html.escape(what)}</button>",
         "</div>",
         "<pre class='values'></pre>",

@@ -320,18 +320,19 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
     """
     from PIL import Image
 
-    from .replay import decoded_agents, frame_lines
+    from .replay import decoded, frame_lines
 
     pygame = _pygame()
     tr = world.trajectory
     k = int(data["first"] if k is None else k)
+    data = decoded(data)
     t = float(data["t"][k])
     step = int(np.argmin(np.abs(tr.t - t)))
     surface = frame(world, step, clock=False)
     size, scale, origin = _view(world, step)
     font = _font(pygame, 19)
     small = _font(pygame, 17)
-    agents = decoded_agents(data)
+    agents = data["agents"]
     critical = data.get("critical")
     pix = surface.vec2pix
     for a in agents:
@@ -355,13 +356,15 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
         x, y, v = a["x"][k], a["y"][k], a["v"][k]
         if x is None:
             continue
+        cx, cy = pix((x, y))
         text = f"{a['name']} {0.0 if v is None else v:.1f} m/s"
+        if not surface.get_rect().collidepoint(cx, cy):
+            text += " (out of view)"
         labels.append(a["name"])
         if font is None:
             continue
         hot = a["name"] == critical
         img = font.render(text, True, INK if hot else PAPER, HIGHLIGHT if hot else (35, 35, 40))
-        cx, cy = pix((x, y))
         off = int((max(a["L"], a["W"]) / 2 + 1.5) * scale) + 4
         # the ego's label below it, the others' above; moved on until it overlaps no other label
         rect = img.get_rect(midtop=(cx, cy + off)) if i == 0 else img.get_rect(midbottom=(cx, cy - off))

@@ -3,17 +3,19 @@
 :func:`replay_data` turns a world (or a bare :class:`~pytest_avscenario.trajectory.Trajectory`)
 into plain JSON data: the road drawn once (lane centre lines with their widths and markings,
 intersection boxes, crosswalks, stop lines), every agent's position, heading and speed at a
-decimated rate (:data:`REPLAY_HZ`, the first violation's step always included), the critical
-agent, the violated metrics, and per frame the distance, footprint gap and time to collision
+decimated rate (:data:`REPLAY_HZ`, plus the steps of the first violation and first contact),
+the critical agent, the violated metrics, and per frame the distance, footprint gap and time to collision
 between the ego and the critical agent, with the pointwise margin ρ(t) of the violated
 distance and TTC monitors. :func:`frame_lines` is the text shown beside a frame; the still
 (:func:`~pytest_avscenario.sim.render.render_moment`) and the card page's replay
 (:mod:`pytest_avscenario.report.replay`) both show exactly these values.
 
-The data is made small enough to keep one per counterexample: positions in centimetres,
-headings in degrees, speeds in decimetres per second, each series stored as its first value
-followed by differences (``null`` where the agent is absent), the road in decimetres.
-Decode a series with :func:`undelta`.
+The data is made small enough to keep one per counterexample: times in centiseconds,
+positions and metric values in centimetres (or centiseconds), headings in degrees, speeds in
+decimetres per second, each series stored as its first value followed by differences
+(``null`` where the agent is absent or a value infinite) with runs of equal items as
+``[item, count]``, an agent's series only from its first frame ``k0`` to its last, the road
+in decimetres. :func:`decoded` gives plain values.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import numpy as np
 from ..trajectory import Trajectory
 
 __all__ = ["REPLAY_HZ", "ARROW_S", "replay_data", "dumps", "undelta", "moment_step",
-           "frame_lines", "decoded_agents", "view_spec"]
+           "frame_lines", "decoded", "view_spec"]
 
 #: frames per second of the replay (the simulation records 10 Hz by default)
 REPLAY_HZ = 5.0
@@ -39,36 +41,50 @@ ARROW_S = 1.0
 _BARE_WIDTH_M = 120.0
 
 
-def _delta(values: np.ndarray, present: np.ndarray) -> list[int | None]:
+def _delta(values: np.ndarray, present: np.ndarray) -> list[Any]:
     """Integers as first value + differences; ``None`` at absent steps (the next present value
-    is a difference from the last present one)."""
-    out: list[int | None] = []
+    is a difference from the last present one); a run of three or more equal items as
+    ``[item, count]`` (a parked car is ``[x0, [0, n]]``)."""
+    items: list[int | None] = []
     last = 0
     for v, p in zip(values.tolist(), present.tolist()):
         if not p or not math.isfinite(v):
-            out.append(None)
+            items.append(None)
             continue
         iv = int(round(v))
-        out.append(iv - last)
+        items.append(iv - last)
         last = iv
+    out: list[Any] = []
+    i = 0
+    while i < len(items):
+        j = i
+        while j < len(items) and items[j] == items[i]:
+            j += 1
+        out.extend([[items[i], j - i]] if j - i >= 3 else items[i:j])
+        i = j
     return out
 
 
-def undelta(series: Sequence[int | None], scale: float = 1.0) -> list[float | None]:
-    """The values of a delta-coded series (``None`` stays ``None``), divided by ``scale``."""
+def undelta(series: Sequence[Any], scale: float = 1.0) -> list[float | None]:
+    """The values of a series coded by :func:`_delta` (``None`` stays ``None``), divided by
+    ``scale``."""
     out: list[float | None] = []
     acc = 0
-    for d in series:
-        if d is None:
-            out.append(None)
-            continue
-        acc += d
-        out.append(acc / scale)
+    for item in series:
+        d, n = item if isinstance(item, list) else (item, 1)
+        for _ in range(n):
+            if d is None:
+                out.append(None)
+                continue
+            acc += d
+            out.append(acc / scale)
     return out
 
 
-def _round(values: np.ndarray, digits: int = 2) -> list[float | None]:
-    return [round(float(v), digits) if math.isfinite(v) else None for v in values.tolist()]
+def _cm(values: np.ndarray) -> list[int | None]:
+    """Hundredths (centimetres, centiseconds), delta-coded; ``None`` where not finite."""
+    values = np.asarray(values, dtype=float)
+    return _delta(values * 100, np.isfinite(values))
 
 
 def moment_step(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | None,
@@ -194,8 +210,8 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
     ``{metric: {"t", "agent", "threshold", "rho"}}`` as a case row holds them; the earliest one
     gives the first violation and the critical agent. ``monitors``: the test's monitors, for the
     TTC radius and the pointwise ρ(t) of violated distance and TTC monitors. ``hz``: frames per
-    second (the first violation's step is always a frame). ``fallback_t`` [s]: the moment to
-    start at when nothing says when the violation happened.
+    second (the steps of the first violation and the first contact are always frames).
+    ``fallback_t`` [s]: the moment to start at when nothing says when the violation happened.
     """
     world = None if isinstance(source, Trajectory) else source
     traj: Trajectory = source if world is None else world.trajectory
@@ -204,7 +220,8 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
     T = traj.n_steps
     moment = moment_step(traj, violations, fallback_t)
     every = max(1, int(round(1.0 / (float(hz) * traj.dt)))) if traj.dt > 0 else 1
-    steps = np.array(sorted(set(range(0, T, every)) | {moment, T - 1}), dtype=int)
+    contact = np.flatnonzero(traj.crashed.any(axis=0))[:1].tolist()  # the first contact is a frame too
+    steps = np.array(sorted(set(range(0, T, every)) | {moment, T - 1, *contact}), dtype=int)
     k_first = int(np.searchsorted(steps, moment))
     crit = _critical(traj, violations, moment)
 
@@ -213,12 +230,18 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
     for i, name in enumerate(traj.names):
         present = traj.present[i, steps]
         crashed = np.flatnonzero(traj.crashed[i, steps] & present)
+        # series cover the frames from the agent's first appearance to its last (agents
+        # spawned near the ego live for a short part of a long run)
+        seen = np.flatnonzero(present)
+        k0, k1 = (int(seen[0]), int(seen[-1]) + 1) if seen.size else (0, 0)
+        span, here = steps[k0:k1], present[k0:k1]
         agent = {
             "name": name, "kind": traj.kinds[i],
             "L": round(float(traj.length[i]), 2), "W": round(float(traj.width[i]), 2),
-            "x": _delta(traj.x[i, steps] * 100, present), "y": _delta(traj.y[i, steps] * 100, present),
-            "h": _delta(np.degrees(traj.heading[i, steps]), present),
-            "v": _delta(traj.speed[i, steps] * 10, present),
+            "k0": k0,
+            "x": _delta(traj.x[i, span] * 100, here), "y": _delta(traj.y[i, span] * 100, here),
+            "h": _delta(np.degrees(traj.heading[i, span]), here),
+            "v": _delta(traj.speed[i, span] * 10, here),
             "crash": int(crashed[0]) if crashed.size else None,
         }
         if name in arms:
@@ -244,8 +267,8 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
         ttc = pairwise_ttc(traj, radius)
         gap = footprint_gap(traj)
         if crit is not None:
-            values = {"d": _round(dist[crit - 1, steps]), "gap": _round(gap[crit - 1, steps]),
-                      "ttc": _round(ttc[crit - 1, steps]), "radius": radius}
+            values = {"d": _cm(dist[crit - 1, steps]), "gap": _cm(gap[crit - 1, steps]),
+                      "ttc": _cm(ttc[crit - 1, steps]), "radius": radius}
         violated = {v["metric"] for v in viol}
         for m in monitors:
             if m.name not in violated:
@@ -257,12 +280,12 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
             else:
                 continue  # a whole-run metric has no value per frame
             with np.errstate(invalid="ignore"):
-                rho_t[m.name] = _round(np.nanmin(per[:, steps], axis=0) - m.threshold)
+                rho_t[m.name] = _cm(np.nanmin(per[:, steps], axis=0) - m.threshold)
 
     data: dict[str, Any] = {
         "format": 1,
         "title": title,
-        "t": _round(traj.t[steps]),
+        "t": _cm(traj.t[steps]),
         "first": k_first,
         "first_t": round(float(traj.t[moment]), 2),
         "first_kind": "violation" if viol and any(v["t"] is not None for v in viol) else
@@ -285,11 +308,23 @@ def dumps(data: Mapping[str, Any]) -> str:
     return json.dumps(data, separators=(",", ":"), allow_nan=False)
 
 
-def decoded_agents(data: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """The agents of replay ``data`` with plain per-frame values: x, y [m], heading [deg],
-    speed [m/s] (``None`` where absent)."""
-    return [{**a, "x": undelta(a["x"], 100), "y": undelta(a["y"], 100), "h": undelta(a["h"]),
-             "v": undelta(a["v"], 10)} for a in data["agents"]]
+def decoded(data: Mapping[str, Any]) -> dict[str, Any]:
+    """Replay ``data`` with plain per-frame values: ``t`` [s]; each agent's x, y [m], heading
+    [deg], speed [m/s] over every frame (``None`` where absent); the metric values [m, s]."""
+    n = len(data["t"])
+
+    def frames(a: Mapping[str, Any], key: str, scale: float) -> list[float | None]:
+        body = undelta(a[key], scale)
+        return [None] * a["k0"] + body + [None] * (n - a["k0"] - len(body))
+
+    out = dict(data)
+    out["t"] = undelta(data["t"], 100)
+    out["agents"] = [{**a, "x": frames(a, "x", 100), "y": frames(a, "y", 100), "h": frames(a, "h", 1),
+                      "v": frames(a, "v", 10)} for a in data["agents"]]
+    values = data.get("values") or {}
+    out["values"] = {k: (undelta(v, 100) if isinstance(v, list) else v) for k, v in values.items()}
+    out["rho_t"] = {k: undelta(v, 100) for k, v in (data.get("rho_t") or {}).items()}
+    return out
 
 
 def _num(v: float | None, unit: str, digits: int = 2) -> str:
@@ -299,7 +334,8 @@ def _num(v: float | None, unit: str, digits: int = 2) -> str:
 def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
     """The text shown beside frame ``k``: its time (and whether it is the first violation),
     distance, gap and TTC to the critical agent, ρ(t) of the violated distance/TTC metrics and
-    each violated metric's ρ over the run. The card's replay script writes the same lines."""
+    each violated metric's ρ over the run. The card's replay script writes the same lines.
+    ``data`` as :func:`decoded` gives it."""
     t = data["t"][k]
     mark = f" — first {data['first_kind']}" if k == data["first"] and data["first_kind"] != "moment" else ""
     lines = [f"t = {t:.2f} s{mark}"]
