@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import html
 import json
+import re
 from typing import Any, Mapping
 
 __all__ = ["replay_html", "REPLAY_CSS", "REPLAY_JS"]
@@ -30,284 +31,225 @@ REPLAY_CSS = """
 .replay pre.values { margin: .3em 0; max-width: 800px; }
 """
 
-# ES5-level JavaScript on purpose: no build step, and old CI artifact viewers run it too.
+# ES5-level JavaScript on purpose: no build step, and old CI artifact viewers run it too. It is
+# shipped without indentation and comments (every card carries its own copy).
 REPLAY_JS = r"""
 (function (id) {
-  var root = document.getElementById(id);
-  var D = JSON.parse(document.getElementById(id + "-data").textContent);
-  var canvas = root.querySelector("canvas"), ctx = canvas.getContext("2d");
-  var slider = root.querySelector("input[type=range]"), out = root.querySelector("output");
-  var play = root.querySelector("button.play"), toFirst = root.querySelector("button.first");
-  var valuesBox = root.querySelector("pre.values");
-  var W = canvas.width, H = canvas.height, S = D.view.scale, N;
+  var root = document.getElementById(id), D = JSON.parse(document.getElementById(id + "-data").textContent);
+  var canvas = root.querySelector("canvas"), c = canvas.getContext("2d");
+  var slider = root.querySelector("input"), out = root.querySelector("output");
+  var play = root.querySelector(".play"), box = root.querySelector("pre");
+  var W = canvas.width, H = canvas.height, S = D.view.scale, PI2 = 2 * Math.PI;
+  var GREY = "rgb(240,240,240)", HOT = "rgb(255,150,0)", DARK = "rgb(35,35,40)", RED = "rgb(255,40,40)";
   var COLOURS = {ego: "rgb(60,200,80)", car: "rgb(90,150,230)", bus: "rgb(250,190,20)",
                  parked: "rgb(150,150,160)", pedestrian: "rgb(230,60,200)"};
-  var HIGHLIGHT = "rgb(255,150,0)", INK = "rgb(25,25,28)", DARK = "rgb(35,35,40)";
-  function undelta(s, scale) {  // first value + differences; [item, count] is a run
+  function undelta(s, scale) {  // first value + differences; [item, count] is a run of items
     var o = [], acc = 0;
-    for (var i = 0; i < s.length; i++) {
-      var run = Array.isArray(s[i]), d = run ? s[i][0] : s[i], n = run ? s[i][1] : 1;
-      for (var j = 0; j < n; j++) {
-        if (d === null) { o.push(null); } else { acc += d; o.push(acc / scale); }
-      }
-    }
+    s.forEach(function (it) {
+      var run = Array.isArray(it), d = run ? it[0] : it;
+      for (var j = 0; j < (run ? it[1] : 1); j++) o.push(d === null ? null : (acc += d) / scale);
+    });
     return o;
   }
-  function frames(a, s, scale) {  // a series over the agent's frames k0 .. -> every frame
-    var o = [], body = undelta(s, scale), i;
-    for (i = 0; i < N; i++) o.push(i >= a.k0 && i - a.k0 < body.length ? body[i - a.k0] : null);
-    return o;
-  }
-  D.t = undelta(D.t, 100);
-  N = D.t.length;
+  function obj(m, f) { var o = {}; Object.keys(m || {}).forEach(function (k) { o[k] = f(m[k]); }); return o; }
+  var T = undelta(D.t, 100), N = T.length;
+  var V = obj(D.values, function (v) { return Array.isArray(v) ? undelta(v, 100) : v; });
+  var RT = obj(D.rho_t, function (v) { return undelta(v, 100); });
   var agents = D.agents.map(function (a) {
+    function f(s, scale) {  // the agent's frames k0 .. spread over every frame
+      var b = undelta(s, scale), o = [];
+      for (var i = 0; i < N; i++) o.push(i >= a.k0 && i - a.k0 < b.length ? b[i - a.k0] : null);
+      return o;
+    }
     return {name: a.name, kind: a.kind, L: a.L, W: a.W, crash: a.crash, arm: a.arm || [],
-            x: frames(a, a.x, 100), y: frames(a, a.y, 100), h: frames(a, a.h, 1), v: frames(a, a.v, 10)};
+            x: f(a.x, 100), y: f(a.y, 100), h: f(a.h, 180 / Math.PI), v: f(a.v, 10)};
   });
-  var V = {};
-  Object.keys(D.values || {}).forEach(function (key) {
-    V[key] = Array.isArray(D.values[key]) ? undelta(D.values[key], 100) : D.values[key];
-  });
-  var RT = {};
-  Object.keys(D.rho_t || {}).forEach(function (key) { RT[key] = undelta(D.rho_t[key], 100); });
   var road = D.road || {lanes: [], boxes: [], crosswalks: [], stop_lines: []};
-  var lanes = road.lanes.map(function (l) {
+  var lanes = road.lanes.map(function (l) {  // [width, parking, left line, right line, points]
     var pts = [], x = 0, y = 0;  // decimetres, x and y each as first value + differences
-    for (var i = 0; i + 1 < l.p.length; i += 2) { x += l.p[i]; y += l.p[i + 1]; pts.push([x / 10, y / 10]); }
-    return {w: l.w, park: l.park, lines: l.lines, pts: pts};
+    for (var i = 4; i + 1 < l.length; i += 2) pts.push([(x += l[i]) / 10, (y += l[i + 1]) / 10]);
+    return {w: l[0], park: l[1], lines: [l[2], l[3]], pts: pts};
   });
-  var cx = 0, cy = 0, lastEgo = null;
-  function centre(k) {
-    var e = agents[0], here = e.x[k] !== null;
-    if (here) lastEgo = [e.x[k], e.y[k]];
-    var ex = here ? e.x[k] : (lastEgo ? lastEgo[0] : 0), ey = here ? e.y[k] : (lastEgo ? lastEgo[1] : 0);
-    cx = D.view.cx !== null ? D.view.cx : ex + D.view.ahead;
-    cy = D.view.cy !== null ? D.view.cy : ey;
-  }
+  var cx = 0, cy = 0, ego = [0, 0];
   function P(x, y) { return [(x - cx) * S + W / 2, H / 2 - (y - cy) * S]; }
   function path(pts, close) {
-    ctx.beginPath();
-    for (var i = 0; i < pts.length; i++) {
-      var q = P(pts[i][0], pts[i][1]);
-      if (i === 0) ctx.moveTo(q[0], q[1]); else ctx.lineTo(q[0], q[1]);
-    }
-    if (close) ctx.closePath();
+    c.beginPath();
+    pts.forEach(function (p, i) { var q = P(p[0], p[1]); c[i ? "lineTo" : "moveTo"](q[0], q[1]); });
+    if (close) c.closePath();
   }
+  function pen(colour, width, dash) { c.strokeStyle = colour; c.lineWidth = width; c.setLineDash(dash || []); }
+  function seg(a, b) { c.beginPath(); c.moveTo(a[0], a[1]); c.lineTo(b[0], b[1]); c.stroke(); }
+  function disc(q, r, fill) { c.beginPath(); c.arc(q[0], q[1], r, 0, PI2); if (fill) c.fill(); c.stroke(); }
   function offset(pts, r) {  // the polyline r metres to the left
-    var o = [];
-    for (var i = 0; i < pts.length; i++) {
+    return pts.map(function (p, i) {
       var a = pts[Math.max(0, i - 1)], b = pts[Math.min(pts.length - 1, i + 1)];
       var dx = b[0] - a[0], dy = b[1] - a[1], n = Math.sqrt(dx * dx + dy * dy) || 1;
-      o.push([pts[i][0] - dy / n * r, pts[i][1] + dx / n * r]);
-    }
-    return o;
+      return [p[0] - dy / n * r, p[1] + dx / n * r];
+    });
   }
   function drawRoad() {
-    ctx.fillStyle = "rgb(96,128,86)";
-    ctx.fillRect(0, 0, W, H);
-    ctx.fillStyle = "rgb(72,72,76)";
+    c.fillStyle = "rgb(96,128,86)"; c.fillRect(0, 0, W, H);
+    c.fillStyle = "rgb(72,72,76)";
     road.boxes.forEach(function (b) {
-      path([[b[0] - b[2], b[1] - b[2]], [b[0] + b[2], b[1] - b[2]], [b[0] + b[2], b[1] + b[2]],
-            [b[0] - b[2], b[1] + b[2]]], true);
-      ctx.fill();
+      var h = b[2];
+      path([[b[0] - h, b[1] - h], [b[0] + h, b[1] - h], [b[0] + h, b[1] + h], [b[0] - h, b[1] + h]], true);
+      c.fill();
     });
-    ctx.lineCap = "butt"; ctx.lineJoin = "round";
+    c.lineCap = "butt"; c.lineJoin = "round";
+    lanes.forEach(function (l) { pen(l.park ? "rgb(92,92,98)" : "rgb(72,72,76)", l.w * S); path(l.pts); c.stroke(); });
     lanes.forEach(function (l) {
-      ctx.strokeStyle = l.park ? "rgb(92,92,98)" : "rgb(72,72,76)";
-      ctx.lineWidth = l.w * S;
-      path(l.pts, false);
-      ctx.stroke();
-    });
-    ctx.strokeStyle = "rgb(240,240,240)";
-    ctx.lineWidth = Math.max(1, 0.15 * S);
-    lanes.forEach(function (l) {
-      [[0, l.w / 2], [1, -l.w / 2]].forEach(function (side) {
-        var kind = l.lines[side[0]];
+      [l.w / 2, -l.w / 2].forEach(function (r, side) {
+        var kind = l.lines[side];  // highway-env's line types: 0 none, 1 striped, else continuous
         if (!kind) return;
-        ctx.setLineDash(kind === 1 ? [3 * S, 4.3 * S] : []);
-        path(offset(l.pts, side[1]), false);
-        ctx.stroke();
+        pen(GREY, Math.max(1, 0.15 * S), kind === 1 ? [3 * S, 4.3 * S] : []);
+        path(offset(l.pts, r)); c.stroke();
       });
     });
-    ctx.setLineDash([]);
-    ctx.fillStyle = "rgb(240,240,240)";
-    road.crosswalks.forEach(function (c) {
-      var ax = c[0], ay = c[1], dx = c[2] - ax, dy = c[3] - ay, len = Math.sqrt(dx * dx + dy * dy) || 1;
-      var ux = dx / len, uy = dy / len, nx = -uy * c[4] / 2, ny = ux * c[4] / 2;
-      for (var k = 0; k < len - 0.3; k += 1.2) {
-        var k0 = k + 0.3, k1 = Math.min(k + 0.9, len);
-        path([[ax + ux * k0 + nx, ay + uy * k0 + ny], [ax + ux * k1 + nx, ay + uy * k1 + ny],
-              [ax + ux * k1 - nx, ay + uy * k1 - ny], [ax + ux * k0 - nx, ay + uy * k0 - ny]], true);
-        ctx.fill();
+    pen(GREY, Math.max(2, 0.4 * S));
+    c.fillStyle = GREY;
+    road.crosswalks.forEach(function (w) {
+      var dx = w[2] - w[0], dy = w[3] - w[1], len = Math.sqrt(dx * dx + dy * dy) || 1;
+      var ux = dx / len, uy = dy / len, nx = -uy * w[4] / 2, ny = ux * w[4] / 2;
+      for (var k = 0.3; k < len; k += 1.2) {
+        var e = Math.min(k + 0.6, len), A = [w[0] + ux * k, w[1] + uy * k], B = [w[0] + ux * e, w[1] + uy * e];
+        path([[A[0] + nx, A[1] + ny], [B[0] + nx, B[1] + ny], [B[0] - nx, B[1] - ny], [A[0] - nx, A[1] - ny]], true);
+        c.fill();
       }
     });
-    ctx.strokeStyle = "rgb(240,240,240)";
-    ctx.lineWidth = Math.max(2, 0.4 * S);
-    road.stop_lines.forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]], false); ctx.stroke(); });
+    road.stop_lines.forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
   }
-  function fmt(v, d) { return v === null ? "\u2014" : v.toFixed(d); }
   function signed(v) { return (v >= 0 ? "+" : "") + v.toFixed(2); }
   function lines(k) {  // the same lines as sim.replay.frame_lines
-    var mark = (k === D.first && D.first_kind !== "moment") ? " \u2014 first " + D.first_kind : "";
-    var o = ["t = " + D.t[k].toFixed(2) + " s" + mark];
+    var mark = k === D.first && D.first_kind !== "moment" ? " \u2014 first " + D.first_kind : "";
+    var o = ["t = " + T[k].toFixed(2) + " s" + mark], dash = "\u2014";
     if (D.critical && V.d) {
-      var d = V.d[k], ttc = V.ttc[k];
-      var ttcText = d === null ? "\u2014" : (ttc === null ? "\u221e" : ttc.toFixed(2) + " s");
-      o.push(D.critical + ": distance " + (d === null ? "\u2014" : d.toFixed(2) + " m") + ", gap " +
-             (V.gap[k] === null ? "\u2014" : V.gap[k].toFixed(2) + " m") + ", TTC " + ttcText);
+      var d = V.d[k], g = V.gap[k], ttc = V.ttc[k];
+      o.push(D.critical + ": distance " + (d === null ? dash : d.toFixed(2) + " m") + ", gap " +
+             (g === null ? dash : g.toFixed(2) + " m") + ", TTC " +
+             (d === null ? dash : ttc === null ? "\u221e" : ttc.toFixed(2) + " s"));
     }
     D.violations.forEach(function (v) {
       var per = RT[v.metric];
-      var now = per && per[k] !== null ? "\u03c1(t) " + signed(per[k]) + ", " : "";
-      var when = v.t === null ? "" : ", first at " + v.t.toFixed(2) + " s";
-      o.push(v.metric + ": " + now + "run \u03c1 " + (v.rho === null ? "\u2014" : signed(v.rho)) + when);
+      o.push(v.metric + ": " + (per && per[k] !== null ? "\u03c1(t) " + signed(per[k]) + ", " : "") + "run \u03c1 " +
+             (v.rho === null ? dash : signed(v.rho)) + (v.t === null ? "" : ", first at " + v.t.toFixed(2) + " s"));
     });
     return o;
   }
   function arrow(a, b) {
-    ctx.beginPath(); ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0], b[1]); ctx.stroke();
-    var dx = b[0] - a[0], dy = b[1] - a[1], n = Math.sqrt(dx * dx + dy * dy);
+    seg(a, b);
+    var dx = b[0] - a[0], dy = b[1] - a[1], n = Math.sqrt(dx * dx + dy * dy), h = Math.min(10, n / 2);
     if (n < 4) return;
-    var ux = dx / n, uy = dy / n, head = Math.min(10, n / 2);
-    ctx.beginPath();
-    ctx.moveTo(b[0], b[1]);
-    ctx.lineTo(b[0] - ux * head - uy * head * 0.6, b[1] - uy * head + ux * head * 0.6);
-    ctx.lineTo(b[0] - ux * head + uy * head * 0.6, b[1] - uy * head - ux * head * 0.6);
-    ctx.closePath(); ctx.fill();
+    dx /= n; dy /= n;
+    c.beginPath(); c.moveTo(b[0], b[1]);
+    c.lineTo(b[0] - dx * h - dy * h * 0.6, b[1] - dy * h + dx * h * 0.6);
+    c.lineTo(b[0] - dx * h + dy * h * 0.6, b[1] - dy * h - dx * h * 0.6);
+    c.fill();
+  }
+  function order(key) {
+    return agents.map(function (a, i) { return i; }).sort(function (i, j) { return key(agents[i]) - key(agents[j]) || i - j; });
   }
   function drawAgents(k) {
-    var order = agents.map(function (a, i) { return i; }).sort(function (i, j) {
-      return (agents[i].kind === "pedestrian") - (agents[j].kind === "pedestrian") || i - j;
-    });
-    order.forEach(function (i) {
-      var a = agents[i];
-      if (a.x[k] === null) return;
-      var x = a.x[k], y = a.y[k], h = a.h[k] * Math.PI / 180, c = Math.cos(h), s = Math.sin(h);
+    order(function (a) { return a.kind === "pedestrian"; }).forEach(function (i) {
+      var a = agents[i], x = a.x[k], y = a.y[k], cs = Math.cos(a.h[k]), sn = Math.sin(a.h[k]);
+      if (x === null) return;
       var crashed = a.crash !== null && k >= a.crash;
-      ctx.fillStyle = COLOURS[a.kind] || COLOURS.car;
-      ctx.strokeStyle = crashed ? "rgb(255,40,40)" : "rgb(20,20,20)";
-      ctx.lineWidth = crashed ? 3 : 1;
-      if (a.kind === "pedestrian") {
-        var q = P(x, y);
-        ctx.beginPath(); ctx.arc(q[0], q[1], Math.max(4, 0.5 * S), 0, 2 * Math.PI);
-        ctx.fill(); ctx.stroke();
-        return;
-      }
+      c.fillStyle = COLOURS[a.kind] || COLOURS.car;
+      pen(crashed ? RED : "rgb(20,20,20)", crashed ? 3 : 1);
+      if (a.kind === "pedestrian") return disc(P(x, y), Math.max(4, 0.5 * S), true);
+      function at(l, w) { return [x + cs * l - sn * w, y + sn * l + cs * w]; }  // l ahead, w left of the centre
       var L = a.L / 2, B = a.W / 2;
-      path([[x + c * L - s * B, y + s * L + c * B], [x + c * L + s * B, y + s * L - c * B],
-            [x - c * L + s * B, y - s * L - c * B], [x - c * L - s * B, y - s * L + c * B]], true);
-      ctx.fill(); ctx.stroke();
-      ctx.strokeStyle = "rgb(30,30,30)"; ctx.lineWidth = Math.max(1, 0.3 * S);
-      var f = a.L / 2 - 1.2, wb = a.W / 2.5;
-      path([[x + c * f - s * wb, y + s * f + c * wb], [x + c * f + s * wb, y + s * f - c * wb]], false);
-      ctx.stroke();
-      if (a.arm.indexOf(k) >= 0) {
-        var ar = P(x + c * (a.L / 2 - 2) - s * (a.W / 2 + 0.8), y + s * (a.L / 2 - 2) + c * (a.W / 2 + 0.8));
-        ctx.fillStyle = "rgb(255,40,40)";
-        ctx.beginPath(); ctx.arc(ar[0], ar[1], Math.max(3, 0.6 * S), 0, 2 * Math.PI); ctx.fill();
-      }
+      path([at(L, B), at(L, -B), at(-L, -B), at(-L, B)], true); c.fill(); c.stroke();
+      pen("rgb(30,30,30)", Math.max(1, 0.3 * S));
+      path([at(L - 1.2, a.W / 2.5), at(L - 1.2, -a.W / 2.5)]); c.stroke();  // the windscreen
+      if (a.arm.indexOf(k) >= 0) { c.fillStyle = RED; pen(RED, 1); disc(P.apply(null, at(L - 2, B + 0.8)), Math.max(3, 0.6 * S), true); }
     });
     agents.forEach(function (a) {  // the critical agent's ring and everybody's velocity arrow
       if (a.x[k] === null) return;
-      var q = P(a.x[k], a.y[k]), h = a.h[k] * Math.PI / 180, v = a.v[k] || 0;
-      if (a.name === D.critical) {
-        ctx.strokeStyle = HIGHLIGHT; ctx.lineWidth = 3;
-        ctx.beginPath(); ctx.arc(q[0], q[1], Math.max(10, (Math.max(a.L, a.W) / 2 + 1.2) * S), 0, 2 * Math.PI);
-        ctx.stroke();
-      }
-      if (Math.abs(v) > 0.05) {
-        var len = v * D.arrow_s;
-        ctx.strokeStyle = "white"; ctx.fillStyle = "white"; ctx.lineWidth = 2;
-        arrow(q, P(a.x[k] + Math.cos(h) * len, a.y[k] + Math.sin(h) * len));
+      var q = P(a.x[k], a.y[k]), len = (a.v[k] || 0) * D.arrow_s;
+      if (a.name === D.critical) { pen(HOT, 3); disc(q, Math.max(10, (Math.max(a.L, a.W) / 2 + 1.2) * S)); }
+      if (Math.abs(len) > 0.05) {
+        pen("white", 2); c.fillStyle = "white";
+        arrow(q, P(a.x[k] + Math.cos(a.h[k]) * len, a.y[k] + Math.sin(a.h[k]) * len));
       }
     });
-    ctx.font = "bold 13px system-ui, sans-serif";
-    ctx.textBaseline = "middle";
+    c.font = "bold 13px system-ui, sans-serif"; c.textBaseline = "middle";
     var taken = [];
-    var ids = agents.map(function (a, i) { return i; }).sort(function (i, j) {
-      return (agents[i].name !== D.critical) - (agents[j].name !== D.critical) || i - j;
-    });
-    ids.forEach(function (i) {
-      var a = agents[i];
+    order(function (a) { return a.name !== D.critical; }).forEach(function (i) {
+      var a = agents[i], hot = a.name === D.critical;
       if (a.x[k] === null) return;
-      var hot = a.name === D.critical, q = P(a.x[k], a.y[k]);
-      var text = a.name + " " + (a.v[k] === null ? 0 : a.v[k]).toFixed(1) + " m/s" +
-        (q[0] < 0 || q[0] >= W || q[1] < 0 || q[1] >= H ? " (out of view)" : "");
-      var w = ctx.measureText(text).width + 6, h = 17, off = (Math.max(a.L, a.W) / 2 + 1.5) * S + 4;
-      var r = {x: q[0] - w / 2, y: i === 0 ? q[1] + off : q[1] - off - h, w: w, h: h};
-      var step = i === 0 ? h + 2 : -(h + 2);
+      var q = P(a.x[k], a.y[k]), out = q[0] < 0 || q[0] >= W || q[1] < 0 || q[1] >= H;
+      var text = a.name + " " + (a.v[k] || 0).toFixed(1) + " m/s" + (out ? " (out of view)" : "");
+      var w = c.measureText(text).width + 6, h = 17, off = (Math.max(a.L, a.W) / 2 + 1.5) * S + 4;
+      var r = {x: q[0] - w / 2, y: i ? q[1] - off - h : q[1] + off, w: w, h: h};  // the ego's below it
       for (var n = 0; n < 8 && taken.some(function (t) {
         return r.x < t.x + t.w && t.x < r.x + r.w && r.y < t.y + t.h && t.y < r.y + r.h;
-      }); n++) r.y += step;
-      r.x = Math.min(Math.max(r.x, 0), W - r.w); r.y = Math.min(Math.max(r.y, 0), H - r.h);
+      }); n++) r.y += i ? -(h + 2) : h + 2;
+      r.x = Math.min(Math.max(r.x, 0), W - w); r.y = Math.min(Math.max(r.y, 0), H - h);
       taken.push(r);
-      ctx.strokeStyle = hot ? HIGHLIGHT : DARK; ctx.lineWidth = 1;
-      ctx.beginPath(); ctx.moveTo(q[0], q[1]);
-      ctx.lineTo(Math.min(Math.max(q[0], r.x), r.x + r.w), r.y > q[1] ? r.y : r.y + r.h); ctx.stroke();
-      ctx.fillStyle = hot ? HIGHLIGHT : DARK;
-      ctx.fillRect(r.x, r.y, r.w, r.h);
-      ctx.fillStyle = hot ? INK : "rgb(250,250,250)";
-      ctx.fillText(text, r.x + 3, r.y + h / 2 + 1);
+      pen(hot ? HOT : DARK, 1);
+      seg(q, [Math.min(Math.max(q[0], r.x), r.x + w), r.y > q[1] ? r.y : r.y + h]);
+      c.fillStyle = hot ? HOT : DARK; c.fillRect(r.x, r.y, w, h);
+      c.fillStyle = hot ? "rgb(25,25,28)" : "rgb(250,250,250)"; c.fillText(text, r.x + 3, r.y + h / 2 + 1);
     });
   }
   function drawScale() {
-    var target = W / S / 6, metres = 1;
-    [1, 10, 100, 1000].forEach(function (d) { [1, 2, 5].forEach(function (m) { if (m * d <= target) metres = m * d; }); });
-    var bar = metres * S, x0 = 12, y0 = H - 14;
-    var text = metres + " m   arrows: " + D.arrow_s + " s of travel";
-    ctx.font = "12px system-ui, sans-serif";
-    ctx.fillStyle = DARK;
-    ctx.fillRect(x0 - 6, y0 - 26, Math.max(bar, ctx.measureText(text).width) + 12, 34);
-    ctx.fillStyle = "rgb(250,250,250)"; ctx.strokeStyle = "rgb(250,250,250)"; ctx.lineWidth = 3;
-    ctx.beginPath(); ctx.moveTo(x0, y0); ctx.lineTo(x0 + bar, y0); ctx.stroke();
-    ctx.lineWidth = 2;
-    [x0, x0 + bar].forEach(function (x) { ctx.beginPath(); ctx.moveTo(x, y0 - 5); ctx.lineTo(x, y0 + 3); ctx.stroke(); });
-    ctx.textBaseline = "alphabetic";
-    ctx.fillText(text, x0, y0 - 10);
+    var m = 1, x0 = 12, y0 = H - 14;
+    [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000].forEach(function (v) { if (v <= W / S / 6) m = v; });
+    var text = m + " m   arrows: " + D.arrow_s + " s of travel";
+    c.font = "12px system-ui, sans-serif"; c.textBaseline = "alphabetic";
+    c.fillStyle = DARK; c.fillRect(x0 - 6, y0 - 26, Math.max(m * S, c.measureText(text).width) + 12, 34);
+    pen("rgb(250,250,250)", 3); seg([x0, y0], [x0 + m * S, y0]);
+    pen("rgb(250,250,250)", 2); seg([x0, y0 - 5], [x0, y0 + 3]); seg([x0 + m * S, y0 - 5], [x0 + m * S, y0 + 3]);
+    c.fillStyle = "rgb(250,250,250)"; c.fillText(text, x0, y0 - 10);
   }
-  var draws = 0;
+  var draws = 0, timer = null;
   function draw(k) {
     k = Math.max(0, Math.min(N - 1, k | 0));
-    centre(k);
-    drawRoad();
-    drawAgents(k);
-    drawScale();
+    var e = agents[0];
+    if (e.x[k] !== null) ego = [e.x[k], e.y[k]];
+    cx = D.view.cx !== null ? D.view.cx : ego[0] + D.view.ahead;
+    cy = D.view.cy !== null ? D.view.cy : ego[1];
+    drawRoad(); drawAgents(k); drawScale();
     var text = lines(k);
     out.textContent = text[0];
-    valuesBox.textContent = text.slice(1).join("\n");
-    draws += 1;
-    root.setAttribute("data-frame", String(k));
-    root.setAttribute("data-t", D.t[k].toFixed(2));
-    root.setAttribute("data-draws", String(draws));
+    box.textContent = text.slice(1).join("\n");
+    root.setAttribute("data-frame", k);
+    root.setAttribute("data-t", T[k].toFixed(2));
+    root.setAttribute("data-draws", ++draws);
   }
-  var timer = null;
-  function stop() { if (timer !== null) { clearInterval(timer); timer = null; } play.textContent = "\u25b6 play"; }
-  play.addEventListener("click", function () {
-    if (timer !== null) { stop(); return; }
-    if (+slider.value >= N - 1) { slider.value = 0; draw(0); }
+  function stop() { clearInterval(timer); timer = null; play.textContent = "\u25b6 play"; }
+  play.onclick = function () {
+    if (timer !== null) return stop();
+    if (+slider.value >= N - 1) draw(slider.value = 0);
     play.textContent = "\u275a\u275a pause";
-    var dt = N > 1 ? (D.t[N - 1] - D.t[0]) / (N - 1) : 0.2;
     timer = setInterval(function () {
-      var k = +slider.value + 1;
-      if (k >= N) { stop(); return; }
-      slider.value = k; draw(k);
-    }, Math.max(20, dt * 1000));
-  });
-  toFirst.addEventListener("click", function () { stop(); slider.value = D.first; draw(D.first); });
-  slider.addEventListener("input", function () { draw(+slider.value); });
+      if (+slider.value >= N - 1) return stop();
+      draw(++slider.value);
+    }, Math.max(20, N > 1 ? (T[N - 1] - T[0]) / (N - 1) * 1000 : 200));
+  };
+  root.querySelector(".first").onclick = function () { stop(); draw(slider.value = D.first); };
+  slider.oninput = function () { draw(+slider.value); };
   function fromHash() {
-    var m = /(?:^|[#&])t=([0-9.]+)/.exec(window.location.hash);
+    var m = /(?:^|[#&])t=([0-9.]+)/.exec(location.hash), best = 0;
     if (!m) return false;
-    var t = parseFloat(m[1]), best = 0;
-    for (var i = 1; i < N; i++) if (Math.abs(D.t[i] - t) < Math.abs(D.t[best] - t)) best = i;
+    for (var i = 1; i < N; i++) if (Math.abs(T[i] - m[1]) < Math.abs(T[best] - m[1])) best = i;
     slider.value = best;
     slider.dispatchEvent(new Event("input"));
     return true;
   }
-  window.addEventListener("hashchange", fromHash);
+  addEventListener("hashchange", fromHash);
   if (!fromHash()) draw(D.first);
 })(%(id)s);
 """
+
+
+def _compact(js: str) -> str:
+    """``js`` without indentation, blank lines and ``  // comments`` (none sits in a string)."""
+    lines = (re.sub(r"\s+// .*$", "", line).strip() for line in js.splitlines())
+    return "\n".join(line for line in lines if line)
+
+
+_SHIPPED_JS = _compact(REPLAY_JS)
 
 
 def _json_for_script(data: Mapping[str, Any]) -> str:
@@ -345,6 +287,6 @@ def replay_html(data: Mapping[str, Any], element_id: str = "replay") -> str:
         "<pre class='values'></pre>",
         f"<p class='meta'>{legend}</p>",
         f"<script type='application/json' id='{eid}-data'>{_json_for_script(data)}</script>",
-        f"<script>{REPLAY_JS % {'id': json.dumps(element_id)}}</script>",
+        f"<script>{_SHIPPED_JS % {'id': json.dumps(element_id)}}</script>",
         "</section>",
     ])

@@ -408,7 +408,7 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
         strip = _image(text)
         out.paste(strip.crop((0, 0, size[0], band)), (0, 0))
         out.paste(strip.crop((0, band + size[1], size[0], out.height)), (0, band + size[1]))
-    _save_atomic(out.convert("P", palette=Image.Palette.ADAPTIVE, colors=128), path)
+    _save_atomic(out.convert("P", palette=Image.Palette.ADAPTIVE, colors=32), path)  # flat colours: 32 suffice
     return {"path": os.fspath(path), "t": t, "step": step, "labels": labels, "critical": critical,
             "lines": lines}
 

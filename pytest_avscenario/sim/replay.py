@@ -140,12 +140,15 @@ def _dm(points: Sequence[Sequence[float]]) -> list[int]:
 
 
 def _road(world: Any) -> dict[str, Any]:
+    """Each lane as ``[width, parking (0/1), left line, right line, x0, y0, dx1, dy1, …]``
+    (highway-env's line types: 0 none, 1 striped, 2 and 3 continuous; points as :func:`_dm`);
+    intersection boxes ``[cx, cy, half]``, crosswalks ``[x0, y0, x1, y1, width]`` and stop
+    lines ``[x0, y0, x1, y1]`` in metres."""
     road = world.road
     lanes = []
     for lane in world.lane_index.order:
         types = [int(getattr(t, "value", t)) for t in getattr(lane.geometry, "line_types", (0, 0))]
-        lanes.append({"w": round(lane.width, 2), "park": lane.kind == "parking",
-                      "lines": types[:2], "p": _dm(_lane_points(lane))})
+        lanes.append([round(lane.width, 2), int(lane.kind == "parking"), *types[:2], *_dm(_lane_points(lane))])
     boxes = ([road] if road.kind == "intersection" else
              list(road.intersections.values()) if road.kind == "network" else [])
     out: dict[str, Any] = {
