@@ -160,3 +160,18 @@ def test_every_counterexample_gets_its_replay_not_only_the_pictured_ones(pyteste
     for card in cards:
         page = card.read_text()
         assert "<input type='range'" in page and "id='replay-data'" in page
+
+
+def test_the_card_section_keeps_odd_agent_names_inside_its_data():
+    from pytest_avscenario.report.replay import replay_html
+
+    t = np.arange(0, 1.01, 0.1)
+    name = "</script><img src=x onerror=alert(1)>"
+    traj = Trajectory.from_arrays(t, {"ego": {"x": 10 * t, "y": 0 * t}, name: {"x": 12 + 0 * t, "y": 0 * t}})
+    data = replay_data(traj, violations={"distance": {"t": 0.0, "agent": name, "threshold": 5.0, "rho": -3.0}})
+    section = replay_html(data)
+    assert name not in section and section.count("</script>") == 2  # the data's and the player's
+    embedded = section.split("id='replay-data'>", 1)[1].split("</script>", 1)[0]
+    assert json.loads(embedded) == json.loads(dumps(data)) and data["critical"] == name
+    # the slider spans every frame and starts at the first violation
+    assert "max='5'" in section and f"value='{data['first']}'" in section
