@@ -472,7 +472,7 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
         base.parent.mkdir(parents=True, exist_ok=True)
         data = replay_data(world if world is not None else traj, violations=violations, monitors=monitors,
                            title=item.name, fallback_t=worst.t if worst is not None else None)
-        atomic_write_text(f"{base}.replay.json", dumps(data))
+        atomic_write_text(f"{base}.replay.json", dumps(data), durable=False)  # one of many
         pictures["replay"] = f"{base}.replay.json"
     except Exception as exc:  # the replay is a convenience: never fail the case over it
         warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not record the case's replay: {exc}"))
