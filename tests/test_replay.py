@@ -108,6 +108,7 @@ def test_agents_present_for_part_of_the_run_are_absent_elsewhere():
     assert "road" not in data and data["agents"][1]["k0"] > 0
     plain = decoded(json.loads(dumps(data)))
     walker = plain["agents"][1]
+    assert all(len(a[key]) == len(plain["t"]) for a in plain["agents"] for key in "xyhv")
     shown = [tk for tk, x in zip(plain["t"], walker["x"]) if x is not None]
     assert shown[0] == 1.0 and shown[-1] == 2.4
     assert walker["x"][plain["first"]] == 25.0 and plain["t"][plain["first"]] == 2.0

@@ -314,14 +314,15 @@ def dumps(data: Mapping[str, Any]) -> str:
 def decoded(data: Mapping[str, Any]) -> dict[str, Any]:
     """Replay ``data`` with plain per-frame values: ``t`` [s]; each agent's x, y [m], heading
     [deg], speed [m/s] over every frame (``None`` where absent); the metric values [m, s]."""
-    n = len(data["t"])
+    t = undelta(data["t"], 100)
+    n = len(t)  # frames: the coded series may be shorter (runs)
 
     def frames(a: Mapping[str, Any], key: str, scale: float) -> list[float | None]:
         body = undelta(a[key], scale)
         return [None] * a["k0"] + body + [None] * (n - a["k0"] - len(body))
 
     out = dict(data)
-    out["t"] = undelta(data["t"], 100)
+    out["t"] = t
     out["agents"] = [{**a, "x": frames(a, "x", 100), "y": frames(a, "y", 100), "h": frames(a, "h", 1),
                       "v": frames(a, "v", 10)} for a in data["agents"]]
     values = data.get("values") or {}
