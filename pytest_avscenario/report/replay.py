@@ -116,7 +116,7 @@ REPLAY_JS = r"""
         c.fill();
       }
     });
-    road.stop_lines.forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
+    road.stop_lines.concat(road.lane_ends || []).forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
   }
   function signed(v) { return (v >= 0 ? "+" : "") + v.toFixed(2); }
   function lines(k) {  // the same lines as sim.replay.frame_lines
@@ -172,8 +172,9 @@ REPLAY_JS = r"""
         arrow(q, P(a.x[k] + Math.cos(a.h[k]) * len, a.y[k] + Math.sin(a.h[k]) * len));
       }
     });
+  }
+  function drawLabels(k, taken) {  // taken: the scale bar's box; labels keep off it and each other
     c.font = "bold 13px system-ui, sans-serif"; c.textBaseline = "middle";
-    var taken = [];
     order(function (a) { return a.name !== D.critical; }).forEach(function (i) {
       var a = agents[i], hot = a.name === D.critical;
       if (a.x[k] === null) return;
@@ -181,10 +182,13 @@ REPLAY_JS = r"""
       var text = a.name + " " + (a.v[k] || 0).toFixed(1) + " m/s" + (out ? " (out of view)" : "");
       var w = c.measureText(text).width + 6, h = 17, off = (Math.max(a.L, a.W) / 2 + 1.5) * S + 4;
       var r = {x: q[0] - w / 2, y: i ? q[1] - off - h : q[1] + off, w: w, h: h};  // the ego's below it
+      function clamp() { r.x = Math.min(Math.max(r.x, 0), W - w); r.y = Math.min(Math.max(r.y, 0), H - h); }
+      clamp();
+      var down = !i && r.y + h < H - 2 * h;  // upward from the bottom edge
       for (var n = 0; n < 8 && taken.some(function (t) {
         return r.x < t.x + t.w && t.x < r.x + r.w && r.y < t.y + t.h && t.y < r.y + r.h;
-      }); n++) r.y += i ? -(h + 2) : h + 2;
-      r.x = Math.min(Math.max(r.x, 0), W - w); r.y = Math.min(Math.max(r.y, 0), H - h);
+      }); n++) r.y += down ? h + 2 : -(h + 2);
+      clamp();
       taken.push(r);
       pen(hot ? HOT : DARK, 1);
       seg(q, [Math.min(Math.max(q[0], r.x), r.x + w), r.y > q[1] ? r.y : r.y + h]);
@@ -201,15 +205,17 @@ REPLAY_JS = r"""
     pen("rgb(250,250,250)", 3); seg([x0, y0], [x0 + m * S, y0]);
     pen("rgb(250,250,250)", 2); seg([x0, y0 - 5], [x0, y0 + 3]); seg([x0 + m * S, y0 - 5], [x0 + m * S, y0 + 3]);
     c.fillStyle = "rgb(250,250,250)"; c.fillText(text, x0, y0 - 10);
+    return {x: x0 - 6, y: y0 - 26, w: Math.max(m * S, c.measureText(text).width) + 12, h: 34};
   }
   var draws = 0, timer = null;
   function draw(k) {
     k = Math.max(0, Math.min(N - 1, k | 0));
     var e = agents[0];
     if (e.x[k] !== null) ego = [e.x[k], e.y[k]];
-    cx = D.view.cx !== null ? D.view.cx : ego[0] + D.view.ahead;
-    cy = D.view.cy !== null ? D.view.cy : ego[1];
-    drawRoad(); drawAgents(k); drawScale();
+    var h = D.view.along && e.h[k] !== null ? e.h[k] : 0;  // "ahead" along the ego's heading (highway bends)
+    cx = D.view.cx !== null ? D.view.cx : ego[0] + D.view.ahead * Math.cos(h);
+    cy = D.view.cy !== null ? D.view.cy : ego[1] + D.view.ahead * Math.sin(h);
+    drawRoad(); drawAgents(k); drawLabels(k, [drawScale()]);
     var text = lines(k);
     out.textContent = text[0];
     box.textContent = text.slice(1).join("\n");

@@ -348,8 +348,22 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
             length = v * data.get("arrow_s", 1.0)
             tip = pix((x + math.cos(hr) * length, y + math.sin(hr) * length))
             _arrow(pygame, surface, c, tip, (255, 255, 255), 2)
+    # the scale bar, bottom left
+    metres = _nice_length(size[0] / scale / 6)
+    bar = int(metres * scale)
+    x0, y0 = 12, size[1] - 14
+    legend = small.render(f"{metres:g} m   arrows: {data.get('arrow_s', 1.0):g} s of travel", True, PAPER) \
+        if small is not None else None
+    box_w = max(bar, legend.get_width() if legend is not None else 0) + 12
+    scale_box = pygame.Rect(x0 - 6, y0 - 26, box_w, 34)
+    pygame.draw.rect(surface, (35, 35, 40), scale_box)
+    pygame.draw.line(surface, PAPER, (x0, y0), (x0 + bar, y0), 3)
+    for xx in (x0, x0 + bar):
+        pygame.draw.line(surface, PAPER, (xx, y0 - 5), (xx, y0 + 3), 2)
+    if legend is not None:
+        surface.blit(legend, (x0, y0 - 22))
     labels: list[str] = []
-    taken: list[Any] = []
+    taken: list[Any] = [scale_box]  # labels keep off the scale bar and off each other
     order = sorted(range(len(agents)), key=lambda i: (agents[i]["name"] != critical, i))
     for i in order:
         a = agents[i]
@@ -366,31 +380,20 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
         hot = a["name"] == critical
         img = font.render(text, True, INK if hot else PAPER, HIGHLIGHT if hot else (35, 35, 40))
         off = int((max(a["L"], a["W"]) / 2 + 1.5) * scale) + 4
-        # the ego's label below it, the others' above; moved on until it overlaps no other label
+        # the ego's label below it, the others' above (inside the picture, for an agent out of
+        # view too); moved on until it overlaps no other label, upward at the bottom edge
         rect = img.get_rect(midtop=(cx, cy + off)) if i == 0 else img.get_rect(midbottom=(cx, cy - off))
-        step_px = rect.height + 2 if i == 0 else -(rect.height + 2)
+        rect.clamp_ip(surface.get_rect())
+        down = i == 0 and rect.bottom < surface.get_height() - 2 * rect.height
         for _ in range(8):
             if rect.collidelist(taken) < 0:
                 break
-            rect.move_ip(0, step_px)
+            rect.move_ip(0, rect.height + 2 if down else -(rect.height + 2))
         rect.clamp_ip(surface.get_rect())
         taken.append(rect)
         end = (min(max(cx, rect.left), rect.right), rect.top if rect.top > cy else rect.bottom)
         pygame.draw.line(surface, HIGHLIGHT if hot else (35, 35, 40), (cx, cy), end, 1)
         surface.blit(img, rect)
-    # the scale bar, bottom left
-    metres = _nice_length(size[0] / scale / 6)
-    bar = int(metres * scale)
-    x0, y0 = 12, size[1] - 14
-    legend = small.render(f"{metres:g} m   arrows: {data.get('arrow_s', 1.0):g} s of travel", True, PAPER) \
-        if small is not None else None
-    box_w = max(bar, legend.get_width() if legend is not None else 0) + 12
-    pygame.draw.rect(surface, (35, 35, 40), (x0 - 6, y0 - 26, box_w, 34))
-    pygame.draw.line(surface, PAPER, (x0, y0), (x0 + bar, y0), 3)
-    for xx in (x0, x0 + bar):
-        pygame.draw.line(surface, PAPER, (xx, y0 - 5), (xx, y0 + 3), 2)
-    if legend is not None:
-        surface.blit(legend, (x0, y0 - 22))
     scene = _image(surface)
     # pygame's built-in font has no infinity sign
     lines = [line.replace("∞", "inf") for line in frame_lines(data, k)]

@@ -142,8 +142,8 @@ def _dm(points: Sequence[Sequence[float]]) -> list[int]:
 def _road(world: Any) -> dict[str, Any]:
     """Each lane as ``[width, parking (0/1), left line, right line, x0, y0, dx1, dy1, …]``
     (highway-env's line types: 0 none, 1 striped, 2 and 3 continuous; points as :func:`_dm`);
-    intersection boxes ``[cx, cy, half]``, crosswalks ``[x0, y0, x1, y1, width]`` and stop
-    lines ``[x0, y0, x1, y1]`` in metres."""
+    intersection boxes ``[cx, cy, half]``, crosswalks ``[x0, y0, x1, y1, width]``, stop
+    lines and lane ends ``[x0, y0, x1, y1]`` in metres."""
     road = world.road
     lanes = []
     for lane in world.lane_index.order:
@@ -165,6 +165,13 @@ def _road(world: Any) -> dict[str, Any]:
         g, w = sl.lane.geometry, sl.lane.width
         a, b = g.position(sl.s, -w / 2), g.position(sl.s, w / 2)
         out["stop_lines"].append([round(float(v), 2) for v in (*a, *b)])
+    ends = getattr(road, "lane_ends", [])
+    if ends:  # where a lane ends with traffic in it (a lane drop, an acceleration lane)
+        out["lane_ends"] = []
+        for end in ends:
+            g, w = end.lane.geometry, end.lane.width
+            a, b = g.position(end.s, -w / 2), g.position(end.s, w / 2)
+            out["lane_ends"].append([round(float(v), 2) for v in (*a, *b)])
     return out
 
 
