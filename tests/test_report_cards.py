@@ -159,8 +159,8 @@ def test_a_card_replays_its_case_from_the_first_violation(campaign):
     # the slider, the canvas and the data, inline: the card works offline, with no other file
     assert data is not None and "<input type='range'" in page and "<canvas" in page
     assert not re.search(r"<script[^>]+src=|https?://", page)
-    recorded = next((report / "cases").glob(f"*{row['item'].partition('[')[2][:-1]}*.replay.json"))
-    assert json.loads(recorded.read_text()) == data
+    # the recording came as cases/*.replay.json; the card holds the report's only copy
+    assert list((report / "cases").glob("*.replay.json")) == []
     assert [a["name"] for a in data["agents"]] == ["ego", "lead"] and data["critical"] == "lead"
     assert data["first_kind"] == "violation" and data["violations"][0]["metric"] == "distance"
 
