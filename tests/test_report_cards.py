@@ -140,3 +140,44 @@ def test_a_card_renders_in_chromium_without_script_errors(campaign):
     assert "<td>gap</td>" in params and "<td>weather</td>" in params
     index = _dom((root / "avs-report" / "index.html").resolve().as_uri())
     assert 'id="summary"' in index and "pictures loaded" in index
+
+
+# --------------------------------------------------------------------------- the replay
+
+def _replay(page: str):
+    found = re.search(r"<script type='application/json' id='replay-data'>(.*?)</script>", page, re.S)
+    return json.loads(found.group(1)) if found else None
+
+
+def test_a_card_replays_its_case_from_the_first_violation(campaign):
+    root, _, rows = campaign
+    report = root / "avs-report"
+    row = next(r for r in rows if r["verdict"] == "fail")
+    card = next(c for c in _cards(report) if c.name.endswith(f".{row['item'].partition('[')[2][:-1]}.html"))
+    page = card.read_text()
+    data = _replay(page)
+    # the slider, the canvas and the data, inline: the card works offline, with no other file
+    assert data is not None and "<input type='range'" in page and "<canvas" in page
+    assert not re.search(r"<script[^>]+src=|https?://", page)
+    # the recording came as cases/*.replay.json; the card holds the report's only copy
+    assert list((report / "cases").glob("*.replay.json")) == []
+    assert [a["name"] for a in data["agents"]] == ["ego", "lead"] and data["critical"] == "lead"
+    assert data["first_kind"] == "violation" and data["violations"][0]["metric"] == "distance"
+
+
+def test_the_replay_runs_in_chromium_and_redraws_at_the_chosen_time(campaign):
+    root, _, rows = campaign
+    card = _cards(root / "avs-report")[0]
+    data = _replay(card.read_text())
+    dom = _dom(card.resolve().as_uri())
+    assert 'data-script-errors="0"' in dom and 'data-loaded="yes"' in dom, dom[:400]
+    section = re.search(r'<section class="replay"[^>]*>', dom).group(0)
+    # drawn once, at the first violation
+    assert 'data-draws="1"' in section and f'data-frame="{data["first"]}"' in section
+    assert f'data-t="{data["first_t"]:.2f}"' in section
+    assert re.search(r"<pre class=\"values\">lead: distance [0-9.]+ m", dom)
+    # moving the slider (here through the address, which sets it and fires its input event)
+    later = _dom(card.resolve().as_uri() + "#t=0.8")
+    section = re.search(r'<section class="replay"[^>]*>', later).group(0)
+    assert 'data-t="0.80"' in section and 'data-script-errors="0"' in later
+    assert "<output>t = 0.80 s</output>" in later

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -185,7 +186,7 @@ def test_xdist_workers_case_pictures_land_in_the_claimed_directory(pytester, mon
                                            "-p", "no:cacheprovider")
     result.assert_outcomes(passed=3, failed=1)
     pictures = sorted(p.name for p in (pytester.path / "avs-report-2" / "cases").iterdir())
-    # the first violation, the time series, the GIF and the card
+    # the first violation, the time series, the GIF and the card (which took in the replay's data)
     assert sorted(p.rpartition(".")[2] for p in pictures) == ["gif", "html", "png", "png"]
     manifest = json.loads((pytester.path / "avs-report-2" / ".avs-manifest.json").read_text())
     assert {f"cases/{p}" for p in pictures} <= set(manifest["files"])
@@ -194,7 +195,11 @@ def test_xdist_workers_case_pictures_land_in_the_claimed_directory(pytester, mon
     card = next(p for p in pictures if p.endswith(".html"))
     assert f"cases/{card}" in page
     card_page = (pytester.path / "avs-report-2" / "cases" / card).read_text()
-    assert all(p in card_page for p in pictures if not p.endswith(".html"))
+    assert all(p in card_page for p in pictures if p.endswith((".png", ".gif")))
+    # the replay a worker recorded is on the card, with its slider
+    embedded = re.search(r"<script type='application/json' id='replay-data'>(.*?)</script>", card_page, re.S)
+    replay = json.loads(embedded.group(1))
+    assert "<input type='range'" in card_page and [a["name"] for a in replay["agents"]] == ["ego", "car1"]
 
 
 # --------------------------------------------------------------------------- item 3

@@ -33,6 +33,7 @@ __all__ = [
     "distance", "ttc", "progress", "lane_keeping",
     "collision", "time_headway", "off_road", "reaches",
     "pairwise_distance", "pairwise_ttc", "footprint_gap", "footprint_separation",
+    "critical_agent",
 ]
 
 
@@ -164,6 +165,21 @@ def _argmin_2d(values: np.ndarray) -> tuple[int, int]:
     flat = int(np.argmin(values.T))
     step, row = divmod(flat, values.shape[0])
     return row, step
+
+
+def critical_agent(traj: Trajectory, agent: str | None, t: float | None = None) -> int | None:
+    """Index of the critical agent: ``agent`` when it is another road user of ``traj``,
+    else the one nearest the ego at ``t`` (or over the run); None when the ego is alone."""
+    if traj.n_agents < 2:
+        return None
+    if agent is not None and agent in traj.names[1:]:
+        return traj.names.index(agent)
+    d = pairwise_distance(traj)
+    k = int(np.argmin(np.abs(traj.t - t))) if t is not None else None
+    col = d[:, k] if k is not None else d.min(axis=1)
+    if not np.isfinite(col).any():
+        col = d.min(axis=1)
+    return 1 + int(np.argmin(col))
 
 
 # -- the paper's four --------------------------------------------------------------------------

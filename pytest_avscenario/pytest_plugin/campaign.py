@@ -439,45 +439,61 @@ def progress_writer(config: pytest.Config) -> Any:
 
 def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
                 shrink: ShrinkReport | None) -> dict[str, str]:
-    """PNG of the first violation (and, within the per-test cap, a GIF) of a failing case.
+    """The replay of a failing case and its pictures: ``{kind: path}``.
 
-    Drawn from the minimized case when there is one (that is the one an engineer studies),
-    else from the case as found. Only in-process outcomes keep their world; nothing to draw
-    for tests that return a Trajectory of their own.
+    Every failing case gets its replay (``replay``: the JSON data of the card page's slider);
+    within the per-test caps the annotated still of its first violation (``moment``), its time
+    series (``timeseries``) and a GIF (``gif``). Drawn from the minimized case when there is
+    one (that is the one an engineer studies), else from the case as found. Only in-process
+    outcomes keep their world; a test that returns a Trajectory of its own gets a replay
+    without the road and no pictures.
     """
     directory = item.config.stash[controller_key].directory
     shown = shrink.outcome if shrink is not None and shrink.outcome is not None else outcome
     world = shown.world
-    if directory is None or world is None or getattr(world, "trajectory", None) is None:
+    if world is not None and getattr(world, "trajectory", None) is None:
+        world = None
+    traj = world.trajectory if world is not None else shown.trajectory
+    if directory is None or traj is None:
         return {}
+    from ..report.folder import atomic_write_text
     from ..report.table import file_slug
+    from ..sim.replay import dumps, replay_data
 
     base = directory / "cases" / f"{file_slug(item.nodeid)}"
     pictures: dict[str, str] = {}
-    traj = world.trajectory
-    step = traj.n_steps - 1
+    violations = violations_of(shown.results, shown.first) or {}
+    for metric, where in violations.items():
+        where["rho"] = shown.rho.get(metric)
     worst = min(shown.results.values(), key=lambda r: r.rho, default=None)
-    firsts = [f[0] for f in (shown.first or {}).values() if f and f[0] is not None]
-    moment = min(firsts) if firsts else (worst.t if worst is not None else None)
-    if moment is not None:  # the first violation (or the deciding moment), not the end
-        import numpy as np
-
-        step = int(np.argmin(np.abs(traj.t - moment)))
+    monitors = list(campaign.plan.monitor_set or ())
+    data = None
+    try:
+        base.parent.mkdir(parents=True, exist_ok=True)
+        data = replay_data(world if world is not None else traj, violations=violations, monitors=monitors,
+                           title=item.name, fallback_t=worst.t if worst is not None else None)
+        atomic_write_text(f"{base}.replay.json", dumps(data), durable=False)  # one of many
+        pictures["replay"] = f"{base}.replay.json"
+    except Exception as exc:  # the replay is a convenience: never fail the case over it
+        warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not record the case's replay: {exc}"))
+    if world is None or data is None:
+        return pictures
     settings = item.config.stash[settings_key]
     drawn = campaign.pictured.get(outcome_sampler(item), 0)
     pngs = shown is not outcome or drawn < settings.case_pictures
     try:
-        base.parent.mkdir(parents=True, exist_ok=True)
         if pngs:
             if shown is outcome:
                 campaign.pictured[outcome_sampler(item)] = drawn + 1
-            pictures["moment"] = world.render_png(f"{base}.moment.png", step=step)
+            from ..sim.render import render_moment
+
+            pictures["moment"] = render_moment(world, f"{base}.moment.png", data)["path"]
             from ..report.casefigs import plot_case_timeseries
 
-            agents = [f[1] for f in (shown.first or {}).values() if f and f[0] == moment]
+            first_t = data["first_t"] if data["first_kind"] != "moment" or worst is not None else None
             pictures["timeseries"] = str(plot_case_timeseries(
-                f"{base}.timeseries.png", traj, agent=agents[0] if agents else None, first_t=moment,
-                monitors=list(campaign.plan.monitor_set or ()), title=item.name))
+                f"{base}.timeseries.png", traj, agent=data["critical"], first_t=first_t,
+                monitors=monitors, title=item.name))
         if campaign.gifs < settings.gifs:
             pictures["gif"] = world.render_gif(f"{base}.gif", every=2)
             campaign.gifs += 1

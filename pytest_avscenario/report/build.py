@@ -177,22 +177,27 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     metrics = info.metrics if info is not None else ()
 
     def slider(data: Mapping[str, Any], row: CaseRow) -> str:
+        # the data knows its own first violation and critical agent: those of the case it
+        # recorded (the minimized one, when there is one), not necessarily the row's
         from .replay import replay_html
 
-        where = [w for w in (row.violations or {}).values() if w.get("t") is not None]
-        first = min(where, key=lambda w: w["t"]) if where else {}
-        return replay_html(data, element_id="replay", critical=first.get("agent"), start_t=first.get("t"))
+        return replay_html(data, element_id="replay")
 
     labels = mode_labels(campaigns)
     described = {item: f"{labels[item]} ({m.what}: {m.rule})"
                  for s in campaigns for m in s.modes for item in m.items if item in labels}
     folder.add_all(cases / card_name(row) for row in failing)
     for row in failing:
+        files = CaseFiles(dict(case_files.get(row.item) or {}))
         page = render_card(cases, row, metrics=metrics, space=space, mode=described.get(row.item),
-                           files=CaseFiles(dict(case_files.get(row.item) or {})),
-                           rerun=rerun(row) if rerun is not None else None,
+                           files=files, rerun=rerun(row) if rerun is not None else None,
                            index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
         atomic_write_text(cases / card_name(row), page, durable=False)  # one of many
+        recording = files.get("replay")
+        if recording is not None and "id='replay-data'" in page and folder.owns(recording):
+            # the card holds the recording now (its replay-data script): one copy per report,
+            # so ~700 counterexamples cost ~15 KB each, not ~19
+            Path(recording).unlink(missing_ok=True)
     minimized = sum(r.minimized is not None for r in failing)
     return [mode_table(root, campaigns, rows),
             f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"

@@ -137,7 +137,8 @@ def card_name(row: CaseRow) -> str:
 @dataclass(frozen=True)
 class CaseFiles:
     """What a case left on disk beside its row: ``{kind: path}`` with kinds ``timeseries``,
-    ``moment``, ``gif`` (pictures) and ``replay`` (its recording as JSON, for the slider)."""
+    ``moment``, ``gif`` (pictures) and ``replay`` (its recording as JSON, for the slider; the
+    card embeds it, and the report keeps that copy only)."""
 
     files: Mapping[str, str] = field(default_factory=dict)
 

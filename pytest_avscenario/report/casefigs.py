@@ -16,29 +16,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..monitors.metrics import critical_agent
 from ..trajectory import Trajectory
 
 __all__ = ["critical_agent", "plot_case_timeseries", "TTC_CAP_S"]
 
 #: TTC above this [s] is drawn at the top of its panel (it is +inf when the pair recedes)
 TTC_CAP_S = 10.0
-
-
-def critical_agent(traj: Trajectory, agent: str | None, t: float | None = None) -> int | None:
-    """Index of the critical agent: ``agent`` when it is another road user of ``traj``,
-    else the one nearest the ego at ``t`` (or over the run); None when the ego is alone."""
-    if traj.n_agents < 2:
-        return None
-    if agent is not None and agent in traj.names[1:]:
-        return traj.names.index(agent)
-    from ..monitors.metrics import pairwise_distance
-
-    d = pairwise_distance(traj)
-    k = int(np.argmin(np.abs(traj.t - t))) if t is not None else None
-    col = d[:, k] if k is not None else d.min(axis=1)
-    if not np.isfinite(col).any():
-        col = d.min(axis=1)
-    return 1 + int(np.argmin(col))
 
 
 def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: str | None = None,

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["render_png", "render_gif", "frame"]
+__all__ = ["render_png", "render_gif", "render_moment", "frame"]
 
 GRASS = (96, 128, 86)
 ASPHALT = (72, 72, 76)
@@ -60,39 +60,26 @@ def _view(world: Any, step: int, centre: Any = None,
           width: float | None = None) -> tuple[tuple[int, int], float, np.ndarray]:
     """(size [px], scale [px/m], world point at the top-left corner [m]) for a frame.
 
-    Default: the whole intersection; on a road network a 110 m square following the ego; a
-    133 m window following the ego on other roads. ``centre`` (an (x, y) [m], a place, or an
+    The view of :func:`view_spec` at ``step``; ``centre`` (an (x, y) [m], a place, or an
     agent name) fixes the window's centre and ``width`` [m] its width.
     """
+    from .replay import view_spec
+
     tr = world.trajectory
-    road = world.road
     box = world.lane_index.boxes
-    if road.kind == "intersection":
-        size = (640, 640)
-        half = road.half + min(road.approach_length, 28.0)
-        cx, cy = 0.0, 0.0
-        scale = size[0] / (2 * half)
-    elif road.kind == "network":
-        size = (640, 640)
-        scale = size[0] / 110.0
-        x0, y0 = float(tr.x[0, step]), float(tr.y[0, step])
-        if math.isfinite(x0) and math.isfinite(y0):
-            cx, cy = x0, y0
-        else:
-            cx, cy = float(box[:, 0].min() + box[:, 2].max()) / 2, \
-                float(box[:, 1].min() + box[:, 3].max()) / 2
-    else:
-        size = (800, 320)
-        scale = 6.0
-        x0 = float(tr.x[0, step])
-        cx = x0 + size[0] / scale / 6 if math.isfinite(x0) else 0.0
-        cy = float(box[:, 1].min() + box[:, 3].max()) / 2
-        if road.kind == "highway":
-            # Curves and ramps: follow the ego both ways, a little ahead of it.
-            y0, h0 = float(tr.y[0, step]), float(tr.heading[0, step])
-            if math.isfinite(x0) and math.isfinite(y0):
-                ahead = size[0] / scale / 6
-                cx, cy = x0 + ahead * math.cos(h0), y0 + ahead * math.sin(h0)
+    size, scale, cx, cy, lead, along = view_spec(world)
+    x0, y0 = float(tr.x[0, step]), float(tr.y[0, step])
+    ego_here = math.isfinite(x0) and math.isfinite(y0)
+    if along and ego_here:  # curves and ramps: the ego's heading says where "ahead" is
+        h0 = float(tr.heading[0, step])
+        cx, cy = x0 + lead * math.cos(h0), y0 + lead * math.sin(h0)
+    elif along:
+        cx, cy = 0.0, float(box[:, 1].min() + box[:, 3].max()) / 2
+    if cx is None:
+        cx = x0 + lead if ego_here else (
+            float(box[:, 0].min() + box[:, 2].max()) / 2 if cy is None else 0.0)
+    if cy is None:
+        cy = y0 if ego_here else float(box[:, 1].min() + box[:, 3].max()) / 2
     if width is not None:
         scale = size[0] / float(width)
     if centre is not None:
@@ -114,8 +101,10 @@ def _poly(surface: Any, lane: Any, r0: float, r1: float, s0: float, s1: float) -
     return left + right
 
 
-def frame(world: Any, step: int, centre: Any = None, width: float | None = None) -> Any:
-    """The ``pygame.Surface`` of recorded ``step`` (view options as :func:`_view`)."""
+def frame(world: Any, step: int, centre: Any = None, width: float | None = None,
+          clock: bool = True) -> Any:
+    """The ``pygame.Surface`` of recorded ``step`` (view options as :func:`_view`); ``clock``
+    writes its time in the top-left corner."""
     pygame = _pygame()
     from highway_env.road.graphics import LaneGraphics
 
@@ -196,7 +185,8 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None)
             # The stop arm swings out on the driver's (left) side behind the front door.
             ax, ay = x + ch * (L / 2 - 2.0) - sh * (W / 2 + 0.8), y + sh * (L / 2 - 2.0) + ch * (W / 2 + 0.8)
             pygame.draw.circle(surface, CRASH, surface.vec2pix((ax, ay)), max(3, int(0.6 * scale)))
-    _label(pygame, surface, f"t = {tr.t[step]:.1f} s")
+    if clock:
+        _label(pygame, surface, f"t = {tr.t[step]:.1f} s")
     return surface
 
 
@@ -276,3 +266,173 @@ def render_gif(world: Any, path: str, every: int = 1, centre: Any = None,
     images[0].save(path, save_all=True, append_images=images[1:],
                    duration=max(20, int(round(1000 * tr.dt * every))), loop=0)
     return os.fspath(path)
+
+
+# -- the annotated still -------------------------------------------------------------------------
+
+HIGHLIGHT = (255, 150, 0)
+INK = (25, 25, 28)
+PAPER = (250, 250, 250)
+
+
+def _font(pygame: Any, size: int) -> Any:
+    try:
+        if not pygame.font.get_init():
+            pygame.font.init()
+        return pygame.font.Font(None, size)
+    except Exception:  # no font support in this pygame build: the still has no text
+        return None
+
+
+def _arrow(pygame: Any, surface: Any, a: tuple[int, int], b: tuple[int, int], colour: tuple, width: int) -> None:
+    pygame.draw.line(surface, colour, a, b, width)
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    n = math.hypot(dx, dy)
+    if n < 4:
+        return
+    ux, uy = dx / n, dy / n
+    head = min(10.0, n / 2)
+    left = (b[0] - ux * head - uy * head * 0.6, b[1] - uy * head + ux * head * 0.6)
+    right = (b[0] - ux * head + uy * head * 0.6, b[1] - uy * head - ux * head * 0.6)
+    pygame.draw.polygon(surface, colour, [b, left, right])
+
+
+def _nice_length(metres: float) -> float:
+    """The scale bar's length [m]: the largest of 1, 2, 5, 10, 20, 50 … not above ``metres``."""
+    best = 1.0
+    for decade in (1, 10, 100, 1000):
+        for m in (1, 2, 5):
+            if m * decade <= metres:
+                best = float(m * decade)
+    return best
+
+
+def render_moment(world: Any, path: str, data: Any, k: int | None = None,
+                  title: str | None = None) -> dict[str, Any]:
+    """Write the annotated still of frame ``k`` (default: the first violation) of replay
+    ``data`` (:func:`~.replay.replay_data` of ``world``) as a palette PNG at ``path``.
+
+    Above the scene the title (``title`` or the data's) with the time; in the scene every agent
+    labelled with its name and speed, a velocity arrow per agent (as long as the distance it
+    covers in :data:`~.replay.ARROW_S` s), the critical agent ringed, a scale bar; below it
+    the metric values of the frame (:func:`~.replay.frame_lines`). Returns what was drawn:
+    ``{"path", "t", "step", "labels", "critical", "lines"}``.
+    """
+    from PIL import Image
+
+    from .replay import decoded, frame_lines
+
+    pygame = _pygame()
+    tr = world.trajectory
+    k = int(data["first"] if k is None else k)
+    data = decoded(data)
+    t = float(data["t"][k])
+    step = int(np.argmin(np.abs(tr.t - t)))
+    surface = frame(world, step, clock=False)
+    size, scale, origin = _view(world, step)
+    font = _font(pygame, 19)
+    small = _font(pygame, 17)
+    agents = data["agents"]
+    critical = data.get("critical")
+    pix = surface.vec2pix
+    for a in agents:
+        x, y, h, v = a["x"][k], a["y"][k], a["h"][k], a["v"][k]
+        if x is None:
+            continue
+        c = pix((x, y))
+        if a["name"] == critical:
+            rad = max(10, int((max(a["L"], a["W"]) / 2 + 1.2) * scale))
+            pygame.draw.circle(surface, HIGHLIGHT, c, rad, 3)
+        if v is not None and abs(v) > 0.05:
+            hr = math.radians(h)
+            length = v * data.get("arrow_s", 1.0)
+            tip = pix((x + math.cos(hr) * length, y + math.sin(hr) * length))
+            _arrow(pygame, surface, c, tip, (255, 255, 255), 2)
+    # the scale bar, bottom left
+    metres = _nice_length(size[0] / scale / 6)
+    bar = int(metres * scale)
+    x0, y0 = 12, size[1] - 14
+    legend = small.render(f"{metres:g} m   arrows: {data.get('arrow_s', 1.0):g} s of travel", True, PAPER) \
+        if small is not None else None
+    box_w = max(bar, legend.get_width() if legend is not None else 0) + 12
+    scale_box = pygame.Rect(x0 - 6, y0 - 26, box_w, 34)
+    pygame.draw.rect(surface, (35, 35, 40), scale_box)
+    pygame.draw.line(surface, PAPER, (x0, y0), (x0 + bar, y0), 3)
+    for xx in (x0, x0 + bar):
+        pygame.draw.line(surface, PAPER, (xx, y0 - 5), (xx, y0 + 3), 2)
+    if legend is not None:
+        surface.blit(legend, (x0, y0 - 22))
+    labels: list[str] = []
+    taken: list[Any] = [scale_box]  # labels keep off the scale bar and off each other
+    order = sorted(range(len(agents)), key=lambda i: (agents[i]["name"] != critical, i))
+    for i in order:
+        a = agents[i]
+        x, y, v = a["x"][k], a["y"][k], a["v"][k]
+        if x is None:
+            continue
+        cx, cy = pix((x, y))
+        text = f"{a['name']} {0.0 if v is None else v:.1f} m/s"
+        if not surface.get_rect().collidepoint(cx, cy):
+            text += " (out of view)"
+        labels.append(a["name"])
+        if font is None:
+            continue
+        hot = a["name"] == critical
+        img = font.render(text, True, INK if hot else PAPER, HIGHLIGHT if hot else (35, 35, 40))
+        off = int((max(a["L"], a["W"]) / 2 + 1.5) * scale) + 4
+        # the ego's label below it, the others' above (inside the picture, for an agent out of
+        # view too); moved on until it overlaps no other label, upward at the bottom edge
+        rect = img.get_rect(midtop=(cx, cy + off)) if i == 0 else img.get_rect(midbottom=(cx, cy - off))
+        rect.clamp_ip(surface.get_rect())
+        down = i == 0 and rect.bottom < surface.get_height() - 2 * rect.height
+        for _ in range(8):
+            if rect.collidelist(taken) < 0:
+                break
+            rect.move_ip(0, rect.height + 2 if down else -(rect.height + 2))
+        rect.clamp_ip(surface.get_rect())
+        taken.append(rect)
+        end = (min(max(cx, rect.left), rect.right), rect.top if rect.top > cy else rect.bottom)
+        pygame.draw.line(surface, HIGHLIGHT if hot else (35, 35, 40), (cx, cy), end, 1)
+        surface.blit(img, rect)
+    scene = _image(surface)
+    # pygame's built-in font has no infinity sign
+    lines = [line.replace("∞", "inf") for line in frame_lines(data, k)]
+    head = title or data.get("title") or ""
+    head = f"{head} — {lines[0]}" if head else lines[0]
+    band = 24
+    out = Image.new("RGB", (size[0], band + size[1] + band * (len(lines) - 1) + 6), (245, 245, 245))
+    out.paste(scene, (0, band))
+    if font is not None:
+        text = pygame.Surface((size[0], out.height), 0, 24)
+        text.fill((245, 245, 245))
+        text.blit(font.render(head, True, INK), (6, 4))
+        for n, line in enumerate(lines[1:]):
+            text.blit(font.render(line, True, INK), (6, band + size[1] + 4 + n * band))
+        strip = _image(text)
+        out.paste(strip.crop((0, 0, size[0], band)), (0, 0))
+        out.paste(strip.crop((0, band + size[1], size[0], out.height)), (0, band + size[1]))
+    _save_atomic(out.convert("P", palette=Image.Palette.ADAPTIVE, colors=32), path)  # flat colours: 32 suffice
+    return {"path": os.fspath(path), "t": t, "step": step, "labels": labels, "critical": critical,
+            "lines": lines}
+
+
+def _save_atomic(image: Any, path: str | os.PathLike) -> None:
+    """Save a Pillow image as PNG so readers never see half a file (not fsynced: one of a
+    report's many per-case files)."""
+    import tempfile
+
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".moment.", suffix=".png.tmp", dir=directory)
+    try:
+        mask = os.umask(0)
+        os.umask(mask)
+        os.fchmod(fd, 0o666 & ~mask)  # the mode a plain open() gives, not mkstemp's 0600
+        with os.fdopen(fd, "wb") as fh:
+            image.save(fh, format="PNG", optimize=True)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise

@@ -1,0 +1,298 @@
+"""The interactive replay on a counterexample's card: a canvas, a time slider and play/pause.
+
+:func:`replay_html` embeds a case's replay data (:func:`pytest_avscenario.sim.replay.replay_data`,
+kept as ``cases/<test>-<hash>.replay.json``) in the card page with a small inline script: no
+network, no external library, so a card opened from a CI artifact or an e-mail works as is.
+The replay starts at the first violation and draws what the annotated still shows: the road,
+every agent labelled with its name and speed, a velocity arrow per agent, the critical agent
+ringed, a scale bar, and beside the picture the frame's metric values (the lines of
+:func:`pytest_avscenario.sim.replay.frame_lines`). ``card.html#t=1.5`` opens it at 1.5 s.
+
+For automated checks the replay's element carries ``data-frame``, ``data-t`` (the shown
+time, 2 decimals) and ``data-draws`` (how many times the canvas was drawn). Nothing here
+imports the simulator or pytest.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import re
+from typing import Any, Mapping
+
+__all__ = ["replay_html", "REPLAY_CSS", "REPLAY_JS"]
+
+REPLAY_CSS = """
+.replay { margin: .6em 0 1.2em; }
+.replay canvas { display: block; max-width: 100%; height: auto; border: 1px solid #ccc; background: #607f56; }
+.replay .controls { display: flex; align-items: center; gap: .7em; margin: .4em 0; max-width: 820px; }
+.replay .controls input[type=range] { flex: 1; }
+.replay .controls output { font-variant-numeric: tabular-nums; min-width: 7em; }
+.replay pre.values { margin: .3em 0; max-width: 800px; }
+"""
+
+# ES5-level JavaScript on purpose: no build step, and old CI artifact viewers run it too. It is
+# shipped without indentation and comments (every card carries its own copy).
+REPLAY_JS = r"""
+(function (id) {
+  var root = document.getElementById(id), D = JSON.parse(document.getElementById(id + "-data").textContent);
+  var canvas = root.querySelector("canvas"), c = canvas.getContext("2d");
+  var slider = root.querySelector("input"), out = root.querySelector("output");
+  var play = root.querySelector(".play"), box = root.querySelector("pre");
+  var W = canvas.width, H = canvas.height, S = D.view.scale, PI2 = 2 * Math.PI;
+  var GREY = "rgb(240,240,240)", HOT = "rgb(255,150,0)", DARK = "rgb(35,35,40)", RED = "rgb(255,40,40)";
+  var COLOURS = {ego: "rgb(60,200,80)", car: "rgb(90,150,230)", bus: "rgb(250,190,20)",
+                 parked: "rgb(150,150,160)", pedestrian: "rgb(230,60,200)"};
+  function undelta(s, scale) {  // first value + differences; [item, count] is a run of items
+    var o = [], acc = 0;
+    s.forEach(function (it) {
+      var run = Array.isArray(it), d = run ? it[0] : it;
+      for (var j = 0; j < (run ? it[1] : 1); j++) o.push(d === null ? null : (acc += d) / scale);
+    });
+    return o;
+  }
+  function obj(m, f) { var o = {}; Object.keys(m || {}).forEach(function (k) { o[k] = f(m[k]); }); return o; }
+  var T = undelta(D.t, 100), N = T.length;
+  var V = obj(D.values, function (v) { return Array.isArray(v) ? undelta(v, 100) : v; });
+  var RT = obj(D.rho_t, function (v) { return undelta(v, 100); });
+  var agents = D.agents.map(function (a) {
+    function f(s, scale) {  // the agent's frames k0 .. spread over every frame
+      var b = undelta(s, scale), o = [];
+      for (var i = 0; i < N; i++) o.push(i >= a.k0 && i - a.k0 < b.length ? b[i - a.k0] : null);
+      return o;
+    }
+    return {name: a.name, kind: a.kind, L: a.L, W: a.W, crash: a.crash, arm: a.arm || [],
+            x: f(a.x, 100), y: f(a.y, 100), h: f(a.h, 180 / Math.PI), v: f(a.v, 10)};
+  });
+  var road = D.road || {lanes: [], boxes: [], crosswalks: [], stop_lines: []};
+  var lanes = road.lanes.map(function (l) {  // [width, parking, left line, right line, points]
+    var pts = [], x = 0, y = 0;  // decimetres, x and y each as first value + differences
+    for (var i = 4; i + 1 < l.length; i += 2) pts.push([(x += l[i]) / 10, (y += l[i + 1]) / 10]);
+    return {w: l[0], park: l[1], lines: [l[2], l[3]], pts: pts};
+  });
+  var cx = 0, cy = 0, ego = [0, 0];
+  function P(x, y) { return [(x - cx) * S + W / 2, H / 2 - (y - cy) * S]; }
+  function path(pts, close) {
+    c.beginPath();
+    pts.forEach(function (p, i) { var q = P(p[0], p[1]); c[i ? "lineTo" : "moveTo"](q[0], q[1]); });
+    if (close) c.closePath();
+  }
+  function pen(colour, width, dash) { c.strokeStyle = colour; c.lineWidth = width; c.setLineDash(dash || []); }
+  function seg(a, b) { c.beginPath(); c.moveTo(a[0], a[1]); c.lineTo(b[0], b[1]); c.stroke(); }
+  function disc(q, r, fill) { c.beginPath(); c.arc(q[0], q[1], r, 0, PI2); if (fill) c.fill(); c.stroke(); }
+  function offset(pts, r) {  // the polyline r metres to the left
+    return pts.map(function (p, i) {
+      var a = pts[Math.max(0, i - 1)], b = pts[Math.min(pts.length - 1, i + 1)];
+      var dx = b[0] - a[0], dy = b[1] - a[1], n = Math.sqrt(dx * dx + dy * dy) || 1;
+      return [p[0] - dy / n * r, p[1] + dx / n * r];
+    });
+  }
+  function drawRoad() {
+    c.fillStyle = "rgb(96,128,86)"; c.fillRect(0, 0, W, H);
+    c.fillStyle = "rgb(72,72,76)";
+    road.boxes.forEach(function (b) {
+      var h = b[2];
+      path([[b[0] - h, b[1] - h], [b[0] + h, b[1] - h], [b[0] + h, b[1] + h], [b[0] - h, b[1] + h]], true);
+      c.fill();
+    });
+    c.lineCap = "butt"; c.lineJoin = "round";
+    lanes.forEach(function (l) { pen(l.park ? "rgb(92,92,98)" : "rgb(72,72,76)", l.w * S); path(l.pts); c.stroke(); });
+    lanes.forEach(function (l) {
+      [l.w / 2, -l.w / 2].forEach(function (r, side) {
+        var kind = l.lines[side];  // highway-env's line types: 0 none, 1 striped, else continuous
+        if (!kind) return;
+        pen(GREY, Math.max(1, 0.15 * S), kind === 1 ? [3 * S, 4.3 * S] : []);
+        path(offset(l.pts, r)); c.stroke();
+      });
+    });
+    pen(GREY, Math.max(2, 0.4 * S));
+    c.fillStyle = GREY;
+    road.crosswalks.forEach(function (w) {
+      var dx = w[2] - w[0], dy = w[3] - w[1], len = Math.sqrt(dx * dx + dy * dy) || 1;
+      var ux = dx / len, uy = dy / len, nx = -uy * w[4] / 2, ny = ux * w[4] / 2;
+      for (var k = 0.3; k < len; k += 1.2) {
+        var e = Math.min(k + 0.6, len), A = [w[0] + ux * k, w[1] + uy * k], B = [w[0] + ux * e, w[1] + uy * e];
+        path([[A[0] + nx, A[1] + ny], [B[0] + nx, B[1] + ny], [B[0] - nx, B[1] - ny], [A[0] - nx, A[1] - ny]], true);
+        c.fill();
+      }
+    });
+    road.stop_lines.concat(road.lane_ends || []).forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
+  }
+  function signed(v) { return (v >= 0 ? "+" : "") + v.toFixed(2); }
+  function lines(k) {  // the same lines as sim.replay.frame_lines
+    var mark = k === D.first && D.first_kind !== "moment" ? " \u2014 first " + D.first_kind : "";
+    var o = ["t = " + T[k].toFixed(2) + " s" + mark], dash = "\u2014";
+    if (D.critical && V.d) {
+      var d = V.d[k], g = V.gap[k], ttc = V.ttc[k];
+      o.push(D.critical + ": distance " + (d === null ? dash : d.toFixed(2) + " m") + ", gap " +
+             (g === null ? dash : g.toFixed(2) + " m") + ", TTC " +
+             (d === null ? dash : ttc === null ? "\u221e" : ttc.toFixed(2) + " s"));
+    }
+    D.violations.forEach(function (v) {
+      var per = RT[v.metric];
+      o.push(v.metric + ": " + (per && per[k] !== null ? "\u03c1(t) " + signed(per[k]) + ", " : "") + "run \u03c1 " +
+             (v.rho === null ? dash : signed(v.rho)) + (v.t === null ? "" : ", first at " + v.t.toFixed(2) + " s"));
+    });
+    return o;
+  }
+  function arrow(a, b) {
+    seg(a, b);
+    var dx = b[0] - a[0], dy = b[1] - a[1], n = Math.sqrt(dx * dx + dy * dy), h = Math.min(10, n / 2);
+    if (n < 4) return;
+    dx /= n; dy /= n;
+    c.beginPath(); c.moveTo(b[0], b[1]);
+    c.lineTo(b[0] - dx * h - dy * h * 0.6, b[1] - dy * h + dx * h * 0.6);
+    c.lineTo(b[0] - dx * h + dy * h * 0.6, b[1] - dy * h - dx * h * 0.6);
+    c.fill();
+  }
+  function order(key) {
+    return agents.map(function (a, i) { return i; }).sort(function (i, j) { return key(agents[i]) - key(agents[j]) || i - j; });
+  }
+  function drawAgents(k) {
+    order(function (a) { return a.kind === "pedestrian"; }).forEach(function (i) {
+      var a = agents[i], x = a.x[k], y = a.y[k], cs = Math.cos(a.h[k]), sn = Math.sin(a.h[k]);
+      if (x === null) return;
+      var crashed = a.crash !== null && k >= a.crash;
+      c.fillStyle = COLOURS[a.kind] || COLOURS.car;
+      pen(crashed ? RED : "rgb(20,20,20)", crashed ? 3 : 1);
+      if (a.kind === "pedestrian") return disc(P(x, y), Math.max(4, 0.5 * S), true);
+      function at(l, w) { return [x + cs * l - sn * w, y + sn * l + cs * w]; }  // l ahead, w left of the centre
+      var L = a.L / 2, B = a.W / 2;
+      path([at(L, B), at(L, -B), at(-L, -B), at(-L, B)], true); c.fill(); c.stroke();
+      pen("rgb(30,30,30)", Math.max(1, 0.3 * S));
+      path([at(L - 1.2, a.W / 2.5), at(L - 1.2, -a.W / 2.5)]); c.stroke();  // the windscreen
+      if (a.arm.indexOf(k) >= 0) { c.fillStyle = RED; pen(RED, 1); disc(P.apply(null, at(L - 2, B + 0.8)), Math.max(3, 0.6 * S), true); }
+    });
+    agents.forEach(function (a) {  // the critical agent's ring and everybody's velocity arrow
+      if (a.x[k] === null) return;
+      var q = P(a.x[k], a.y[k]), len = (a.v[k] || 0) * D.arrow_s;
+      if (a.name === D.critical) { pen(HOT, 3); disc(q, Math.max(10, (Math.max(a.L, a.W) / 2 + 1.2) * S)); }
+      if (Math.abs(len) > 0.05) {
+        pen("white", 2); c.fillStyle = "white";
+        arrow(q, P(a.x[k] + Math.cos(a.h[k]) * len, a.y[k] + Math.sin(a.h[k]) * len));
+      }
+    });
+  }
+  function drawLabels(k, taken) {  // taken: the scale bar's box; labels keep off it and each other
+    c.font = "bold 13px system-ui, sans-serif"; c.textBaseline = "middle";
+    order(function (a) { return a.name !== D.critical; }).forEach(function (i) {
+      var a = agents[i], hot = a.name === D.critical;
+      if (a.x[k] === null) return;
+      var q = P(a.x[k], a.y[k]), out = q[0] < 0 || q[0] >= W || q[1] < 0 || q[1] >= H;
+      var text = a.name + " " + (a.v[k] || 0).toFixed(1) + " m/s" + (out ? " (out of view)" : "");
+      var w = c.measureText(text).width + 6, h = 17, off = (Math.max(a.L, a.W) / 2 + 1.5) * S + 4;
+      var r = {x: q[0] - w / 2, y: i ? q[1] - off - h : q[1] + off, w: w, h: h};  // the ego's below it
+      function clamp() { r.x = Math.min(Math.max(r.x, 0), W - w); r.y = Math.min(Math.max(r.y, 0), H - h); }
+      clamp();
+      var down = !i && r.y + h < H - 2 * h;  // upward from the bottom edge
+      for (var n = 0; n < 8 && taken.some(function (t) {
+        return r.x < t.x + t.w && t.x < r.x + r.w && r.y < t.y + t.h && t.y < r.y + r.h;
+      }); n++) r.y += down ? h + 2 : -(h + 2);
+      clamp();
+      taken.push(r);
+      pen(hot ? HOT : DARK, 1);
+      seg(q, [Math.min(Math.max(q[0], r.x), r.x + w), r.y > q[1] ? r.y : r.y + h]);
+      c.fillStyle = hot ? HOT : DARK; c.fillRect(r.x, r.y, w, h);
+      c.fillStyle = hot ? "rgb(25,25,28)" : "rgb(250,250,250)"; c.fillText(text, r.x + 3, r.y + h / 2 + 1);
+    });
+  }
+  function drawScale() {
+    var m = 1, x0 = 12, y0 = H - 14;
+    [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000].forEach(function (v) { if (v <= W / S / 6) m = v; });
+    var text = m + " m   arrows: " + D.arrow_s + " s of travel";
+    c.font = "12px system-ui, sans-serif"; c.textBaseline = "alphabetic";
+    c.fillStyle = DARK; c.fillRect(x0 - 6, y0 - 26, Math.max(m * S, c.measureText(text).width) + 12, 34);
+    pen("rgb(250,250,250)", 3); seg([x0, y0], [x0 + m * S, y0]);
+    pen("rgb(250,250,250)", 2); seg([x0, y0 - 5], [x0, y0 + 3]); seg([x0 + m * S, y0 - 5], [x0 + m * S, y0 + 3]);
+    c.fillStyle = "rgb(250,250,250)"; c.fillText(text, x0, y0 - 10);
+    return {x: x0 - 6, y: y0 - 26, w: Math.max(m * S, c.measureText(text).width) + 12, h: 34};
+  }
+  var draws = 0, timer = null;
+  function draw(k) {
+    k = Math.max(0, Math.min(N - 1, k | 0));
+    var e = agents[0];
+    if (e.x[k] !== null) ego = [e.x[k], e.y[k]];
+    var h = D.view.along && e.h[k] !== null ? e.h[k] : 0;  // "ahead" along the ego's heading (highway bends)
+    cx = D.view.cx !== null ? D.view.cx : ego[0] + D.view.ahead * Math.cos(h);
+    cy = D.view.cy !== null ? D.view.cy : ego[1] + D.view.ahead * Math.sin(h);
+    drawRoad(); drawAgents(k); drawLabels(k, [drawScale()]);
+    var text = lines(k);
+    out.textContent = text[0];
+    box.textContent = text.slice(1).join("\n");
+    root.setAttribute("data-frame", k);
+    root.setAttribute("data-t", T[k].toFixed(2));
+    root.setAttribute("data-draws", ++draws);
+  }
+  function stop() { clearInterval(timer); timer = null; play.textContent = "\u25b6 play"; }
+  play.onclick = function () {
+    if (timer !== null) return stop();
+    if (+slider.value >= N - 1) draw(slider.value = 0);
+    play.textContent = "\u275a\u275a pause";
+    timer = setInterval(function () {
+      if (+slider.value >= N - 1) return stop();
+      draw(++slider.value);
+    }, Math.max(20, N > 1 ? (T[N - 1] - T[0]) / (N - 1) * 1000 : 200));
+  };
+  root.querySelector(".first").onclick = function () { stop(); draw(slider.value = D.first); };
+  slider.oninput = function () { draw(+slider.value); };
+  function fromHash() {
+    var m = /(?:^|[#&])t=([0-9.]+)/.exec(location.hash), best = 0;
+    if (!m) return false;
+    for (var i = 1; i < N; i++) if (Math.abs(T[i] - m[1]) < Math.abs(T[best] - m[1])) best = i;
+    slider.value = best;
+    slider.dispatchEvent(new Event("input"));
+    return true;
+  }
+  addEventListener("hashchange", fromHash);
+  if (!fromHash()) draw(D.first);
+})(%(id)s);
+"""
+
+
+def _compact(js: str) -> str:
+    """``js`` without indentation, blank lines and ``  // comments`` (none sits in a string)."""
+    lines = (re.sub(r"\s+// .*$", "", line).strip() for line in js.splitlines())
+    return "\n".join(line for line in lines if line)
+
+
+_SHIPPED_JS = _compact(REPLAY_JS)
+
+
+def _json_for_script(data: Mapping[str, Any]) -> str:
+    # "<" escaped: no "</script>" (nor "<!--") inside a name can end the data block early
+    return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
+
+
+def replay_html(data: Mapping[str, Any], element_id: str = "replay") -> str:
+    """The replay section of a card page for replay ``data``: canvas, slider, play/pause,
+    the frame's metric values, the data itself and the script, self-contained."""
+    eid = html.escape(element_id, quote=True)
+    n = sum(item[1] if isinstance(item, list) else 1 for item in data["t"])  # runs: [item, count]
+    first = int(data["first"])
+    size = data["view"]["size"]
+    what = {"violation": "first violation", "contact": "first contact"}.get(data.get("first_kind"), "moment shown")
+    critical = data.get("critical")
+    legend = (f"Starts at the {what} (t = {data['first_t']:.2f} s). Arrows: where each agent is "
+              f"{data.get('arrow_s', 1.0):g} s later at its current speed; "
+              + (f"ringed: {html.escape(critical)}, the critical agent; " if critical else "")
+              + "red outline: crashed. Drag the slider or use ← → on it; "
+              f"<code>#t=…</code> on the page's address opens the replay at that time.")
+    return "\n".join([
+        f"<style>{REPLAY_CSS}</style>",
+        f"<section class='replay' id='{eid}' data-frame='{first}' data-draws='0'>",
+        f"<canvas width='{int(size[0])}' height='{int(size[1])}' "
+        f"aria-label='bird&#x27;s-eye replay of the run'></canvas>",
+        "<div class='controls'>",
+        "<button type='button' class='play'>&#9654; play</button>",
+        f"<input type='range' min='0' max='{n - 1}' step='1' value='{first}' list='{eid}-marks' "
+        f"aria-label='time'>",
+        f"<datalist id='{eid}-marks'><option value='{first}'></option></datalist>",
+        f"<output>t = {data['first_t']:.2f} s</output>",
+        f"<button type='button' class='first'>{html.escape(what)}</button>",
+        "</div>",
+        "<pre class='values'></pre>",
+        f"<p class='meta'>{legend}</p>",
+        f"<script type='application/json' id='{eid}-data'>{_json_for_script(data)}</script>",
+        f"<script>{_SHIPPED_JS % {'id': json.dumps(element_id)}}</script>",
+        "</section>",
+    ])

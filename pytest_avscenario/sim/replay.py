@@ -1,0 +1,365 @@
+"""A compact recording of one run for the report's interactive replay and its annotated still.
+
+:func:`replay_data` turns a world (or a bare :class:`~pytest_avscenario.trajectory.Trajectory`)
+into plain JSON data: the road drawn once (lane centre lines with their widths and markings,
+intersection boxes, crosswalks, stop lines), every agent's position, heading and speed at a
+decimated rate (:data:`REPLAY_HZ`, plus the steps of the first violation and first contact),
+the critical agent, the violated metrics, and per frame the distance, footprint gap and time to collision
+between the ego and the critical agent, with the pointwise margin ρ(t) of the violated
+distance and TTC monitors. :func:`frame_lines` is the text shown beside a frame; the still
+(:func:`~pytest_avscenario.sim.render.render_moment`) and the card page's replay
+(:mod:`pytest_avscenario.report.replay`) both show exactly these values.
+
+The data is made small enough to keep one per counterexample: times in centiseconds,
+positions and metric values in centimetres (or centiseconds), headings in degrees, speeds in
+decimetres per second, each series stored as its first value followed by differences
+(``null`` where the agent is absent or a value infinite) with runs of equal items as
+``[item, count]``, an agent's series only from its first frame ``k0`` to its last, the road
+in decimetres. :func:`decoded` gives plain values.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..trajectory import Trajectory
+
+__all__ = ["REPLAY_HZ", "ARROW_S", "replay_data", "dumps", "undelta", "moment_step",
+           "frame_lines", "decoded", "view_spec"]
+
+#: frames per second of the replay (the simulation records 10 Hz by default)
+REPLAY_HZ = 5.0
+
+#: a velocity arrow is as long as the distance the agent covers in this many seconds [s]
+ARROW_S = 1.0
+
+#: view of a replay without a road: this wide [m], following the ego
+_BARE_WIDTH_M = 120.0
+
+
+def _delta(values: np.ndarray, present: np.ndarray) -> list[Any]:
+    """Integers as first value + differences; ``None`` at absent steps (the next present value
+    is a difference from the last present one); a run of three or more equal items as
+    ``[item, count]`` (a parked car is ``[x0, [0, n]]``)."""
+    items: list[int | None] = []
+    last = 0
+    for v, p in zip(values.tolist(), present.tolist()):
+        if not p or not math.isfinite(v):
+            items.append(None)
+            continue
+        iv = int(round(v))
+        items.append(iv - last)
+        last = iv
+    out: list[Any] = []
+    i = 0
+    while i < len(items):
+        j = i
+        while j < len(items) and items[j] == items[i]:
+            j += 1
+        out.extend([[items[i], j - i]] if j - i >= 3 else items[i:j])
+        i = j
+    return out
+
+
+def undelta(series: Sequence[Any], scale: float = 1.0) -> list[float | None]:
+    """The values of a series coded by :func:`_delta` (``None`` stays ``None``), divided by
+    ``scale``."""
+    out: list[float | None] = []
+    acc = 0
+    for item in series:
+        d, n = item if isinstance(item, list) else (item, 1)
+        for _ in range(n):
+            if d is None:
+                out.append(None)
+                continue
+            acc += d
+            out.append(acc / scale)
+    return out
+
+
+def _cm(values: np.ndarray) -> list[int | None]:
+    """Hundredths (centimetres, centiseconds), delta-coded; ``None`` where not finite."""
+    values = np.asarray(values, dtype=float)
+    return _delta(values * 100, np.isfinite(values))
+
+
+def moment_step(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | None,
+                fallback_t: float | None = None) -> int:
+    """The step a still shows: the first violation; without a violation time, the first
+    contact (a crash flag); then ``fallback_t`` [s] (e.g. the worst ρ's moment); else the end."""
+    times = [float(w["t"]) for w in (violations or {}).values() if w.get("t") is not None]
+    if times:
+        t = min(times)
+    else:
+        crashed = np.flatnonzero(traj.crashed.any(axis=0))
+        if crashed.size:
+            return int(crashed[0])
+        if fallback_t is None:
+            return traj.n_steps - 1
+        t = float(fallback_t)
+    return int(np.argmin(np.abs(traj.t - t)))
+
+
+def _critical(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | None,
+              step: int) -> int | None:
+    from ..monitors.metrics import critical_agent
+
+    timed = sorted(((float(w["t"]), w.get("agent")) for w in (violations or {}).values()
+                    if w.get("t") is not None), key=lambda ta: ta[0])
+    agent = timed[0][1] if timed else next((w.get("agent") for w in (violations or {}).values()
+                                            if w.get("agent")), None)
+    return critical_agent(traj, agent, float(traj.t[step]))
+
+
+def _lane_points(lane: Any) -> list[tuple[float, float]]:
+    """A lane's centre line as few points as draw it within 5 cm."""
+    g = lane.geometry
+    length = float(lane.length)
+    n = max(2, int(math.ceil(length / 2.0)) + 1)
+    pts = [tuple(map(float, g.position(s, 0.0))) for s in np.linspace(0.0, length, n)]
+    if n > 2:
+        from shapely.geometry import LineString
+
+        pts = [tuple(p) for p in LineString(pts).simplify(0.05).coords]
+    return pts
+
+
+def _dm(points: Sequence[Sequence[float]]) -> list[int]:
+    """Points as decimetres, first point absolute and the others as differences."""
+    out: list[int] = []
+    lx = ly = 0
+    for x, y in points:
+        ix, iy = int(round(x * 10)), int(round(y * 10))
+        out += [ix - lx, iy - ly]
+        lx, ly = ix, iy
+    return out
+
+
+def _road(world: Any) -> dict[str, Any]:
+    """Each lane as ``[width, parking (0/1), left line, right line, x0, y0, dx1, dy1, …]``
+    (highway-env's line types: 0 none, 1 striped, 2 and 3 continuous; points as :func:`_dm`);
+    intersection boxes ``[cx, cy, half]``, crosswalks ``[x0, y0, x1, y1, width]``, stop
+    lines and lane ends ``[x0, y0, x1, y1]`` in metres."""
+    road = world.road
+    lanes = []
+    for lane in world.lane_index.order:
+        types = [int(getattr(t, "value", t)) for t in getattr(lane.geometry, "line_types", (0, 0))]
+        lanes.append([round(lane.width, 2), int(lane.kind == "parking"), *types[:2], *_dm(_lane_points(lane))])
+    boxes = ([road] if road.kind == "intersection" else
+             list(road.intersections.values()) if road.kind == "network" else [])
+    out: dict[str, Any] = {
+        "lanes": lanes,
+        "boxes": [[round(float(b.centre.x), 2), round(float(b.centre.y), 2), round(float(b.half), 2)]
+                  for b in boxes],
+        "crosswalks": [],
+        "stop_lines": [],
+    }
+    for cw in getattr(road, "crosswalks", []):
+        pts = cw.path.array
+        out["crosswalks"].append([round(float(v), 2) for v in (*pts[0], *pts[-1])] + [round(cw.width, 2)])
+    for sl in getattr(road, "stop_lines", []):
+        g, w = sl.lane.geometry, sl.lane.width
+        a, b = g.position(sl.s, -w / 2), g.position(sl.s, w / 2)
+        out["stop_lines"].append([round(float(v), 2) for v in (*a, *b)])
+    ends = getattr(road, "lane_ends", [])
+    if ends:  # where a lane ends with traffic in it (a lane drop, an acceleration lane)
+        out["lane_ends"] = []
+        for end in ends:
+            g, w = end.lane.geometry, end.lane.width
+            a, b = g.position(end.s, -w / 2), g.position(end.s, w / 2)
+            out["lane_ends"].append([round(float(v), 2) for v in (*a, *b)])
+    return out
+
+
+def view_spec(world: Any) -> tuple[tuple[int, int], float, float | None, float | None, float, bool]:
+    """(size [px], scale [px/m], fixed centre x, fixed centre y, lead [m], along heading) of a
+    world's frames.
+
+    The whole intersection; on a road network a 110 m square following the ego; a 133 m
+    window following the ego on other roads, ``lead`` metres ahead of it in x — on a highway
+    (bends, ramps) ahead along its heading and following it both ways. A centre coordinate
+    that is None follows the ego (the replay draws the same view).
+    """
+    road = world.road
+    box = world.lane_index.boxes
+    if road.kind == "intersection":
+        size = (640, 640)
+        half = road.half + min(road.approach_length, 28.0)
+        return size, size[0] / (2 * half), 0.0, 0.0, 0.0, False
+    if road.kind == "network":
+        return (640, 640), 640 / 110.0, None, None, 0.0, False
+    size, scale = (800, 320), 6.0
+    if road.kind == "highway":
+        return size, scale, None, None, size[0] / scale / 6, True
+    return size, scale, None, float(box[:, 1].min() + box[:, 3].max()) / 2, size[0] / scale / 6, False
+
+
+def _view(world: Any | None) -> dict[str, Any]:
+    """Canvas size [px], scale [px/m] and the view's centre: fixed coordinates, or following
+    the ego (``cx``/``cy`` None) ``ahead`` metres ahead of it in x (``along``: along its
+    heading); as the still's view."""
+    if world is None:
+        return {"size": [800, 480], "scale": 800 / _BARE_WIDTH_M, "cx": None, "cy": None, "ahead": 0.0,
+                "along": False}
+    size, scale, cx, cy, ahead, along = view_spec(world)
+    return {"size": list(size), "scale": round(scale, 4),
+            "cx": None if cx is None else round(cx, 2), "cy": None if cy is None else round(cy, 2),
+            "ahead": round(ahead, 2), "along": along}
+
+
+def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None = None,
+                monitors: Sequence[Any] = (), title: str = "", hz: float = REPLAY_HZ,
+                fallback_t: float | None = None) -> dict[str, Any]:
+    """The replay of one recorded run as plain JSON data.
+
+    ``source``: a world after its run, or a Trajectory (then no road is drawn). ``violations``:
+    ``{metric: {"t", "agent", "threshold", "rho"}}`` as a case row holds them; the earliest one
+    gives the first violation and the critical agent. ``monitors``: the test's monitors, for the
+    TTC radius and the pointwise ρ(t) of violated distance and TTC monitors. ``hz``: frames per
+    second (the steps of the first violation and the first contact are always frames).
+    ``fallback_t`` [s]: the moment to start at when nothing says when the violation happened.
+    """
+    world = None if isinstance(source, Trajectory) else source
+    traj: Trajectory = source if world is None else world.trajectory
+    if traj is None:
+        raise ValueError("nothing to replay: the world has not run")
+    T = traj.n_steps
+    moment = moment_step(traj, violations, fallback_t)
+    every = max(1, int(round(1.0 / (float(hz) * traj.dt)))) if traj.dt > 0 else 1
+    contact = np.flatnonzero(traj.crashed.any(axis=0))[:1].tolist()  # the first contact is a frame too
+    steps = np.array(sorted(set(range(0, T, every)) | {moment, T - 1, *contact}), dtype=int)
+    k_first = int(np.searchsorted(steps, moment))
+    crit = _critical(traj, violations, moment)
+
+    agents = []
+    arms = {name[: -len(".stop_arm")]: v for name, v in traj.signals.items() if name.endswith(".stop_arm")}
+    for i, name in enumerate(traj.names):
+        present = traj.present[i, steps]
+        crashed = np.flatnonzero(traj.crashed[i, steps] & present)
+        # series cover the frames from the agent's first appearance to its last (agents
+        # spawned near the ego live for a short part of a long run)
+        seen = np.flatnonzero(present)
+        k0, k1 = (int(seen[0]), int(seen[-1]) + 1) if seen.size else (0, 0)
+        span, here = steps[k0:k1], present[k0:k1]
+        agent = {
+            "name": name, "kind": traj.kinds[i],
+            "L": round(float(traj.length[i]), 2), "W": round(float(traj.width[i]), 2),
+            "k0": k0,
+            "x": _delta(traj.x[i, span] * 100, here), "y": _delta(traj.y[i, span] * 100, here),
+            "h": _delta(np.degrees(traj.heading[i, span]), here),
+            "v": _delta(traj.speed[i, span] * 10, here),
+            "crash": int(crashed[0]) if crashed.size else None,
+        }
+        if name in arms:
+            out = arms[name][steps] > 0.5
+            agent["arm"] = [int(k) for k in np.flatnonzero(out)]
+        agents.append(agent)
+
+    from ..monitors.metrics import DistanceMonitor, TTCMonitor, footprint_gap, pairwise_distance, pairwise_ttc
+
+    viol = []
+    for metric, where in (violations or {}).items():
+        rho = where.get("rho")
+        viol.append({"metric": metric, "t": where.get("t"), "agent": where.get("agent"),
+                     "threshold": where.get("threshold"),
+                     "rho": None if rho is None or not math.isfinite(rho) else round(float(rho), 3)})
+    viol.sort(key=lambda v: (v["t"] is None, v["t"] if v["t"] is not None else 0.0, v["metric"]))
+
+    values: dict[str, Any] = {}
+    rho_t: dict[str, Any] = {}
+    if traj.n_agents > 1:
+        radius = next((m.radius for m in monitors if isinstance(m, TTCMonitor)), 5.0)
+        dist = pairwise_distance(traj)
+        ttc = pairwise_ttc(traj, radius)
+        gap = footprint_gap(traj)
+        if crit is not None:
+            values = {"d": _cm(dist[crit - 1, steps]), "gap": _cm(gap[crit - 1, steps]),
+                      "ttc": _cm(ttc[crit - 1, steps]), "radius": radius}
+        violated = {v["metric"] for v in viol}
+        for m in monitors:
+            if m.name not in violated:
+                continue
+            if isinstance(m, DistanceMonitor):
+                per = gap if m.footprint else dist
+            elif isinstance(m, TTCMonitor):
+                per = pairwise_ttc(traj, m.radius) if m.radius != radius else ttc
+            else:
+                continue  # a whole-run metric has no value per frame
+            with np.errstate(invalid="ignore"):
+                rho_t[m.name] = _cm(np.nanmin(per[:, steps], axis=0) - m.threshold)
+
+    data: dict[str, Any] = {
+        "format": 1,
+        "title": title,
+        "t": _cm(traj.t[steps]),
+        "first": k_first,
+        "first_t": round(float(traj.t[moment]), 2),
+        "first_kind": "violation" if viol and any(v["t"] is not None for v in viol) else
+                      "contact" if traj.crashed.any() else "moment",
+        "critical": traj.names[crit] if crit is not None else None,
+        "arrow_s": ARROW_S,
+        "view": _view(world),
+        "agents": agents,
+        "violations": viol,
+        "values": values,
+        "rho_t": rho_t,
+    }
+    if world is not None:
+        data["road"] = _road(world)
+    return data
+
+
+def dumps(data: Mapping[str, Any]) -> str:
+    """Compact JSON text of replay data (no spaces; NaN/inf were made ``null`` already)."""
+    return json.dumps(data, separators=(",", ":"), allow_nan=False)
+
+
+def decoded(data: Mapping[str, Any]) -> dict[str, Any]:
+    """Replay ``data`` with plain per-frame values: ``t`` [s]; each agent's x, y [m], heading
+    [deg], speed [m/s] over every frame (``None`` where absent); the metric values [m, s]."""
+    t = undelta(data["t"], 100)
+    n = len(t)  # frames: the coded series may be shorter (runs)
+
+    def frames(a: Mapping[str, Any], key: str, scale: float) -> list[float | None]:
+        body = undelta(a[key], scale)
+        return [None] * a["k0"] + body + [None] * (n - a["k0"] - len(body))
+
+    out = dict(data)
+    out["t"] = t
+    out["agents"] = [{**a, "x": frames(a, "x", 100), "y": frames(a, "y", 100), "h": frames(a, "h", 1),
+                      "v": frames(a, "v", 10)} for a in data["agents"]]
+    values = data.get("values") or {}
+    out["values"] = {k: (undelta(v, 100) if isinstance(v, list) else v) for k, v in values.items()}
+    out["rho_t"] = {k: undelta(v, 100) for k, v in (data.get("rho_t") or {}).items()}
+    return out
+
+
+def _num(v: float | None, unit: str, digits: int = 2) -> str:
+    return "—" if v is None else f"{v:.{digits}f} {unit}"
+
+
+def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
+    """The text shown beside frame ``k``: its time (and whether it is the first violation),
+    distance, gap and TTC to the critical agent, ρ(t) of the violated distance/TTC metrics and
+    each violated metric's ρ over the run. The card's replay script writes the same lines.
+    ``data`` as :func:`decoded` gives it."""
+    t = data["t"][k]
+    mark = f" — first {data['first_kind']}" if k == data["first"] and data["first_kind"] != "moment" else ""
+    lines = [f"t = {t:.2f} s{mark}"]
+    values, crit = data.get("values") or {}, data.get("critical")
+    if crit and values:
+        ttc = values["ttc"][k]
+        d = values["d"][k]
+        ttc_text = "—" if d is None else ("∞" if ttc is None else f"{ttc:.2f} s")
+        lines.append(f"{crit}: distance {_num(d, 'm')}, gap {_num(values['gap'][k], 'm')}, TTC {ttc_text}")
+    for v in data["violations"]:
+        per = (data.get("rho_t") or {}).get(v["metric"])
+        now = f"ρ(t) {per[k]:+.2f}, " if per is not None and per[k] is not None else ""
+        when = "" if v["t"] is None else f", first at {v['t']:.2f} s"
+        rho = "—" if v["rho"] is None else f"{v['rho']:+.2f}"
+        lines.append(f"{v['metric']}: {now}run ρ {rho}{when}")
+    return lines
