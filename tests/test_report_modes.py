@@ -97,6 +97,8 @@ def test_a_small_group_is_one_mode_with_its_bounding_box():
     assert mode.kind == "box" and mode.count == 3 and mode.agent is None
     assert "7 ≤ gap ≤ 9 m" in mode.rule and "lanes = 2" in mode.rule
     assert mode.representative == f"{TEST}[replay-1]"  # the middle one
+    (one,) = failure_modes(rows[:-2], sp, ["distance"])  # a single case: its values, not a box
+    assert "gap = 7 m" in one.rule and "≤" not in one.rule
 
 
 def test_at_most_five_modes_and_none_without_counterexamples():

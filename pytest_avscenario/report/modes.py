@@ -100,6 +100,8 @@ class Bound:
             return f"{name} ≤ {self.hi}{tail}"
         lo_op, hi_op = ("≤", "≤") if self.closed else ("<", "<")
         if self.lo is not None and self.hi is not None:
+            if self.closed and _fmt_number(self.lo) == _fmt_number(self.hi):  # one case's box
+                return f"{name} = {_fmt_number(self.lo)}{tail}"
             return f"{_fmt_number(self.lo)} {lo_op} {name} {hi_op} {_fmt_number(self.hi)}{tail}"
         if self.lo is not None:
             return f"{name} {'≥' if self.closed else '>'} {_fmt_number(self.lo)}{tail}"
