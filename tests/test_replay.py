@@ -157,10 +157,15 @@ def test_every_counterexample_gets_its_replay_not_only_the_pictured_ones(pyteste
     cards = sorted(cases.glob("*.html"))
     assert len(cards) == failed
     assert len(list(cases.glob("*.moment.png"))) == 1  # the pictures stay within their cap
+    (player,) = cases.glob("replay-*.js")  # one player script the cards share
     for card in cards:
         page = card.read_text()
         assert "<input type='range'" in page and "id='replay-data'" in page
+        assert f"<script src='{player.name}'></script>" in page and "function avsReplay" not in page
     assert list(cases.glob("*.replay.json")) == []  # taken into the cards: one copy each
+    # the next run in the folder deletes the player with the rest: it is listed as ours
+    manifest = json.loads((pytester.path / "avs-report" / ".avs-manifest.json").read_text())
+    assert f"cases/{player.name}" in manifest["files"]
 
 
 def test_the_card_section_keeps_odd_agent_names_inside_its_data():
@@ -171,7 +176,8 @@ def test_the_card_section_keeps_odd_agent_names_inside_its_data():
     traj = Trajectory.from_arrays(t, {"ego": {"x": 10 * t, "y": 0 * t}, name: {"x": 12 + 0 * t, "y": 0 * t}})
     data = replay_data(traj, violations={"distance": {"t": 0.0, "agent": name, "threshold": 5.0, "rho": -3.0}})
     section = replay_html(data)
-    assert name not in section and section.count("</script>") == 2  # the data's and the player's
+    # the data's, the inline player's (a section made on its own) and the call's
+    assert name not in section and section.count("</script>") == 3
     embedded = section.split("id='replay-data'>", 1)[1].split("</script>", 1)[0]
     assert json.loads(embedded) == json.loads(dumps(data)) and data["critical"] == name
     # the slider spans every frame and starts at the first violation

@@ -156,9 +156,11 @@ def test_a_card_replays_its_case_from_the_first_violation(campaign):
     card = next(c for c in _cards(report) if c.name.endswith(f".{row['item'].partition('[')[2][:-1]}.html"))
     page = card.read_text()
     data = _replay(page)
-    # the slider, the canvas and the data, inline: the card works offline, with no other file
+    # the slider, the canvas and the data inline; the player is the report's own shared file
+    # beside the card: it works offline, with nothing from the network
     assert data is not None and "<input type='range'" in page and "<canvas" in page
-    assert not re.search(r"<script[^>]+src=|https?://", page)
+    assert re.findall(r"<script[^>]+src='([^']+)'", page) == [next((report / "cases").glob("replay-*.js")).name]
+    assert not re.search(r"https?://", page)
     # the recording came as cases/*.replay.json; the card holds the report's only copy
     assert list((report / "cases").glob("*.replay.json")) == []
     assert [a["name"] for a in data["agents"]] == ["ego", "lead"] and data["critical"] == "lead"

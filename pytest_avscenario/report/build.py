@@ -176,12 +176,18 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     space = info.space if info is not None else None
     metrics = info.metrics if info is not None else ()
 
+    player: list[str] = []  # the shared player script's name, once written
+
     def slider(data: Mapping[str, Any], row: CaseRow) -> str:
         # the data knows its own first violation and critical agent: those of the case it
         # recorded (the minimized one, when there is one), not necessarily the row's
-        from .replay import replay_html
+        from .replay import player_file, replay_html
 
-        return replay_html(data, element_id="replay")
+        if not player:
+            name, text = player_file()
+            atomic_write_text(folder.add(cases / name), text, durable=False)
+            player.append(name)
+        return replay_html(data, element_id="replay", player=player[0])
 
     labels = mode_labels(campaigns)
     described = {item: f"{labels[item]} ({m.what}: {m.rule})"

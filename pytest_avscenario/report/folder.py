@@ -56,8 +56,9 @@ _TOP = {MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"}
 _SUB = {
     TABLES_DIR: re.compile(r"[^/]+-[0-9a-f]{8}(\.shrink)?\.csv"),
     "plots": re.compile(r"[^/]+-[0-9a-f]{8}\.(space|rho)\.png"),
-    # a case's pictures, recording and card: "<slug>-<hash>[.<kind>].(png|gif|json|html)"
-    "cases": re.compile(r"[^/]+-[0-9a-f]{8}(\.[A-Za-z0-9_.-]+)?\.(png|gif|json|html)"),
+    # a case's pictures, recording and card: "<slug>-<hash>[.<kind>].(png|gif|json|html)";
+    # the cards' shared replay player: "replay-<hash>.js"
+    "cases": re.compile(r"[^/]+-[0-9a-f]{8}(\.[A-Za-z0-9_.-]+)?\.(png|gif|json|html)|replay-[0-9a-f]{8}\.js"),
 }
 
 
