@@ -1,8 +1,10 @@
 """The interactive replay on a counterexample's card: a canvas, a time slider and play/pause.
 
 :func:`replay_html` embeds a case's replay data (:func:`pytest_avscenario.sim.replay.replay_data`,
-kept as ``cases/<test>-<hash>.replay.json``) in the card page with a small inline script: no
-network, no external library, so a card opened from a CI artifact or an e-mail works as is.
+kept as ``cases/<test>-<hash>.replay.json``) in the card page with a small player script —
+the report's shared ``cases/replay-<hash>.js`` (:func:`player_file`), or inline for a page
+made on its own: no network, no external library, so a report opened from a CI artifact
+works as is.
 The replay starts at the first violation and draws what the annotated still shows: the road,
 every agent labelled with its name and speed, a velocity arrow per agent, the critical agent
 ringed, a scale bar, and beside the picture the frame's metric values (the lines of
