@@ -202,8 +202,8 @@ def format_comparison(comparison: Comparison, now: str = "this run") -> list[str
     tests = list(dict.fromkeys([r.test for r in comparison.rates] + [m.test for m in comparison.modes]))
     names = short_names(tests)
     lines = [f"{now} compared with {comparison.baseline}:"]
-    shown = [r for r in comparison.rates if (r.now and r.now[0]) or (r.before and r.before[0])
-             or r.now is None or r.before is None]
+    shown = [r for r in comparison.rates if r.now is not None
+             and ((r.now and r.now[0]) or (r.before and r.before[0]) or r.before is None)]
     table = [["test", "sampler", "metric", "now", "before", "change"]]
     table += [[names[r.test], r.sampler, r.metric, _kn(r.now), _kn(r.before), _change(r)] for r in shown]
     if shown:
@@ -211,9 +211,11 @@ def format_comparison(comparison: Comparison, now: str = "this run") -> list[str
         for row in table:
             cells = [c.rjust(w) if i in (3, 4) else c.ljust(w) for i, (c, w) in enumerate(zip(row, widths))]
             lines.append("  " + "  ".join(cells).rstrip())
-    quiet = len(comparison.rates) - len(shown)
+    quiet = sum(r.now is not None for r in comparison.rates) - len(shown)
     if quiet:
         lines.append(f"  ({quiet} more metric{'s' if quiet != 1 else ''}: no violation in either run)")
+    if comparison.only_before:  # a run of some tests: the others are one line, not a table
+        lines.append(f"  {_not_run(comparison.only_before, short_names([t for t, _ in comparison.only_before]))}")
     for m in comparison.modes:
         if m.status == "new":
             lines.append(f"  new mode {names[m.test]} [{m.sampler}] {m.now_id}: {m.what}, {m.rule} "
@@ -226,6 +228,13 @@ def format_comparison(comparison: Comparison, now: str = "this run") -> list[str
     for test, sampler in comparison.modes_unknown:
         lines.append(f"  {names[test]} [{sampler}]: failure modes not recorded in one of the runs")
     return lines
+
+
+def _not_run(campaigns: Sequence[tuple[str, str]], names: Mapping[str, str]) -> str:
+    tests = list(dict.fromkeys(t for t, _ in campaigns))
+    shown = ", ".join(names.get(t, t) for t in tests[:6]) + (f" and {len(tests) - 6} more" if len(tests) > 6 else "")
+    return (f"not run now: {len(campaigns)} campaign{'s' if len(campaigns) != 1 else ''} of the baseline "
+            f"({len(tests)} test{'s' if len(tests) != 1 else ''}: {shown})")
 
 
 def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
@@ -242,12 +251,16 @@ def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
            "<div class='wide'><table class='comparison'><thead><tr><th>test</th><th>sampler</th><th>metric</th>"
            "<th>now</th><th>before</th><th>change</th></tr></thead><tbody>"]
     for r in comparison.rates:
+        if r.now is None:
+            continue  # a campaign of the baseline this run did not run: one line below
         c = r.change
         cls = " bad" if c is not None and c > 1e-12 else " good" if c is not None and c < -1e-12 else ""
         out.append(f"<tr><td title='{e(r.test)}'>{e(names[r.test])}</td><td>{e(r.sampler)}</td>"
                    f"<td>{e(r.metric)}</td><td class='num'>{e(_kn(r.now))}</td>"
                    f"<td class='num'>{e(_kn(r.before))}</td><td class='num{cls}'>{e(_change(r))}</td></tr>")
     out.append("</tbody></table></div>")
+    if comparison.only_before:
+        out.append(f"<p class='meta'>{e(_not_run(comparison.only_before, names))}</p>")
     order = {"new": 0, "gone": 1, "kept": 2}
     changed = sorted(comparison.modes, key=lambda m: order[m.status])  # stable: run order within
     kept = sum(m.status == "kept" for m in comparison.modes)
