@@ -203,7 +203,7 @@ def format_comparison(comparison: Comparison, now: str = "this run") -> list[str
     names = short_names(tests)
     lines = [f"{now} compared with {comparison.baseline}:"]
     shown = [r for r in comparison.rates if r.now is not None
-             and ((r.now and r.now[0]) or (r.before and r.before[0]) or r.before is None)]
+             and ((r.now and r.now[0]) or (r.before and r.before[0]))]
     table = [["test", "sampler", "metric", "now", "before", "change"]]
     table += [[names[r.test], r.sampler, r.metric, _kn(r.now), _kn(r.before), _change(r)] for r in shown]
     if shown:
