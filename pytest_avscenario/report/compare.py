@@ -253,6 +253,8 @@ def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
     for r in comparison.rates:
         if r.now is None:
             continue  # a campaign of the baseline this run did not run: one line below
+        if r.now[1] == 0 and not (r.before and r.before[1]):
+            continue  # no sampled case in either run (e.g. the replays of stored failures)
         c = r.change
         cls = " bad" if c is not None and c > 1e-12 else " good" if c is not None and c < -1e-12 else ""
         out.append(f"<tr><td title='{e(r.test)}'>{e(names[r.test])}</td><td>{e(r.sampler)}</td>"
