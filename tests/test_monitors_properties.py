@@ -109,7 +109,9 @@ def test_collision_sign_agrees_with_polygon_overlap(s):
 
     traj = build(s)
     rho = collision(use_crash_flag=False).evaluate(traj).rho
-    assume(abs(rho) > 1e-6)
+    # a corner in by depth d overlaps by an area ~d²: away from 0 by more than the area's
+    # tolerance can tell (d = 1.2e-5 is an overlap of ~1e-10 m²)
+    assume(abs(rho) > 1e-3)
     overlap = False
     for a, k in pairs(s):
         polys = traj.footprints(k)
