@@ -261,7 +261,8 @@ class Uniform(Distribution):
         return self._nominal
 
     def from_unit(self, u: float) -> float:
-        return float(self.lo + float(u) * (self.hi - self.lo))
+        # lo + 1.0 * (hi - lo) can round past hi (e.g. lo = -713.05, hi = -4e-121 gives 0.0)
+        return float(min(self.lo + float(u) * (self.hi - self.lo), self.hi))
 
     def to_unit(self, value: Any) -> float:
         return float((float(value) - self.lo) / (self.hi - self.lo))

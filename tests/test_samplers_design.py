@@ -81,3 +81,30 @@ def test_a_sampler_told_a_history_first_skips_the_design():
 def test_a_bad_corners_option_says_what_was_wrong(bad):
     with pytest.raises(samplers.SamplerError, match="bo corners"):
         samplers.make("bo", BOX5, corners=bad)
+
+
+def test_a_space_with_fewer_corners_than_the_design_asks_each_corner_once():
+    from pytest_avscenario import samplers
+    from pytest_avscenario.space import FeatureSpace, Uniform
+
+    s = samplers.make("bo", FeatureSpace({"gap": Uniform(5.0, 40.0)}), seed=0, metrics=["distance"])
+    asked = []
+    for _ in range(5):
+        p = s.ask()
+        asked.append(p["gap"])
+        s.tell(p, {"distance": 1.0})
+    assert sorted(asked[:2]) == [5.0, 40.0] and asked.count(5.0) == 1 and asked.count(40.0) == 1
+
+
+def test_a_corner_of_a_range_that_rounds_past_its_bound_stays_inside_it():
+    # lo + 1.0 * (hi - lo) is 0.0 here, above hi: the corner must be hi itself
+    from pytest_avscenario import samplers
+    from pytest_avscenario.space import FeatureSpace, Uniform
+
+    space = FeatureSpace({"gap": Uniform(-713.0537694440146, -4.239979768241903e-121)})
+    s = samplers.make("bo", space, seed=0, metrics=["distance"])
+    for _ in range(4):
+        p = s.ask()
+        space.validate(p)
+        s.tell(p, {"distance": 1.0})
+    assert space.parameters["gap"].from_unit(1.0) == -4.239979768241903e-121

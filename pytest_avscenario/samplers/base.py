@@ -114,6 +114,7 @@ class Sampler:
         self._uni_idx = np.array([i for i, c in enumerate(dims) if c[1] == 1], dtype=int)
         self._uni_lo = np.array([c[2] for c in dims if c[1] == 1], dtype=float)
         self._uni_w = np.array([c[3] for c in dims if c[1] == 1], dtype=float)
+        self._uni_hi = np.array([c[4].hi for c in dims if c[1] == 1], dtype=float)
 
     @property
     def d(self) -> int:
@@ -150,7 +151,11 @@ class Sampler:
                 continue
             x = next(it)
             x = 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
-            out[name] = a + x * w if kind == 1 else dist.from_unit(x)
+            if kind == 1:
+                v = a + x * w
+                out[name] = v if v <= dist.hi else dist.hi  # lo + 1.0 * (hi - lo) may round past hi
+            else:
+                out[name] = dist.from_unit(x)
         return out
 
     def _params_many(self, U: np.ndarray) -> list[dict[str, Any]]:
@@ -161,7 +166,7 @@ class Sampler:
         if not self._conv:
             return [{} for _ in range(n)]
         # every Uniform column in one affine step (the same float operations as _params)
-        uni = iter((self._uni_lo + U[:, self._uni_idx] * self._uni_w).T.tolist())
+        uni = iter(np.minimum(self._uni_lo + U[:, self._uni_idx] * self._uni_w, self._uni_hi).T.tolist())
         cols: list[list[Any]] = []
         j = 0
         for name, kind, a, w, dist in self._conv:

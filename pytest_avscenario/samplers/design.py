@@ -30,10 +30,13 @@ def ordered_mask(space: FeatureSpace) -> np.ndarray:
 
 
 def corner_design(space: FeatureSpace, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``n`` corners of the unit cube of ``space`` (``(n, d)``), greedily spread out."""
+    """``n`` corners of the unit cube of ``space`` (``(n, d)``), greedily spread out — at most
+    ``2**k`` when every coordinate is ordered (k of them), so no case is asked twice."""
     d = space.d
     ordered = ordered_mask(space)
     k = int(ordered.sum())
+    if k == d and k < 63:
+        n = min(n, 2 ** k)
     out = rng.random((n, d))  # categorical coordinates keep these
     if k == 0 or n == 0:
         return out
