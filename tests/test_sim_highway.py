@@ -207,3 +207,20 @@ def test_bad_profile_in_a_scenario_is_an_error_naming_the_test(pytester):
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*test_profile*agent 'lead'*speed_profile(points=...)*"
                                  "must increase strictly*"])
+
+
+def test_an_ego_whose_lane_ends_is_refused_for_drivers_that_do_not_merge():
+    from pytest_avscenario.sim.errors import SimError
+    from pytest_avscenario.sim.highway import straight
+    from pytest_avscenario.sim.world import World
+
+    for driver in ("autopilot", "careful"):
+        w = World(name="test_drop", seed=1)
+        road = w.highway(lanes=2, segments=[straight(200), straight(300, lanes=1)])
+        with pytest.raises(SimError, match=rf"test_drop.*lane\[1\]@0, a lane that ends, and the {driver} driver"):
+            w.ego(road.at(10, lane=1), speed=20, driver=driver)
+    w = World(name="test_drop", seed=1)  # highway-env's IDM merges off the ending lane
+    road = w.highway(lanes=2, segments=[straight(200), straight(300, lanes=1)])
+    w.ego(road.at(10, lane=1), speed=20, driver="idm")
+    w.run(seconds=15)
+    assert abs(float(w.trajectory.y[0, -1])) < 0.5  # in the lane that continues

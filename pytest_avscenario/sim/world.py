@@ -378,6 +378,26 @@ class World:
             self._others.append(agent)
         return agent
 
+    def _check_route_continues(self, lanes: list[Lane], drv: Any, name: str) -> None:
+        """The built-in autopilot and careful driver follow their route's lanes and do not
+        merge: a route ending in a lane that ends (a lane drop, an on-ramp's acceleration
+        lane) would have them drive on past the road's edge unnoticed. Refused, naming the
+        lane; highway-env's IDM (``driver="idm"``) merges and is allowed."""
+        ends = getattr(self.road, "_drops", ())
+        if not ends or not lanes or not any(lanes[-1] is lane for lane in ends):
+            return
+        from .drivers.autopilot import Autopilot
+        from .drivers.reference import CarefulDriver
+
+        target = getattr(drv, "target", drv)
+        if isinstance(target, (Autopilot, CarefulDriver)):
+            who = "autopilot" if isinstance(target, Autopilot) else "careful"
+            raise SimError(
+                f"the ego's route ends in {lanes[-1].id}, a lane that ends, and the "
+                f"{who} driver follows its lanes without merging (it would drive "
+                "off the road's edge); start the ego in a lane that continues, give it a route "
+                "that does, or drive it with driver='idm'", test=self.name, agent=name)
+
     def ego(self, place: Any, s: float = 0.0, speed: float = 0.0, driver: Any = None,
             route: Any = None, target_speed: float | None = None, goal: dict | None = None, *,
             r: float = 0.0, allow_reverse: bool | None = None, name: str = "ego") -> Any:
@@ -405,6 +425,7 @@ class World:
         lanes, k = self._route_for(spot, route, name)
         drv = resolve(self.ego_driver if self.ego_driver is not None
                       else driver if driver is not None else self.driver)
+        self._check_route_continues(lanes, drv, name)
         pos = spot.position
         heading = spot.heading
         from .engine import DriverEgo, IDMEgo
