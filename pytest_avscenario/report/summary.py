@@ -100,6 +100,9 @@ class SummaryRow:
     unavoidable: int = 0
     #: the campaign's failure modes (:func:`.modes.failure_modes`), the largest first
     modes: tuple[Any, ...] = field(default=())
+    #: the failure modes could not be computed (summary.json then says ``"modes": null``,
+    #: "not recorded", so a comparison does not call every earlier mode gone)
+    modes_failed: bool = False
 
     @property
     def verdict(self) -> str | None:
@@ -215,6 +218,7 @@ def summarize(
                 on_error(f"the ε-coverage [{sampler}]", test, exc)
                 eps = cover = frac = None
         found: tuple[Any, ...] = ()
+        modes_failed = False
         if modes and failing:
             try:
                 from .modes import failure_modes
@@ -224,6 +228,7 @@ def summarize(
                 if on_error is None:
                     raise
                 on_error(f"the failure modes [{sampler}]", test, exc)
+                modes_failed = True
         out.append(
             SummaryRow(
                 test=test,
@@ -247,6 +252,7 @@ def summarize(
                 judged=sum(1 for r in failing if r.avoidable),
                 unavoidable=sum(1 for r in failing if r.unavoidable),
                 modes=found,
+                modes_failed=modes_failed,
             )
         )
     return out
@@ -449,6 +455,6 @@ def summary_to_json(summary: Sequence[SummaryRow]) -> list[dict[str, Any]]:
         d["failed_items"] = list(s.failed_items)
         d["reasons"] = None if s.reasons is None else list(s.reasons)
         d["verdict"] = s.verdict
-        d["modes"] = [m.to_json() for m in s.modes]
+        d["modes"] = None if s.modes_failed else [m.to_json() for m in s.modes]
         out.append(d)
     return out
