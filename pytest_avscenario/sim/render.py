@@ -419,20 +419,10 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
 def _save_atomic(image: Any, path: str | os.PathLike) -> None:
     """Save a Pillow image as PNG so readers never see half a file (not fsynced: one of a
     report's many per-case files)."""
-    import tempfile
+    import io
 
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".moment.", suffix=".png.tmp", dir=directory)
-    try:
-        mask = os.umask(0)
-        os.umask(mask)
-        os.fchmod(fd, 0o666 & ~mask)  # the mode a plain open() gives, not mkstemp's 0600
-        with os.fdopen(fd, "wb") as fh:
-            image.save(fh, format="PNG", optimize=True)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    from ..report.folder import atomic_write_bytes
+
+    buf = io.BytesIO()
+    image.save(buf, format="PNG", optimize=True)
+    atomic_write_bytes(path, buf.getvalue(), durable=False)
