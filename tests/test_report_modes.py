@@ -95,6 +95,7 @@ def test_a_small_group_is_one_mode_with_its_bounding_box():
                      params=p, rho={"distance": -0.5}, verdict="fail") for k, p in enumerate(bad)]
     (mode,) = failure_modes(rows, sp, ["distance"])
     assert mode.kind == "box" and mode.count == 3 and mode.agent is None
+    assert mode.key == "distance|-|box"  # not its cases' bounds: the same few failures match between runs
     assert "7 ≤ gap ≤ 9 m" in mode.rule and "lanes = 2" in mode.rule
     assert mode.representative == f"{TEST}[replay-1]"  # the middle one
     (one,) = failure_modes(rows[:-2], sp, ["distance"])  # a single case: its values, not a box
@@ -195,6 +196,10 @@ def test_modes_and_the_comparison_with_a_baseline_run_reach_the_terminal_summary
     missing = subprocess.run([sys.executable, "-m", "pytest_avscenario.report", "compare", "nowhere", "before"],
                              cwd=pytester.path, capture_output=True, text=True)
     assert missing.returncode == 2 and "cannot read nowhere" in missing.stderr
+    blocked = subprocess.run([sys.executable, "-m", "pytest_avscenario.report", "compare", "after", "before",
+                              "--html", "cmp"], cwd=pytester.path, capture_output=True, text=True)
+    assert blocked.returncode == 2 and "error: cannot write --html cmp" in blocked.stderr
+    assert "Traceback" not in blocked.stderr
 
 
 def test_overlapping_failures_go_to_the_metric_first_in_priority():

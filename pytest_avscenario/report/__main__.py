@@ -53,8 +53,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .table import atomic_write_text
 
         path = Path(args.html)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, _page(comparison_html(comparison), f"avscenario: {new.path} against {old.path}"))
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(path, _page(comparison_html(comparison), f"avscenario: {new.path} against {old.path}"))
+        except OSError as exc:  # a folder at that name, no permission, a full disk
+            print(f"error: cannot write --html {path}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
         print(f"written: {path}")
     return 0
 

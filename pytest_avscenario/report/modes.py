@@ -25,8 +25,10 @@ does that for one test × sampler campaign:
 Modes are ordered by count (``M1`` is the largest); at most ``max_modes`` are kept, and the
 cases of a dropped mode join the nearest kept mode of their group, if any. Each mode has a
 content ``key`` — metric, agent and the rule's parameters with their directions, not the
-thresholds — that stays the same between runs finding the same kind of failure, so that
-:mod:`.compare` can tell new modes from gone ones. Everything is deterministic: the rows are
+thresholds (for a box, metric and agent alone) — for :mod:`.compare` to tell new modes from
+gone ones. It stays the same between runs whose trees split on the same parameters; with few
+counterexamples another sample may split on others, and the comparison then lists the mode as
+gone and a new one beside it (its rule shows whether they are the same failure). Everything is deterministic: the rows are
 put in one order first, so the same rows give the same modes in whatever order they come.
 Nothing here imports pytest or anything heavier than numpy.
 """
@@ -605,7 +607,9 @@ def failure_modes(rows: Sequence[CaseRow | Mapping[str, Any]], space: Any = None
     out = []
     keys: dict[str, int] = {}
     for n, d in enumerate(kept, 1):
-        key = _mode_key(*d.group, d.bounds)
+        # a box (a group too small to split) is bounded by whatever cases it happened to
+        # hold: its key is its group's alone, so the same few failures match between runs
+        key = _mode_key(*d.group, d.bounds) if d.kind != "box" else _mode_key(*d.group, ()).replace("|*", "|box")
         keys[key] = keys.get(key, 0) + 1
         if keys[key] > 1:
             key += f"#{keys[key]}"
