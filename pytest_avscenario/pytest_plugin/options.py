@@ -258,7 +258,8 @@ OPTIONS = (
            _integer(0), per_test=True),
     Option("shrink-max", "N",
            "minimize (and store for replay) only the first N failures of each scenario test "
-           "and sampler; the rest are reported as found (default: every failure)",
+           "and sampler in each process (an xdist worker minimizes up to N); the rest are "
+           "reported as found (default: every failure)",
            "failures per test and sampler that are minimized and stored (default: all)",
            _integer(0), per_test=True),
     Option("reference-driver", "NAME|none",

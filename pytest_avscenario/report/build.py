@@ -74,6 +74,7 @@ def finish_report(
     from .folder import ReportFolder
 
     root = Path(directory)
+    own_folder = folder is None  # then this call ends the folder's run: its log is folded
     folder = folder if folder is not None else ReportFolder(root)
     if rows is None:
         rows = read_rows(root) + read_rows(root, shrink=True)
@@ -157,6 +158,8 @@ def finish_report(
                     preamble=preamble)
 
     part("index.html", None, write_page)
+    if own_folder:
+        folder.close()
     return summary
 
 
