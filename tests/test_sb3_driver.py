@@ -78,10 +78,15 @@ def test_check_answers_an_absolute_path_and_reads_the_algorithm_from_the_zip(tmp
         monkeypatch.setitem(sys.modules, "stable_baselines3", types.ModuleType("stable_baselines3"))
     assert check("sb3:m/dqn.zip", tmp_path) == f"sb3:{tmp_path / 'm' / 'dqn.zip'}@highway-fast-v0"
     assert check("sb3:dqn:m/dqn.zip@highway-v0", tmp_path).startswith("sb3:DQN:/")
+    # the path without .zip, as stable-baselines3's load() takes it
+    assert check("sb3:m/dqn", tmp_path) == f"sb3:{tmp_path / 'm' / 'dqn.zip'}@highway-fast-v0"
 
 
 @pytest.mark.parametrize("make, text, message", [
-    (None, "sb3:nope.zip", "driver 'sb3:nope.zip': no model file at */nope.zip"),
+    (None, "sb3:nope.zip", "driver 'sb3:nope.zip': no model file at */nope.zip (read as model 'nope.zip', "
+                           "environment 'highway-fast-v0')"),
+    # an '@' in the file's name: what was read as what is said
+    (None, "sb3:dqn@v2.zip", "*no model file at */dqn (read as model 'dqn', environment 'v2.zip')"),
     (lambda d: (d / "dir.zip").mkdir(), "sb3:dir.zip", "*dir.zip is not a file*"),
     (lambda d: (d / "m.zip").write_text("hello"), "sb3:m.zip", "*m.zip is not a zip file*"),
     (lambda d: zipfile.ZipFile(d / "m.zip", "w").close(), "sb3:m.zip",

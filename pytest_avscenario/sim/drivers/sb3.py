@@ -129,8 +129,11 @@ def check(text: str, base: os.PathLike | str) -> str:
     shown = text.strip()
     path = Path(base, os.path.expanduser(spec.path))
     path = Path(os.path.abspath(path))
+    if not path.exists() and path.suffix != ".zip" and path.with_name(path.name + ".zip").is_file():
+        path = path.with_name(path.name + ".zip")  # as stable-baselines3's load() finds it
     if not path.exists():
-        raise ValueError(f"driver {shown!r}: no model file at {path}")
+        raise ValueError(f"driver {shown!r}: no model file at {path} (read as model {spec.path!r}, "
+                         f"environment {spec.env!r}{f', algorithm {spec.algorithm}' if spec.algorithm else ''})")
     if not path.is_file():
         raise ValueError(f"driver {shown!r}: {path} is not a file (give the .zip that "
                          "model.save() wrote)")
