@@ -16,9 +16,7 @@ three planted regions. Run from the repository root:
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -62,13 +60,7 @@ def campaign(n: int, seed: int = 0) -> list[CaseRow]:
     return rows
 
 
-def timed(fn, repeats: int):
-    times, value = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        value = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), value
+from bench_coverage import timed  # noqa: E402  (this folder is on sys.path when run as a script)
 
 
 def main() -> None:
