@@ -119,6 +119,10 @@ def _lane_points(lane: Any) -> list[tuple[float, float]]:
     """A lane's centre line as few points as draw it within 5 cm."""
     g = lane.geometry
     length = float(lane.length)
+    from highway_env.road.lane import StraightLane
+
+    if isinstance(g, StraightLane):  # its two ends draw it exactly: no sampling
+        return [tuple(map(float, g.position(s, 0.0))) for s in (0.0, length)]
     n = max(2, int(math.ceil(length / 2.0)) + 1)
     pts = [tuple(map(float, g.position(s, 0.0))) for s in np.linspace(0.0, length, n)]
     if n > 2:
