@@ -7,7 +7,8 @@ made on its own: no network, no external library, so a report opened from a CI a
 works as is.
 The replay starts at the first violation and draws what the annotated still shows: the road,
 every agent labelled with its name and speed, a velocity arrow per agent, the critical agent
-ringed, a scale bar, and beside the picture the frame's metric values (the lines of
+ringed, a scale bar, and beside the picture the frame's metric values and the ego's decision
+in force (the lines of
 :func:`pytest_avscenario.sim.replay.frame_lines`). ``card.html#t=1.5`` opens it at 1.5 s.
 
 For automated checks the replay's element carries ``data-frame``, ``data-t`` (the shown
@@ -121,6 +122,11 @@ function avsReplay(id) {
     });
     road.stop_lines.concat(road.lane_ends || []).forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
   }
+  function decision(k) {  // [since, label] in force at frame k, as sim.replay.decision_at
+    var now = null, cs = Math.round(T[k] * 100), at = D.decisions ? D.decisions.at : [];
+    for (var i = 0; i < at.length && at[i][0] <= cs; i++) now = [at[i][0] / 100, D.decisions.labels[at[i][1]]];
+    return now;
+  }
   function signed(v) { return (v >= 0 ? "+" : "") + v.toFixed(2); }
   function lines(k) {  // the same lines as sim.replay.frame_lines
     var mark = k === D.first && D.first_kind !== "moment" ? " \u2014 first " + D.first_kind : "";
@@ -131,6 +137,9 @@ function avsReplay(id) {
              (g === null ? dash : g.toFixed(2) + " m") + ", TTC " +
              (d === null ? dash : ttc === null ? "\u221e" : ttc.toFixed(2) + " s"));
     }
+    var made = decision(k);
+    if (made) o.push(agents[0].name + (D.decisions.source === "action" ? " decision: " : " reason: ") + made[1] +
+                     " (since " + made[0].toFixed(2) + " s)");
     D.violations.forEach(function (v) {
       var per = RT[v.metric];
       o.push(v.metric + ": " + (per && per[k] !== null ? "\u03c1(t) " + signed(per[k]) + ", " : "") + "run \u03c1 " +

@@ -5,6 +5,13 @@ turns the arrays into the :class:`~pytest_avscenario.trajectory.Trajectory` that
 read: the contract between the simulator and the monitors. Agents absent at a step (not yet
 appeared, or gone) are recorded with NaN kinematics and ``present`` False, so every agent has
 one row for the whole run.
+
+The ego's *decisions* go into the trajectory's ``meta["decisions"]`` (plain JSON, so they
+travel wherever the trajectory does): a driver that decides discretely (``highway_env_agent``)
+keeps ``ego.decisions``, a list of ``(t [s], action)``; a driver with a ``last_reason`` (the
+autopilot, the careful reference driver) says why it chose its last command. Only changes
+are kept (the decision in force until the next one), so a 1-Hz agent that says ``IDLE`` for
+a minute costs one entry.
 """
 
 from __future__ import annotations
@@ -17,7 +24,7 @@ import numpy as np
 from ..trajectory import Trajectory
 from .geometry import wrap_to_pi
 
-__all__ = ["Recorder"]
+__all__ = ["Recorder", "action_label"]
 
 _ABSENT = (math.nan,) * 7 + (-1,)
 
@@ -35,6 +42,11 @@ class Recorder:
         self.buses = [a for a in agents if a.kind == "bus"]
         self.arm = np.zeros((n, len(self.buses)))
         self.cmd = np.zeros((n, 2))  # ego commanded acceleration, steering
+        drv = getattr(agents[0], "driver", None)
+        # a user policy is wrapped (PolicyDriver.target): its reason is the wrapped object's
+        self.why = next((d for d in (drv, getattr(drv, "target", None))
+                         if isinstance(getattr(d, "last_reason", None), str)), None)
+        self.reasons: list[list[Any]] = []
 
     def write(self, k: int) -> None:
         code = self.code
@@ -61,6 +73,11 @@ class Recorder:
             self.arm[k] = [b.stop_arm for b in self.buses]
         act = self.agents[0].action
         self.cmd[k] = (act["acceleration"], act["steering"])
+        if self.why is not None and k > 0:
+            # the reason of the command applied from t[k-1] on (sample 0 precedes any command)
+            why = self.why.last_reason
+            if not self.reasons or self.reasons[-1][1] != why:
+                self.reasons.append([round((k - 1) * self.world.dt, 6), str(why)])
 
     def finish(self, n: int, seconds: float, stopped: str | None) -> Trajectory:
         w = self.world
@@ -92,6 +109,9 @@ class Recorder:
             "crosswalks": [c.name for c in getattr(w.road, "crosswalks", [])],
             **({"intersections": list(w.road.intersections)} if w.road.kind == "network" else {}),
         }
+        decisions = _decisions(ego, self.reasons, float(t[-1]) if n else 0.0)
+        if decisions is not None:
+            meta["decisions"] = decisions
         return Trajectory(
             t=t, names=tuple(a.name for a in self.agents), kinds=tuple(a.kind for a in self.agents),
             length=np.array([float(a.LENGTH) for a in self.agents]),
@@ -105,3 +125,48 @@ class Recorder:
             on_road=np.ascontiguousarray(flags[:, :, 1]),
             signals=signals, meta=meta,
         )
+
+
+def _decisions(ego: Any, reasons: list[list[Any]], t_end: float) -> dict[str, Any] | None:
+    """``{"source", "changes": [[t, label], ...]}`` of the ego's decisions up to ``t_end``
+    [s], changes only: a discretely deciding driver's actions (``source`` "action"), else its
+    driver's reasons ("reason"); None when it has neither."""
+    made = getattr(ego, "decisions", None)
+    if isinstance(made, list) and made:
+        at = getattr(getattr(ego, "session", None), "action_type", None)
+        changes: list[list[Any]] = []
+        for t, action in made:
+            if t > t_end + 1e-9:
+                break
+            label = action_label(action, at)
+            if not changes or changes[-1][1] != label:
+                changes.append([round(float(t), 6), label])
+        return {"source": "action", "changes": changes}
+    if reasons:
+        return {"source": "reason", "changes": reasons}
+    return None
+
+
+def action_label(action: Any, action_type: Any = None) -> str:
+    """A highway-env action as the card shows it: a ``DiscreteMetaAction``'s name
+    (``LANE_LEFT``), or the normalised command [-1, 1] of a continuous or discretised action,
+    to one decimal (``acceleration +0.3, steering -0.1``; the model's own frame) — so a
+    continuous policy's jitter below 0.05 is not a new decision."""
+    names = getattr(action_type, "actions", None)
+    if isinstance(names, dict) and not isinstance(action, (list, np.ndarray)):
+        try:
+            return str(names[int(action)])
+        except (KeyError, TypeError, ValueError):
+            pass
+    parts = ["acceleration"] * bool(getattr(action_type, "longitudinal", True)) \
+        + ["steering"] * bool(getattr(action_type, "lateral", True))
+    values = np.asarray(action, dtype=float).reshape(-1)
+    per_axis = getattr(action_type, "actions_per_axis", None)
+    if values.size == 1 and per_axis:  # DiscreteAction: an index into a grid of commands
+        import itertools
+
+        axes = [np.linspace(-1.0, 1.0, int(per_axis))] * len(parts)
+        values = np.asarray(list(itertools.product(*axes))[int(values[0])], dtype=float)
+    if values.size != len(parts):
+        parts = [f"u{i}" for i in range(values.size)]
+    return ", ".join(f"{p} {v + 0.0:+.1f}" for p, v in zip(parts, np.round(values, 1)))

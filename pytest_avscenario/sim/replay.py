@@ -6,7 +6,9 @@ intersection boxes, crosswalks, stop lines), every agent's position, heading and
 decimated rate (:data:`REPLAY_HZ`, plus the steps of the first violation and first contact),
 the critical agent, the violated metrics, and per frame the distance, footprint gap and time to collision
 between the ego and the critical agent, with the pointwise margin ρ(t) of the violated
-distance and TTC monitors. :func:`frame_lines` is the text shown beside a frame; the still
+distance and TTC monitors, and the ego's decisions (the recording's ``meta["decisions"]``:
+a discretely deciding agent's actions or its driver's reasons, as changes). :func:`frame_lines`
+is the text shown beside a frame; the still
 (:func:`~pytest_avscenario.sim.render.render_moment`) and the card page's replay
 (:mod:`pytest_avscenario.report.replay`) both show exactly these values.
 
@@ -15,7 +17,8 @@ positions and metric values in centimetres (or centiseconds), headings in degree
 decimetres per second, each series stored as its first value followed by differences
 (``null`` where the agent is absent or a value infinite) with runs of equal items as
 ``[item, count]``, an agent's series only from its first frame ``k0`` to its last, the road
-in decimetres. :func:`decoded` gives plain values.
+in decimetres, the decisions as a table of labels and ``[centiseconds, label number]`` per
+change. :func:`decoded` gives plain values.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import numpy as np
 from ..trajectory import Trajectory
 
 __all__ = ["REPLAY_HZ", "ARROW_S", "replay_data", "dumps", "undelta", "moment_step",
-           "frame_lines", "decoded", "view_spec"]
+           "frame_lines", "decoded", "view_spec", "decision_at"]
 
 #: frames per second of the replay (the simulation records 10 Hz by default)
 REPLAY_HZ = 5.0
@@ -312,9 +315,42 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
         "values": values,
         "rho_t": rho_t,
     }
+    decisions = _decisions(traj)
+    if decisions is not None:
+        data["decisions"] = decisions
     if world is not None:
         data["road"] = _road(world)
     return data
+
+
+def _decisions(traj: Trajectory) -> dict[str, Any] | None:
+    """The ego's decisions as ``{"source", "labels", "at": [[t_cs, label number], ...]}``: each
+    label written once, however often it recurs (an agent alternating two actions)."""
+    made = (traj.meta or {}).get("decisions")
+    if not made or not made.get("changes"):
+        return None
+    labels: list[str] = []
+    at = []
+    for t, label in made["changes"]:
+        label = str(label)
+        if label not in labels:
+            labels.append(label)
+        at.append([int(round(float(t) * 100)), labels.index(label)])
+    return {"source": str(made.get("source", "action")), "labels": labels, "at": at}
+
+
+def decision_at(data: Mapping[str, Any], t: float) -> tuple[float, str] | None:
+    """``(since [s], label)`` of the ego's decision in force at ``t`` [s] in replay ``data``
+    (coded or decoded alike), or None before the first one or without decisions."""
+    made = data.get("decisions")
+    if not made:
+        return None
+    now = None
+    for cs, i in made["at"]:
+        if cs > round(t * 100):
+            break
+        now = (cs / 100, made["labels"][i])
+    return now
 
 
 def dumps(data: Mapping[str, Any]) -> str:
@@ -348,8 +384,9 @@ def _num(v: float | None, unit: str, digits: int = 2) -> str:
 
 def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
     """The text shown beside frame ``k``: its time (and whether it is the first violation),
-    distance, gap and TTC to the critical agent, ρ(t) of the violated distance/TTC metrics and
-    each violated metric's ρ over the run. The card's replay script writes the same lines.
+    distance, gap and TTC to the critical agent, the ego's decision in force (and since when),
+    ρ(t) of the violated distance/TTC metrics and each violated metric's ρ over the run. The
+    card's replay script writes the same lines.
     ``data`` as :func:`decoded` gives it."""
     t = data["t"][k]
     mark = f" — first {data['first_kind']}" if k == data["first"] and data["first_kind"] != "moment" else ""
@@ -360,6 +397,10 @@ def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
         d = values["d"][k]
         ttc_text = "—" if d is None else ("∞" if ttc is None else f"{ttc:.2f} s")
         lines.append(f"{crit}: distance {_num(d, 'm')}, gap {_num(values['gap'][k], 'm')}, TTC {ttc_text}")
+    made = decision_at(data, t)
+    if made is not None:
+        what = "decision" if data["decisions"]["source"] == "action" else "reason"
+        lines.append(f"{data['agents'][0]['name']} {what}: {made[1]} (since {made[0]:.2f} s)")
     for v in data["violations"]:
         per = (data.get("rho_t") or {}).get(v["metric"])
         now = f"ρ(t) {per[k]:+.2f}, " if per is not None and per[k] is not None else ""
