@@ -315,8 +315,13 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
     Above the scene the title (``title`` or the data's) with the time; in the scene every agent
     labelled with its name and speed, a velocity arrow per agent (as long as the distance it
     covers in :data:`~.replay.ARROW_S` s), the critical agent ringed, a scale bar; below it
-    the metric values of the frame (:func:`~.replay.frame_lines`). Returns what was drawn:
-    ``{"path", "t", "step", "labels", "critical", "lines"}``.
+    the metric values of the frame (:func:`~.replay.frame_lines`). Each label is placed by
+    :func:`_place_labels` beside its own car, off the other cars and labels where there is room.
+    Returns what was drawn: ``{"path", "t", "step", "labels", "critical", "lines", "placed",
+    "view"}`` — ``placed``: per agent name its label's ``box`` and its car's ``car`` footprint
+    box (``(left, top, width, height)`` in the PNG's pixels), the ``anchor`` its leader line
+    starts from and the ``text``; ``view``: the world point at the scene's top-left corner
+    ``origin`` [m], ``scale`` [px/m] and the scene's ``top`` [px] in the PNG.
     """
     from PIL import Image
 
@@ -330,6 +335,7 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
     step = int(np.argmin(np.abs(tr.t - t)))
     surface = frame(world, step, clock=False)
     size, scale, origin = _view(world, step)
+    band = 24  # the title's height above the scene [px]
     font = _font(pygame, 19)
     small = _font(pygame, 17)
     agents = data["agents"]
@@ -362,44 +368,52 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
         pygame.draw.line(surface, PAPER, (xx, y0 - 5), (xx, y0 + 3), 2)
     if legend is not None:
         surface.blit(legend, (x0, y0 - 22))
-    labels: list[str] = []
-    taken: list[Any] = [scale_box]  # labels keep off the scale bar and off each other
-    order = sorted(range(len(agents)), key=lambda i: (agents[i]["name"] != critical, i))
+    # Labels: the ego's and the critical agent's first, then the others nearest the ego first,
+    # each at the free spot nearest its own car (see _place_labels); drawn after all are placed
+    # so a leader line never crosses a label placed later.
+    order = sorted((i for i, a in enumerate(agents) if a["x"][k] is not None),
+                   key=lambda i: (i != 0, agents[i]["name"] != critical, _ego_distance(agents, i, k)))
+    bounds = surface.get_rect()
+    cars: list[tuple[int, int, int, int]] = []
+    todo = []
     for i in order:
         a = agents[i]
-        x, y, v = a["x"][k], a["y"][k], a["v"][k]
-        if x is None:
-            continue
-        cx, cy = pix((x, y))
-        text = f"{a['name']} {0.0 if v is None else v:.1f} m/s"
-        if not surface.get_rect().collidepoint(cx, cy):
-            text += " (out of view)"
-        labels.append(a["name"])
-        if font is None:
-            continue
-        hot = a["name"] == critical
-        img = font.render(text, True, INK if hot else PAPER, HIGHLIGHT if hot else (35, 35, 40))
-        off = int((max(a["L"], a["W"]) / 2 + 1.5) * scale) + 4
-        # the ego's label below it, the others' above (inside the picture, for an agent out of
-        # view too); moved on until it overlaps no other label, upward at the bottom edge
-        rect = img.get_rect(midtop=(cx, cy + off)) if i == 0 else img.get_rect(midbottom=(cx, cy - off))
-        rect.clamp_ip(surface.get_rect())
-        down = i == 0 and rect.bottom < surface.get_height() - 2 * rect.height
-        for _ in range(8):
-            if rect.collidelist(taken) < 0:
-                break
-            rect.move_ip(0, rect.height + 2 if down else -(rect.height + 2))
-        rect.clamp_ip(surface.get_rect())
-        taken.append(rect)
-        end = (min(max(cx, rect.left), rect.right), rect.top if rect.top > cy else rect.bottom)
-        pygame.draw.line(surface, HIGHLIGHT if hot else (35, 35, 40), (cx, cy), end, 1)
-        surface.blit(img, rect)
+        cx, cy = pix((a["x"][k], a["y"][k]))
+        box = _footprint_box(a, k, pix, scale)
+        inside = bounds.collidepoint(cx, cy)
+        text = f"{a['name']} {0.0 if a['v'][k] is None else a['v'][k]:.1f} m/s" + ("" if inside else " (out of view)")
+        if inside:
+            cars.append(box)
+        else:  # an agent out of view is labelled at the picture's edge, toward it
+            cx, cy = min(max(cx, 0), size[0] - 1), min(max(cy, 0), size[1] - 1)
+            box = (cx, cy, 0, 0)
+        todo.append((i, text, (cx, cy), box))
+    labels = [agents[i]["name"] for i, *_ in todo]
+    placed: dict[str, dict[str, Any]] = {}
+    if font is not None:
+        # the critical agent's ring is kept clear too: a label on it would hide whom it rings
+        rings = [_ring_box(a, k, pix, scale) for a in agents if a["name"] == critical and a["x"][k] is not None]
+        arrows = [seg for seg in (_arrow_segment(a, k, pix, data.get("arrow_s", 1.0)) for a in agents) if seg]
+        images = {i: font.render(text, True, INK if agents[i]["name"] == critical else PAPER,
+                                 HIGHLIGHT if agents[i]["name"] == critical else (35, 35, 40))
+                  for i, text, _, _ in todo}
+        boxes = _place_labels(
+            [(images[i].get_width(), images[i].get_height(), anchor, box, i == 0) for i, _, anchor, box in todo],
+            cars=cars + rings, fixed=[tuple(scale_box)], arrows=arrows,
+            bounds=(size[0], size[1]))
+        for (i, text, anchor, box), rect in zip(todo, boxes):
+            hot = agents[i]["name"] == critical
+            end = _nearest_point(rect, anchor)
+            pygame.draw.line(surface, HIGHLIGHT if hot else (35, 35, 40), anchor, end, 1)
+            surface.blit(images[i], rect[:2])
+            placed[agents[i]["name"]] = {"box": (rect[0], rect[1] + band, rect[2], rect[3]),
+                                         "car": (box[0], box[1] + band, box[2], box[3]),
+                                         "anchor": (anchor[0], anchor[1] + band), "text": text}
     scene = _image(surface)
     # pygame's built-in font has no infinity sign
     lines = [line.replace("∞", "inf") for line in frame_lines(data, k)]
     head = title or data.get("title") or ""
     head = f"{head} — {lines[0]}" if head else lines[0]
-    band = 24
     out = Image.new("RGB", (size[0], band + size[1] + band * (len(lines) - 1) + 6), (245, 245, 245))
     out.paste(scene, (0, band))
     if font is not None:
@@ -413,7 +427,153 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
         out.paste(strip.crop((0, band + size[1], size[0], out.height)), (0, band + size[1]))
     _save_atomic(out.convert("P", palette=Image.Palette.ADAPTIVE, colors=32), path)  # flat colours: 32 suffice
     return {"path": os.fspath(path), "t": t, "step": step, "labels": labels, "critical": critical,
-            "lines": lines}
+            "lines": lines, "placed": placed,
+            "view": {"origin": (float(origin[0]), float(origin[1])), "scale": float(scale), "top": band}}
+
+
+# -- label placement ------------------------------------------------------------------------------
+
+Box = tuple  # (left, top, width, height) [px]
+
+#: how far [px] beyond its car's footprint a label may be moved to find a free spot: the
+#: rings of candidate spots are this far apart, out to LABEL_REACH_PX
+LABEL_STEP_PX = 10
+LABEL_REACH_PX = 110
+
+#: the directions tried around a car, clockwise from above; a label's first choice is above
+#: its car (below for the ego, as before), so equally free spots keep that habit
+_DIRECTIONS = [(math.sin(a), -math.cos(a)) for a in np.radians(np.arange(0, 360, 22.5))]
+
+
+def _ego_distance(agents: list, i: int, k: int) -> float:
+    e, a = agents[0], agents[i]
+    if e["x"][k] is None:
+        return float(i)
+    return math.hypot(a["x"][k] - e["x"][k], a["y"][k] - e["y"][k])
+
+
+def _corners(a: dict, k: int, grow: float = 0.0) -> list[tuple[float, float]]:
+    x, y, h = a["x"][k], a["y"][k], math.radians(a["h"][k] or 0.0)
+    L, W = a["L"] / 2 + grow, a["W"] / 2 + grow
+    ch, sh = math.cos(h), math.sin(h)
+    return [(x + ch * p - sh * q, y + sh * p + ch * q) for p, q in ((L, W), (L, -W), (-L, -W), (-L, W))]
+
+
+def _bbox(points: list[tuple[int, int]]) -> Box:
+    xs, ys = [p[0] for p in points], [p[1] for p in points]
+    return min(xs), min(ys), max(xs) - min(xs) + 1, max(ys) - min(ys) + 1
+
+
+def _footprint_box(a: dict, k: int, pix: Any, scale: float) -> Box:
+    """The pixel box around an agent's drawn footprint (a pedestrian's disc)."""
+    if a["kind"] == "pedestrian":
+        cx, cy = pix((a["x"][k], a["y"][k]))
+        r = max(4, int(0.5 * scale))
+        return cx - r, cy - r, 2 * r + 1, 2 * r + 1
+    return _bbox([pix(p) for p in _corners(a, k)])
+
+
+def _ring_box(a: dict, k: int, pix: Any, scale: float) -> Box:
+    cx, cy = pix((a["x"][k], a["y"][k]))
+    r = max(10, int((max(a["L"], a["W"]) / 2 + 1.2) * scale)) + 2
+    return cx - r, cy - r, 2 * r + 1, 2 * r + 1
+
+
+def _arrow_segment(a: dict, k: int, pix: Any, arrow_s: float) -> tuple | None:
+    x, y, h, v = a["x"][k], a["y"][k], a["h"][k], a["v"][k]
+    if x is None or v is None or abs(v) <= 0.05:
+        return None
+    hr = math.radians(h)
+    return pix((x, y)), pix((x + math.cos(hr) * v * arrow_s, y + math.sin(hr) * v * arrow_s))
+
+
+def _overlap(a: Box, b: Box) -> int:
+    """The area [px²] two boxes share."""
+    w = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    h = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    return w * h if w > 0 and h > 0 else 0
+
+
+def _gap(a: Box, b: Box) -> float:
+    """The distance [px] between two boxes (0 when they touch or overlap)."""
+    dx = max(b[0] - (a[0] + a[2]), a[0] - (b[0] + b[2]), 0)
+    dy = max(b[1] - (a[1] + a[3]), a[1] - (b[1] + b[3]), 0)
+    return math.hypot(dx, dy)
+
+
+def _nearest_point(box: Box, p: tuple[int, int]) -> tuple[int, int]:
+    return min(max(p[0], box[0]), box[0] + box[2] - 1), min(max(p[1], box[1]), box[1] + box[3] - 1)
+
+
+def _crosses(seg: tuple, box: Box) -> bool:
+    """Whether segment ``seg`` passes through ``box`` (sampled every few pixels: enough to
+    steer a label off an arrow or a leader line off a car)."""
+    (x0, y0), (x1, y1) = seg
+    n = max(2, int(max(abs(x1 - x0), abs(y1 - y0)) // 4) + 1)
+    for j in range(n + 1):
+        x, y = x0 + (x1 - x0) * j / n, y0 + (y1 - y0) * j / n
+        if box[0] <= x < box[0] + box[2] and box[1] <= y < box[1] + box[3]:
+            return True
+    return False
+
+
+def _place_labels(labels: list[tuple], *, cars: list[Box], fixed: list[Box], arrows: list[tuple],
+                  bounds: tuple[int, int]) -> list[Box]:
+    """A box per label, greedily in the order given (most important first).
+
+    ``labels``: ``(width, height, anchor, car box, below)`` — the label's size, the point its
+    leader line starts from, its own car's footprint box and whether it prefers the spot below
+    its car. ``cars``: every car's footprint box (and the critical agent's ring), which no
+    label may cover; ``fixed``: boxes already taken (the scale bar); ``arrows``: velocity
+    arrows as pixel segments, which a label should rather not hide.
+
+    Candidates lie around the car on rings every :data:`LABEL_STEP_PX` pixels beyond its
+    footprint, out to :data:`LABEL_REACH_PX`, in 16 directions, inside ``bounds``. Each is
+    scored: covering another car or label is forbidden in effect (a huge cost per pixel²);
+    sitting as near another car as its own (it would read as that car's), drawing the leader
+    line across another car or hiding an arrow cost a little; distance from the car the most
+    of the rest, so a label moves only as far as it must.
+    With no free candidate the least bad one wins.
+    """
+    W, H = bounds
+    taken: list[Box] = list(fixed)
+    out: list[Box] = []
+    for w, h, anchor, own, below in labels:
+        others = [c for c in cars if c != own]
+        best: tuple[float, Box] | None = None
+        ocx, ocy = own[0] + own[2] / 2, own[1] + own[3] / 2
+        for ring, d in enumerate(range(2, LABEL_REACH_PX + 1, LABEL_STEP_PX)):
+            for j, (ux, uy) in enumerate(_DIRECTIONS):
+                if below:
+                    uy = -uy
+                # the label's centre along (ux, uy) far enough that its box stays d px off the car
+                reach = [(d + (own[2] + w) / 2) / abs(ux) if abs(ux) > 1e-9 else math.inf,
+                         (d + (own[3] + h) / 2) / abs(uy) if abs(uy) > 1e-9 else math.inf]
+                t = min(reach)
+                left, top = int(round(ocx + ux * t - w / 2)), int(round(ocy + uy * t - h / 2))
+                if left < 0 or top < 0 or left + w > W or top + h > H:
+                    continue
+                box = (left, top, w, h)
+                cost = 1e6 * (sum(_overlap(box, c) for c in others) + sum(_overlap(box, b) for b in taken))
+                cost += 1e3 * _overlap(box, own)
+                end = _nearest_point(box, anchor)
+                cost += 300 * sum(_crosses((anchor, end), c) for c in others)
+                cost += 60 * sum(_crosses(seg, box) for seg in arrows)
+                near = _gap(box, own)
+                if others and min(_gap(box, c) for c in others) < near + 4:
+                    cost += 250  # as near another car as its own: it would read as that car's
+                cost += 10 * near + j % 8  # nearer first; then above (or below)
+                if best is None or cost < best[0]:
+                    best = (cost, box)
+            if best is not None and best[0] < 10 * (d + LABEL_STEP_PX):
+                break  # farther rings cost at least their distance: none can do better
+        if best is None:  # no candidate inside the picture: next to the car, clamped in
+            left = min(max(int(ocx - w / 2), 0), max(W - w, 0))
+            top = min(max(int(own[1] - h - 2), 0), max(H - h, 0))
+            best = (0.0, (left, top, w, h))
+        taken.append(best[1])
+        out.append(best[1])
+    return out
 
 
 def _save_atomic(image: Any, path: str | os.PathLike) -> None:
