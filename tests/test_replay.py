@@ -182,3 +182,85 @@ def test_the_card_section_keeps_odd_agent_names_inside_its_data():
     assert json.loads(embedded) == json.loads(dumps(data)) and data["critical"] == name
     # the slider spans every frame and starts at the first violation
     assert "max='5'" in section and f"value='{data['first']}'" in section
+
+
+# -- the ego's decisions (issue #26 item 6) -----------------------------------------------------------
+
+#: the scripted agent's answers, one per decision (highway-fast-v0 decides once a second):
+#: FASTER twice, IDLE twice, LANE_LEFT twice, IDLE twice
+SCRIPT = [3, 3, 1, 1, 0, 0, 1, 1]
+
+
+@pytest.fixture(scope="module")
+def decided():
+    """A highway-env agent (a scripted callable policy: no stable-baselines3) drives 8 s."""
+    from pytest_avscenario.sim.drivers import highway_env_agent
+
+    answers = iter(SCRIPT)
+    agent = highway_env_agent(lambda obs: next(answers), env="highway-fast-v0")
+    w = World(seed=3, name="decided")
+    road = w.straight_road(lanes=3, length=400, lane_width=4.0, speed_limit=30.0)
+    w.ego(road.lane(1), s=20.0, speed=20.0, driver=agent)
+    w.car(road.lane(1), s=60.0, speed=20.0, name="lead")
+    w.run(7.9, dt=agent.dt)
+    return w
+
+
+def test_the_recording_keeps_a_discrete_agents_decisions_as_changes(decided):
+    ego = decided.agent("ego")
+    assert [t for t, _ in ego.decisions] == pytest.approx([0, 1, 2, 3, 4, 5, 6, 7])  # one a second
+    made = decided.trajectory.meta["decisions"]
+    assert made == {"source": "action", "changes": [[0.0, "FASTER"], [2.0, "IDLE"], [4.0, "LANE_LEFT"],
+                                                    [6.0, "IDLE"]]}
+    # the recording travels as JSON (xdist, Dask, .npz): the decisions with it
+    assert json.loads(json.dumps(decided.trajectory.meta))["decisions"] == made
+    assert decided.trajectory.ego.lane[-1] != decided.trajectory.ego.lane[0]  # it did change lane
+
+
+def test_the_replay_names_the_decision_in_force_at_every_frame(decided):
+    data = replay_data(decided, violations={}, monitors=MONITORS, fallback_t=3.0)
+    # each label once, each change as [centiseconds, label number]: a few bytes per change
+    assert data["decisions"] == {"source": "action", "labels": ["FASTER", "IDLE", "LANE_LEFT"],
+                                 "at": [[0, 0], [200, 1], [400, 2], [600, 1]]}
+    assert len(dumps(data["decisions"])) < 100
+    plain = decoded(json.loads(dumps(data)))
+    script = {0: "FASTER", 2: "IDLE", 4: "LANE_LEFT", 6: "IDLE"}
+    for k, t in enumerate(plain["t"]):
+        since = max(s for s in script if s <= t + 1e-9)
+        lines = frame_lines(plain, k)
+        assert f"ego decision: {script[since]} (since {since:.2f} s)" in lines, (t, lines)
+
+
+def test_a_driver_with_a_reason_gets_its_reasons_recorded():
+    # the autopilot says why it chose its command: cruising, then following a slower car
+    w = World(seed=1, name="reasons")
+    road = w.straight_road(lanes=1, length=300)
+    w.ego(road.lane(0), s=10.0, speed=12.0)
+    w.car(road.lane(0), s=45.0, speed=6.0, name="slow")
+    w.run(5.0)
+    made = w.trajectory.meta["decisions"]
+    assert made["source"] == "reason"
+    labels = [label for _, label in made["changes"]]
+    assert "follow" in labels and all(a != b for a, b in zip(labels, labels[1:]))  # changes only
+    plain = decoded(json.loads(dumps(replay_data(w))))
+    assert any(line.startswith("ego reason: follow (since ") for line in frame_lines(plain, len(plain["t"]) - 1))
+
+
+def test_a_policy_without_decisions_records_none(crash):
+    assert "decisions" not in crash.trajectory.meta
+    assert "decisions" not in replay_data(crash)
+
+
+def test_a_continuous_agents_decisions_are_its_commands_to_a_tenth():
+    from pytest_avscenario.sim.drivers import highway_env_agent
+
+    # the second answer differs from the first by less than 0.05: the same decision
+    answers = iter([np.array([0.5, -0.12]), np.array([0.52, -0.1]), np.array([0.0, 0.0])])
+    agent = highway_env_agent(lambda obs: next(answers), env="highway-fast-v0",
+                              config={"action": {"type": "ContinuousAction"}})
+    w = World(seed=3, name="continuous")
+    road = w.straight_road(lanes=3, length=400, lane_width=4.0, speed_limit=30.0)
+    w.ego(road.lane(1), s=20.0, speed=20.0, driver=agent)
+    w.run(2.9, dt=agent.dt)
+    assert w.trajectory.meta["decisions"]["changes"] == [
+        [0.0, "acceleration +0.5, steering -0.1"], [2.0, "acceleration +0.0, steering +0.0"]]

@@ -206,3 +206,37 @@ def test_the_space_plot_draws_values_near_the_largest_float(tmp_path):
             for i in range(5)]
     assert plot_feature_space(tmp_path / "space.png", rows) is not None
     assert _axis_name(rows, "x") == "x (×1e+308)"
+
+
+def test_the_case_time_series_shows_the_egos_decisions_along_its_time_axis(tmp_path):
+    from PIL import Image
+
+    from pytest_avscenario.monitors import distance
+    from pytest_avscenario.report.casefigs import DECISION_COLOURS, decision_spans, plot_case_timeseries
+    from pytest_avscenario.trajectory import Trajectory
+
+    t = np.arange(0, 10.01, 0.1)
+    agents = {"ego": {"x": 20 * t, "y": 0 * t}, "lead": {"x": 30 + 18 * t, "y": 0 * t}}
+    plain = Trajectory.from_arrays(t, agents)
+    decided = Trajectory.from_arrays(t, agents, meta={"decisions": {"source": "action", "changes": [
+        [0.0, "FASTER"], [2.0, "IDLE"], [6.0, "FASTER"]]}})
+    assert decision_spans(plain) == []
+    assert decision_spans(decided) == [(0.0, 2.0, "FASTER"), (2.0, 6.0, "IDLE"), (6.0, 10.0, "FASTER")]
+    before = Image.open(plot_case_timeseries(tmp_path / "plain.png", plain, monitors=[distance(5.0)]))
+    after = plot_case_timeseries(tmp_path / "decided.png", decided, monitors=[distance(5.0)], first_t=3.0)
+    rgb = np.asarray(Image.open(after).convert("RGB")).astype(int)
+    assert rgb.shape[0] > before.height  # a strip above the three panels
+
+    def hexrgb(h):
+        return np.array([int(h[i:i + 2], 16) for i in (1, 3, 5)])
+
+    faster = (np.abs(rgb - hexrgb(DECISION_COLOURS[0])).sum(axis=2) < 30)
+    idle = (np.abs(rgb - hexrgb(DECISION_COLOURS[1])).sum(axis=2) < 30)
+    # the strip: the row holding most of the first decision's colour, in the top fifth
+    row = int(np.argmax(faster.sum(axis=1)))
+    assert row < rgb.shape[0] / 5
+    # along it, each decision's colour covers the share of the run it was in force (FASTER 6 s
+    # of 10, IDLE 4 s), in time order: FASTER, then IDLE from 2 s, then FASTER from 6 s
+    cols_f, cols_i = np.flatnonzero(faster[row]), np.flatnonzero(idle[row])
+    assert len(cols_f) / (len(cols_f) + len(cols_i)) == pytest.approx(0.6, abs=0.06)
+    assert cols_f.min() < cols_i.min() < cols_i.max() < cols_f.max()
