@@ -193,6 +193,10 @@ SCRIPT = [3, 3, 1, 1, 0, 0, 1, 1]
 
 @pytest.fixture(scope="module")
 def decided():
+    return decided_world()
+
+
+def decided_world() -> World:
     """A highway-env agent (a scripted callable policy: no stable-baselines3) drives 8 s."""
     from pytest_avscenario.sim.drivers import highway_env_agent
 

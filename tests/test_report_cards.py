@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 
+import numpy as np
 import pytest
 
 CUT_IN = """
@@ -183,3 +184,67 @@ def test_the_replay_runs_in_chromium_and_redraws_at_the_chosen_time(campaign):
     section = re.search(r'<section class="replay"[^>]*>', later).group(0)
     assert 'data-t="0.80"' in section and 'data-script-errors="0"' in later
     assert "<output>t = 0.80 s</output>" in later
+
+
+def _replay_page(tmp_path, data, name: str) -> str:
+    from pytest_avscenario.report.replay import replay_html
+
+    page = tmp_path / f"{name}.html"
+    page.write_text("<!DOCTYPE html><html><head><meta charset='utf-8'>"
+                    "<script>window.onerror = function (m) { document.documentElement.setAttribute('data-error', m); }"
+                    f"</script></head><body>{replay_html(data)}</body></html>")
+    return page.resolve().as_uri()
+
+
+def test_the_replay_writes_the_egos_decision_in_force_as_the_still_does(tmp_path):
+    from test_replay import decided_world
+
+    from pytest_avscenario.sim.replay import decoded, dumps, frame_lines, replay_data
+
+    data = replay_data(decided_world(), fallback_t=4.6)
+    plain = decoded(json.loads(dumps(data)))
+    for t in (0.0, 2.4, 4.6):
+        dom = _dom(_replay_page(tmp_path, data, "decided") + f"#t={t}")
+        assert 'data-error="' not in dom, dom[:400]
+        k = plain["t"].index(t)
+        shown = html.unescape(re.search(r'<pre class="values">(.*?)</pre>', dom, re.S).group(1))
+        assert shown.splitlines() == frame_lines(plain, k)[1:]  # the same lines, the decision among them
+        assert any(line.startswith("ego decision: ") for line in shown.splitlines())
+
+
+def test_the_replay_labels_each_car_beside_it_and_off_the_others_in_a_dense_scene(tmp_path):
+    from test_sim_render import NEAR_PX, _gap, _overlaps, dense_scene
+
+    from pytest_avscenario.monitors import distance
+    from pytest_avscenario.sim.replay import decoded, dumps, replay_data
+
+    w = dense_scene()
+    data = replay_data(w, violations={"distance": {"t": 0.4, "agent": "car4", "threshold": 5.0, "rho": -4.0}},
+                       monitors=[distance(5.0)])
+    dom = _dom(_replay_page(tmp_path, data, "dense"))
+    assert 'data-error="' not in dom, dom[:400]
+    placed = json.loads(html.unescape(re.search(r'data-labels="([^"]*)"', dom).group(1)))
+    # the footprints on the canvas, from the data alone: the view follows the ego, the road's
+    # middle fixed, north up
+    plain = decoded(json.loads(dumps(data)))
+    k, view = plain["first"], data["view"]
+    (W, H), S = view["size"], view["scale"]
+    ego = plain["agents"][0]
+    cx, cy = ego["x"][k] + view["ahead"], view["cy"]
+    cars = {}
+    for a in plain["agents"]:
+        h = np.radians(a["h"][k])
+        xs, ys = [], []
+        for f, g in ((1, 1), (1, -1), (-1, -1), (-1, 1)):
+            x = a["x"][k] + np.cos(h) * f * a["L"] / 2 - np.sin(h) * g * a["W"] / 2
+            y = a["y"][k] + np.sin(h) * f * a["L"] / 2 + np.cos(h) * g * a["W"] / 2
+            xs.append((x - cx) * S + W / 2)
+            ys.append(H / 2 - (y - cy) * S)
+        cars[a["name"]] = (min(xs), min(ys), max(xs) - min(xs), max(ys) - min(ys))
+    assert sorted(placed) == sorted(cars)
+    for name, label in placed.items():
+        box = label["box"]
+        assert 0 <= box[0] and box[0] + box[2] <= W and 0 <= box[1] and box[1] + box[3] <= H
+        assert _gap(box, cars[name]) <= NEAR_PX, (name, box, cars[name])
+        assert not [n for n in cars if n != name and _overlaps(box, cars[n])], (name, box)
+        assert not [n for n, o in placed.items() if n != name and _overlaps(box, o["box"])], (name, box)

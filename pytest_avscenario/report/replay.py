@@ -12,7 +12,10 @@ in force (the lines of
 :func:`pytest_avscenario.sim.replay.frame_lines`). ``card.html#t=1.5`` opens it at 1.5 s.
 
 For automated checks the replay's element carries ``data-frame``, ``data-t`` (the shown
-time, 2 decimals) and ``data-draws`` (how many times the canvas was drawn). Nothing here
+time, 2 decimals), ``data-draws`` (how many times the canvas was drawn) and ``data-labels``
+(JSON: per agent name its label's ``box`` and its footprint's ``car`` box on the canvas,
+``[left, top, width, height]`` [px]; labels are placed as the still places them,
+:func:`pytest_avscenario.sim.render._place_labels`). Nothing here
 imports the simulator or pytest.
 """
 
@@ -185,28 +188,95 @@ function avsReplay(id) {
       }
     });
   }
-  function drawLabels(k, taken) {  // taken: the scale bar's box; labels keep off it and each other
-    c.font = "bold 13px system-ui, sans-serif"; c.textBaseline = "middle";
-    order(function (a) { return a.name !== D.critical; }).forEach(function (i) {
-      var a = agents[i], hot = a.name === D.critical;
-      if (a.x[k] === null) return;
-      var q = P(a.x[k], a.y[k]), out = q[0] < 0 || q[0] >= W || q[1] < 0 || q[1] >= H;
-      var text = a.name + " " + (a.v[k] || 0).toFixed(1) + " m/s" + (out ? " (out of view)" : "");
-      var w = c.measureText(text).width + 6, h = 17, off = (Math.max(a.L, a.W) / 2 + 1.5) * S + 4;
-      var r = {x: q[0] - w / 2, y: i ? q[1] - off - h : q[1] + off, w: w, h: h};  // the ego's below it
-      function clamp() { r.x = Math.min(Math.max(r.x, 0), W - w); r.y = Math.min(Math.max(r.y, 0), H - h); }
-      clamp();
-      var down = !i && r.y + h < H - 2 * h;  // upward from the bottom edge
-      for (var n = 0; n < 8 && taken.some(function (t) {
-        return r.x < t.x + t.w && t.x < r.x + r.w && r.y < t.y + t.h && t.y < r.y + r.h;
-      }); n++) r.y += down ? h + 2 : -(h + 2);
-      clamp();
-      taken.push(r);
-      pen(hot ? HOT : DARK, 1);
-      seg(q, [Math.min(Math.max(q[0], r.x), r.x + w), r.y > q[1] ? r.y : r.y + h]);
-      c.fillStyle = hot ? HOT : DARK; c.fillRect(r.x, r.y, w, h);
-      c.fillStyle = hot ? "rgb(25,25,28)" : "rgb(250,250,250)"; c.fillText(text, r.x + 3, r.y + h / 2 + 1);
+  function overlap(a, b) {
+    var w = Math.min(a.x + a.w, b.x + b.w) - Math.max(a.x, b.x), h = Math.min(a.y + a.h, b.y + b.h) - Math.max(a.y, b.y);
+    return w > 0 && h > 0 ? w * h : 0;
+  }
+  function gap(a, b) {
+    var dx = Math.max(b.x - (a.x + a.w), a.x - (b.x + b.w), 0), dy = Math.max(b.y - (a.y + a.h), a.y - (b.y + b.h), 0);
+    return Math.sqrt(dx * dx + dy * dy);
+  }
+  function nearest(r, q) { return [Math.min(Math.max(q[0], r.x), r.x + r.w - 1), Math.min(Math.max(q[1], r.y), r.y + r.h - 1)]; }
+  function crosses(a, b, r) {  // segment a-b through box r, sampled every 4 px
+    var n = Math.max(2, Math.floor(Math.max(Math.abs(b[0] - a[0]), Math.abs(b[1] - a[1])) / 4) + 1);
+    for (var j = 0; j <= n; j++) {
+      var x = a[0] + (b[0] - a[0]) * j / n, y = a[1] + (b[1] - a[1]) * j / n;
+      if (x >= r.x && x < r.x + r.w && y >= r.y && y < r.y + r.h) return true;
+    }
+    return false;
+  }
+  function footprint(a, k) {  // the pixel box around an agent's drawn footprint
+    var q = P(a.x[k], a.y[k]);
+    if (a.kind === "pedestrian") { var d = Math.max(4, 0.5 * S); return {x: q[0] - d, y: q[1] - d, w: 2 * d + 1, h: 2 * d + 1}; }
+    var cs = Math.cos(a.h[k]), sn = Math.sin(a.h[k]), xs = [], ys = [];
+    [[1, 1], [1, -1], [-1, -1], [-1, 1]].forEach(function (f) {
+      var p = P(a.x[k] + cs * f[0] * a.L / 2 - sn * f[1] * a.W / 2, a.y[k] + sn * f[0] * a.L / 2 + cs * f[1] * a.W / 2);
+      xs.push(p[0]); ys.push(p[1]);
     });
+    var x0 = Math.min.apply(null, xs), y0 = Math.min.apply(null, ys);
+    return {x: x0, y: y0, w: Math.max.apply(null, xs) - x0 + 1, h: Math.max.apply(null, ys) - y0 + 1};
+  }
+  var DIRS = [];
+  for (var di = 0; di < 16; di++) DIRS.push([Math.sin(di * Math.PI / 8), -Math.cos(di * Math.PI / 8)]);
+  function place(w, h, q, own, below, cars, taken, arrows) {  // as sim.render._place_labels
+    var best = null, others = cars.filter(function (c) {  // its own footprint is within its own box
+      return !(own.x <= c.x && own.y <= c.y && c.x + c.w <= own.x + own.w && c.y + c.h <= own.y + own.h);
+    });
+    var ocx = own.x + own.w / 2, ocy = own.y + own.h / 2;
+    for (var d = 2; d <= 110; d += 10) {
+      DIRS.forEach(function (u, j) {
+        var ux = u[0], uy = below ? -u[1] : u[1];
+        var t = Math.min(Math.abs(ux) > 1e-9 ? (d + (own.w + w) / 2) / Math.abs(ux) : Infinity,
+                         Math.abs(uy) > 1e-9 ? (d + (own.h + h) / 2) / Math.abs(uy) : Infinity);
+        var r = {x: Math.round(ocx + ux * t - w / 2), y: Math.round(ocy + uy * t - h / 2), w: w, h: h};
+        if (r.x < 0 || r.y < 0 || r.x + w > W || r.y + h > H) return;
+        var cost = 0, near = gap(r, own), end = nearest(r, q);
+        others.forEach(function (c) { cost += 1e6 * overlap(r, c) + (crosses(q, end, c) ? 300 : 0); });
+        taken.forEach(function (b) { cost += 1e6 * overlap(r, b); });
+        cost += 1e3 * overlap(r, own);
+        arrows.forEach(function (s) { if (crosses(s[0], s[1], r)) cost += 60; });
+        if (others.length && Math.min.apply(null, others.map(function (c) { return gap(r, c); })) < near + 4) cost += 250;
+        cost += 10 * near + j % 8;
+        if (best === null || cost < best.cost) best = {cost: cost, r: r};
+      });
+      if (best !== null && best.cost < 10 * (d + 10)) break;
+    }
+    return best ? best.r : {x: Math.min(Math.max(ocx - w / 2, 0), W - w), y: Math.min(Math.max(own.y - h - 2, 0), H - h), w: w, h: h};
+  }
+  function drawLabels(k, taken) {  // as the still: beside its own car, off other cars and labels
+    c.font = "bold 13px system-ui, sans-serif"; c.textBaseline = "middle";
+    var e = agents[0], cars = [], arrows = [], todo = [];
+    function far(a) { return e.x[k] === null ? 0 : Math.sqrt(Math.pow(a.x[k] - e.x[k], 2) + Math.pow(a.y[k] - e.y[k], 2)); }
+    order(function (a) { return (a !== e) * 1e9 + (a.name !== D.critical) * 1e8 + (a.x[k] === null ? 0 : far(a)); }).forEach(function (i) {
+      var a = agents[i];
+      if (a.x[k] === null) return;
+      var q = P(a.x[k], a.y[k]), out = q[0] < 0 || q[0] >= W || q[1] < 0 || q[1] >= H, own;
+      if (out) { q = [Math.min(Math.max(q[0], 0), W - 1), Math.min(Math.max(q[1], 0), H - 1)]; own = {x: q[0], y: q[1], w: 0, h: 0}; }
+      else { own = footprint(a, k); cars.push(own); }
+      var at = own;
+      if (a.name === D.critical && !out) {  // its label goes around its ring, not onto it
+        var rr = Math.max(10, (Math.max(a.L, a.W) / 2 + 1.2) * S) + 2;
+        at = {x: q[0] - rr, y: q[1] - rr, w: 2 * rr + 1, h: 2 * rr + 1};
+        cars.push(at);
+      }
+      var len = (a.v[k] || 0) * D.arrow_s;
+      if (Math.abs(len) > 0.05) arrows.push([P(a.x[k], a.y[k]), P(a.x[k] + Math.cos(a.h[k]) * len, a.y[k] + Math.sin(a.h[k]) * len)]);
+      todo.push({a: a, q: q, own: own, at: at, i: i, text: a.name + " " + (a.v[k] || 0).toFixed(1) + " m/s" + (out ? " (out of view)" : "")});
+    });
+    var placed = {};
+    todo.forEach(function (l) {
+      l.r = place(Math.ceil(c.measureText(l.text).width) + 6, 17, l.q, l.at, l.i === 0, cars, taken, arrows);
+      taken.push(l.r);
+      placed[l.a.name] = {box: [l.r.x, l.r.y, l.r.w, l.r.h], car: [l.own.x, l.own.y, l.own.w, l.own.h]};
+    });
+    todo.forEach(function (l) {
+      var hot = l.a.name === D.critical, r = l.r;
+      pen(hot ? HOT : DARK, 1);
+      seg(l.q, nearest(r, l.q));
+      c.fillStyle = hot ? HOT : DARK; c.fillRect(r.x, r.y, r.w, r.h);
+      c.fillStyle = hot ? "rgb(25,25,28)" : "rgb(250,250,250)"; c.fillText(l.text, r.x + 3, r.y + r.h / 2 + 1);
+    });
+    root.setAttribute("data-labels", JSON.stringify(placed));
   }
   function drawScale() {
     var m = 1, x0 = 12, y0 = H - 14;

@@ -392,13 +392,16 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
     placed: dict[str, dict[str, Any]] = {}
     if font is not None:
         # the critical agent's ring is kept clear too: a label on it would hide whom it rings
-        rings = [_ring_box(a, k, pix, scale) for a in agents if a["name"] == critical and a["x"][k] is not None]
+        rings = [_ring_box(a, k, pix, scale) for a in agents if a["name"] == critical and a["x"][k] is not None
+                 and bounds.collidepoint(pix((a["x"][k], a["y"][k])))]
         arrows = [seg for seg in (_arrow_segment(a, k, pix, data.get("arrow_s", 1.0)) for a in agents) if seg]
         images = {i: font.render(text, True, INK if agents[i]["name"] == critical else PAPER,
                                  HIGHLIGHT if agents[i]["name"] == critical else (35, 35, 40))
                   for i, text, _, _ in todo}
+        # the critical agent's label goes around its ring, not onto it
         boxes = _place_labels(
-            [(images[i].get_width(), images[i].get_height(), anchor, box, i == 0) for i, _, anchor, box in todo],
+            [(images[i].get_width(), images[i].get_height(), anchor,
+              rings[0] if rings and agents[i]["name"] == critical else box, i == 0) for i, _, anchor, box in todo],
             cars=cars + rings, fixed=[tuple(scale_box)], arrows=arrows,
             bounds=(size[0], size[1]))
         for (i, text, anchor, box), rect in zip(todo, boxes):
@@ -494,6 +497,10 @@ def _overlap(a: Box, b: Box) -> int:
     return w * h if w > 0 and h > 0 else 0
 
 
+def _within(a: Box, b: Box) -> bool:
+    return b[0] <= a[0] and b[1] <= a[1] and a[0] + a[2] <= b[0] + b[2] and a[1] + a[3] <= b[1] + b[3]
+
+
 def _gap(a: Box, b: Box) -> float:
     """The distance [px] between two boxes (0 when they touch or overlap)."""
     dx = max(b[0] - (a[0] + a[2]), a[0] - (b[0] + b[2]), 0)
@@ -521,9 +528,9 @@ def _place_labels(labels: list[tuple], *, cars: list[Box], fixed: list[Box], arr
                   bounds: tuple[int, int]) -> list[Box]:
     """A box per label, greedily in the order given (most important first).
 
-    ``labels``: ``(width, height, anchor, car box, below)`` — the label's size, the point its
-    leader line starts from, its own car's footprint box and whether it prefers the spot below
-    its car. ``cars``: every car's footprint box (and the critical agent's ring), which no
+    ``labels``: ``(width, height, anchor, own box, below)`` — the label's size, the point its
+    leader line starts from, its own car's footprint box (the critical agent's: its ring's)
+    and whether it prefers the spot below its car. ``cars``: every car's footprint box (and the critical agent's ring), which no
     label may cover; ``fixed``: boxes already taken (the scale bar); ``arrows``: velocity
     arrows as pixel segments, which a label should rather not hide.
 
@@ -539,7 +546,7 @@ def _place_labels(labels: list[tuple], *, cars: list[Box], fixed: list[Box], arr
     taken: list[Box] = list(fixed)
     out: list[Box] = []
     for w, h, anchor, own, below in labels:
-        others = [c for c in cars if c != own]
+        others = [c for c in cars if not _within(c, own)]  # its own footprint is within its own box
         best: tuple[float, Box] | None = None
         ocx, ocy = own[0] + own[2] / 2, own[1] + own[3] / 2
         for ring, d in enumerate(range(2, LABEL_REACH_PX + 1, LABEL_STEP_PX)):
