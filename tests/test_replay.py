@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -233,6 +234,11 @@ def test_the_replay_names_the_decision_in_force_at_every_frame(decided):
         since = max(s for s in script if s <= t + 1e-9)
         lines = frame_lines(plain, k)
         assert f"ego decision: {script[since]} (since {since:.2f} s)" in lines, (t, lines)
+    # the slider has a tick at each change of decision (and at the moment it starts from)
+    from pytest_avscenario.report.replay import replay_html
+
+    ticks = re.findall(r"<option value='(\d+)'>", replay_html(data))
+    assert [plain["t"][int(k)] for k in ticks] == [0.0, 2.0, 3.0, 4.0, 6.0]
 
 
 def test_a_driver_with_a_reason_gets_its_reasons_recorded():

@@ -353,6 +353,23 @@ def _json_for_script(data: Mapping[str, Any]) -> str:
     return json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
 
 
+def _decision_frames(data: Mapping[str, Any]) -> list[int]:
+    """The frames at which the ego's decision changes: ticks on the slider."""
+    made = data.get("decisions")
+    if not made:
+        return []
+    times: list[int] = []  # centiseconds of every frame, from the first value + differences
+    acc = 0
+    for item in data["t"]:
+        d, count = item if isinstance(item, list) else (item, 1)
+        for _ in range(count):
+            acc += d
+            times.append(acc)
+    import bisect
+
+    return sorted({bisect.bisect_left(times, cs) for cs, _ in made["at"]} - {len(times)})
+
+
 def replay_html(data: Mapping[str, Any], element_id: str = "replay", player: str | None = None) -> str:
     """The replay section of a card page for replay ``data``: canvas, slider, play/pause,
     the frame's metric values, the data itself and the player script — inline, or with
@@ -367,7 +384,10 @@ def replay_html(data: Mapping[str, Any], element_id: str = "replay", player: str
     legend = (f"Starts at the {what} (t = {data['first_t']:.2f} s). Arrows: where each agent is "
               f"{data.get('arrow_s', 1.0):g} s later at its current speed; "
               + (f"ringed: {html.escape(critical)}, the critical agent; " if critical else "")
-              + "red outline: crashed. Drag the slider or use ← → on it; "
+              + "red outline: crashed. "
+              + ("Ticks on the slider: the first violation and where the ego's decision changes. "
+                 if data.get("decisions") else "")
+              + "Drag the slider or use ← → on it; "
               f"<code>#t=…</code> on the page's address opens the replay at that time.")
     return "\n".join([
         f"<style>{REPLAY_CSS}</style>",
@@ -378,7 +398,9 @@ def replay_html(data: Mapping[str, Any], element_id: str = "replay", player: str
         "<button type='button' class='play'>&#9654; play</button>",
         f"<input type='range' min='0' max='{n - 1}' step='1' value='{first}' list='{eid}-marks' "
         f"aria-label='time'>",
-        f"<datalist id='{eid}-marks'><option value='{first}'></option></datalist>",
+        f"<datalist id='{eid}-marks'>"
+        + "".join(f"<option value='{k}'></option>" for k in sorted({first, *_decision_frames(data)}))
+        + "</datalist>",
         f"<output>t = {data['first_t']:.2f} s</output>",
         f"<button type='button' class='first'>{html.escape(what)}</button>",
         "</div>",
