@@ -8,8 +8,8 @@ works as is.
 The replay starts at the first violation and draws what the annotated still shows: the road,
 every agent labelled with its name and speed, a velocity arrow per agent, the critical agent
 ringed, a scale bar, and beside the picture the frame's metric values and the ego's decision
-in force (the lines of
-:func:`pytest_avscenario.sim.replay.frame_lines`). ``card.html#t=1.5`` opens it at 1.5 s.
+in force (the lines of :func:`pytest_avscenario.sim.replay.frame_lines`); the slider has a
+tick where the decision changes. ``card.html#t=1.5`` opens it at 1.5 s.
 
 For automated checks the replay's element carries ``data-frame``, ``data-t`` (the shown
 time, 2 decimals), ``data-draws`` (how many times the canvas was drawn) and ``data-labels``
@@ -197,13 +197,16 @@ function avsReplay(id) {
     return Math.sqrt(dx * dx + dy * dy);
   }
   function nearest(r, q) { return [Math.min(Math.max(q[0], r.x), r.x + r.w - 1), Math.min(Math.max(q[1], r.y), r.y + r.h - 1)]; }
-  function crosses(a, b, r) {  // segment a-b through box r, sampled every 4 px
-    var n = Math.max(2, Math.floor(Math.max(Math.abs(b[0] - a[0]), Math.abs(b[1] - a[1])) / 4) + 1);
-    for (var j = 0; j <= n; j++) {
-      var x = a[0] + (b[0] - a[0]) * j / n, y = a[1] + (b[1] - a[1]) * j / n;
-      if (x >= r.x && x < r.x + r.w && y >= r.y && y < r.y + r.h) return true;
+  function crosses(a, b, r) {  // segment a-b through box r (Liang-Barsky), as the still's
+    var dx = b[0] - a[0], dy = b[1] - a[1], t0 = 0, t1 = 1;
+    var pq = [[-dx, a[0] - r.x], [dx, r.x + r.w - a[0]], [-dy, a[1] - r.y], [dy, r.y + r.h - a[1]]];
+    for (var j = 0; j < 4; j++) {
+      var p = pq[j][0], q = pq[j][1];
+      if (p === 0) { if (q < 0) return false; continue; }
+      if (p < 0) t0 = Math.max(t0, q / p); else t1 = Math.min(t1, q / p);
+      if (t0 > t1) return false;
     }
-    return false;
+    return true;
   }
   function footprint(a, k) {  // the pixel box around an agent's drawn footprint
     var q = P(a.x[k], a.y[k]);
@@ -269,10 +272,9 @@ function avsReplay(id) {
       taken.push(l.r);
       placed[l.a.name] = {box: [l.r.x, l.r.y, l.r.w, l.r.h], car: [l.own.x, l.own.y, l.own.w, l.own.h]};
     });
-    todo.forEach(function (l) {
+    todo.forEach(function (l) { pen(l.a.name === D.critical ? HOT : DARK, 1); seg(l.q, nearest(l.r, l.q)); });
+    todo.forEach(function (l) {  // the labels over every leader line
       var hot = l.a.name === D.critical, r = l.r;
-      pen(hot ? HOT : DARK, 1);
-      seg(l.q, nearest(r, l.q));
       c.fillStyle = hot ? HOT : DARK; c.fillRect(r.x, r.y, r.w, r.h);
       c.fillStyle = hot ? "rgb(25,25,28)" : "rgb(250,250,250)"; c.fillText(l.text, r.x + 3, r.y + r.h / 2 + 1);
     });

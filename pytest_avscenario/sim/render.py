@@ -369,8 +369,8 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
     if legend is not None:
         surface.blit(legend, (x0, y0 - 22))
     # Labels: the ego's and the critical agent's first, then the others nearest the ego first,
-    # each at the free spot nearest its own car (see _place_labels); drawn after all are placed
-    # so a leader line never crosses a label placed later.
+    # each at the free spot nearest its own car (see _place_labels); the leader lines are drawn
+    # before any label, so no line runs across a label.
     order = sorted((i for i, a in enumerate(agents) if a["x"][k] is not None),
                    key=lambda i: (i != 0, agents[i]["name"] != critical, _ego_distance(agents, i, k)))
     bounds = surface.get_rect()
@@ -404,10 +404,10 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
               rings[0] if rings and agents[i]["name"] == critical else box, i == 0) for i, _, anchor, box in todo],
             cars=cars + rings, fixed=[tuple(scale_box)], arrows=arrows,
             bounds=(size[0], size[1]))
-        for (i, text, anchor, box), rect in zip(todo, boxes):
+        for (i, _, anchor, _), rect in zip(todo, boxes):  # leader lines under every label
             hot = agents[i]["name"] == critical
-            end = _nearest_point(rect, anchor)
-            pygame.draw.line(surface, HIGHLIGHT if hot else (35, 35, 40), anchor, end, 1)
+            pygame.draw.line(surface, HIGHLIGHT if hot else (35, 35, 40), anchor, _nearest_point(rect, anchor), 1)
+        for (i, text, anchor, box), rect in zip(todo, boxes):
             surface.blit(images[i], rect[:2])
             placed[agents[i]["name"]] = {"box": (rect[0], rect[1] + band, rect[2], rect[3]),
                                          "car": (box[0], box[1] + band, box[2], box[3]),
@@ -513,15 +513,23 @@ def _nearest_point(box: Box, p: tuple[int, int]) -> tuple[int, int]:
 
 
 def _crosses(seg: tuple, box: Box) -> bool:
-    """Whether segment ``seg`` passes through ``box`` (sampled every few pixels: enough to
-    steer a label off an arrow or a leader line off a car)."""
+    """Whether segment ``seg`` passes through ``box`` (Liang–Barsky clipping)."""
     (x0, y0), (x1, y1) = seg
-    n = max(2, int(max(abs(x1 - x0), abs(y1 - y0)) // 4) + 1)
-    for j in range(n + 1):
-        x, y = x0 + (x1 - x0) * j / n, y0 + (y1 - y0) * j / n
-        if box[0] <= x < box[0] + box[2] and box[1] <= y < box[1] + box[3]:
-            return True
-    return False
+    dx, dy = x1 - x0, y1 - y0
+    t0, t1 = 0.0, 1.0
+    for p, q in ((-dx, x0 - box[0]), (dx, box[0] + box[2] - x0), (-dy, y0 - box[1]), (dy, box[1] + box[3] - y0)):
+        if p == 0:
+            if q < 0:
+                return False
+            continue
+        r = q / p
+        if p < 0:
+            t0 = max(t0, r)
+        else:
+            t1 = min(t1, r)
+        if t0 > t1:
+            return False
+    return True
 
 
 def _place_labels(labels: list[tuple], *, cars: list[Box], fixed: list[Box], arrows: list[tuple],
