@@ -274,3 +274,23 @@ def test_a_continuous_agents_decisions_are_its_commands_to_a_tenth():
     w.run(2.9, dt=agent.dt)
     assert w.trajectory.meta["decisions"]["changes"] == [
         [0.0, "acceleration +0.5, steering -0.1"], [2.0, "acceleration +0.0, steering +0.0"]]
+
+
+def test_a_user_policy_with_a_last_reason_gets_it_recorded():
+    class Cautious:
+        """Brakes gently after 1 s and says so."""
+
+        def __init__(self):
+            self.last_reason, self.n = "", 0
+
+        def act(self, obs):
+            self.n += 1
+            self.last_reason = "keep speed" if self.n <= 10 else "slow down"
+            return (0.0 if self.n <= 10 else -1.0), 0.0
+
+    w = World(seed=1, driver=Cautious(), name="own_reason")
+    road = w.straight_road(lanes=1, length=300)
+    w.ego(road.lane(0), s=10.0, speed=12.0)
+    w.run(2.0)
+    assert w.trajectory.meta["decisions"] == {"source": "reason",
+                                              "changes": [[0.0, "keep speed"], [1.0, "slow down"]]}

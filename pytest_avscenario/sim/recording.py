@@ -152,6 +152,8 @@ def action_label(action: Any, action_type: Any = None) -> str:
     (``LANE_LEFT``), or the normalised command [-1, 1] of a continuous or discretised action,
     to one decimal (``acceleration +0.3, steering -0.1``; the model's own frame) — so a
     continuous policy's jitter below 0.05 is not a new decision."""
+    if isinstance(action, str):  # already a name
+        return action
     names = getattr(action_type, "actions", None)
     if isinstance(names, dict) and not isinstance(action, (list, np.ndarray)):
         try:
@@ -160,7 +162,10 @@ def action_label(action: Any, action_type: Any = None) -> str:
             pass
     parts = ["acceleration"] * bool(getattr(action_type, "longitudinal", True)) \
         + ["steering"] * bool(getattr(action_type, "lateral", True))
-    values = np.asarray(action, dtype=float).reshape(-1)
+    try:
+        values = np.asarray(action, dtype=float).reshape(-1)
+    except (TypeError, ValueError):  # not a number: the driver's own word for it
+        return str(action)
     per_axis = getattr(action_type, "actions_per_axis", None)
     if values.size == 1 and per_axis:  # DiscreteAction: an index into a grid of commands
         import itertools
