@@ -61,7 +61,7 @@ from typing import Any
 from ..control import lane_steering
 
 __all__ = ["CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance",
-           "STANDARD_GRAVITY"]
+           "braking_lead_min_gap", "STANDARD_GRAVITY"]
 
 #: [m/s^2] the "g" of the regulation's 0.774 g (standard gravity, ISO 80000-3)
 STANDARD_GRAVITY = 9.80665
@@ -146,6 +146,116 @@ def stopping_distance(speed: float, options: CarefulDriverOptions | None = None)
     """Distance [m] the C&C driver travels from ``speed`` [m/s] between a standing obstacle
     becoming perceivable and standing still (see the module doc for the closed form)."""
     return closing_distance(speed, options)
+
+
+def braking_lead_min_gap(gap: float, speed: float, lead_speed: float, lead_decel: float, *,
+                         accel: float = 0.0,
+                         options: CarefulDriverOptions | None = None) -> float:
+    """Smallest bumper gap [m] between the C&C driver and a lead that brakes to a stop.
+
+    Time 0 is the hazard's onset, when it becomes perceivable: the bumper gap is ``gap`` [m],
+    the ego drives at ``speed`` [m/s] with acceleration ``accel`` [m/s^2] (0: R157's driver
+    holds its speed until it reacts), the lead at ``lead_speed`` [m/s] brakes at
+    ``lead_decel`` [m/s^2] until it stands (0: it keeps its speed, as a car cutting in; a
+    standing obstacle has ``lead_speed`` 0). The C&C driver keeps ``accel`` through the
+    delay ``t_p + t_r`` (1.15 s), then its brake builds up linearly from ``min(accel, 0)`` at
+    the model's jerk to the maximum deceleration (0.774 g after 0.6 s from rest), held until
+    it stands. Negative: the two would overlap by that much, i.e. they collide.
+
+    Exact piecewise kinematics, not a simulation: both motions are polynomials of degree <= 3
+    between the breakpoints (the end of the delay, of the build-up, each vehicle's stop), so
+    the gap's minimum lies at a breakpoint or where the relative speed, a polynomial of degree
+    <= 2 on each piece, vanishes; every candidate is evaluated. It reduces to ``gap -``
+    :func:`closing_distance` for a lead keeping its speed and to ``gap -``
+    :func:`stopping_distance` for a standing one.
+    """
+    o = options if options is not None else CarefulDriverOptions()
+    for name, value in (("gap", gap), ("speed", speed), ("lead_speed", lead_speed),
+                        ("lead_decel", lead_decel), ("accel", accel)):
+        if not math.isfinite(value):
+            raise ValueError(f"braking_lead_min_gap: {name}={value!r} must be finite")
+    if speed < 0 or lead_speed < 0 or lead_decel < 0:
+        raise ValueError("braking_lead_min_gap: speeds and the lead's deceleration must be >= 0")
+    ego = _cc_response(float(speed), float(accel), o)
+    lead = _braking(float(lead_speed), float(lead_decel))
+    cuts = sorted({0.0, *(p[0] for p in ego), *(p[0] for p in lead)})
+    best = math.inf
+    for k, t0 in enumerate(cuts):
+        t1 = cuts[k + 1] if k + 1 < len(cuts) else math.inf
+        xe, ve, ae, je = _state(ego, t0)
+        xl, vl, al, jl = _state(lead, t0)
+        g0, dv, da, dj = gap + xl - xe, vl - ve, al - ae, jl - je
+        taus = [0.0]
+        if math.isfinite(t1):
+            taus.append(t1 - t0)
+        # where the relative speed dv + da u + dj u^2 / 2 vanishes inside the piece
+        if dj != 0.0:
+            disc = da * da - 2.0 * dj * dv
+            if disc >= 0.0:
+                r = math.sqrt(disc)
+                taus += [(-da + r) / dj, (-da - r) / dj]
+        elif da != 0.0:
+            taus.append(-dv / da)
+        for u in taus:
+            if 0.0 <= u <= t1 - t0:
+                best = min(best, g0 + dv * u + da * u * u / 2.0 + dj * u ** 3 / 6.0)
+        if not math.isfinite(t1) and dv < 0.0 and da == 0.0 and dj == 0.0:
+            return -math.inf  # never happens for a driver that brakes to a stop
+    return best
+
+
+# A motion is a list of pieces (t0 [s], x0 [m], v0 [m/s], a0 [m/s^2], jerk [m/s^3]), each
+# valid from its t0 to the next piece's; the last one lasts forever.
+
+def _braking(v: float, d: float) -> list:
+    if d <= 0.0 or v <= 0.0:
+        return [(0.0, 0.0, v, 0.0, 0.0)]
+    t = v / d
+    return [(0.0, 0.0, v, -d, 0.0), (t, v * t / 2.0, 0.0, 0.0, 0.0)]
+
+
+def _cc_response(v: float, a: float, o: CarefulDriverOptions) -> list:
+    """The C&C driver's motion from a hazard's onset (see :func:`braking_lead_min_gap`)."""
+    pieces = []
+    t, x = 0.0, 0.0
+    # the delay: its acceleration held (stopping, if braking, where the speed reaches 0)
+    td = o.delay
+    if a < 0.0 and v + a * td <= 0.0:
+        ts = v / -a
+        return [(0.0, 0.0, v, a, 0.0), (ts, v * ts / 2.0, 0.0, 0.0, 0.0)]
+    pieces.append((t, x, v, a, 0.0))
+    x, v, t = x + v * td + a * td * td / 2.0, v + a * td, td
+    a_max, jerk = o.max_decel, o.brake_jerk
+    a0 = min(a, 0.0)
+    if math.isfinite(jerk) and a0 > -a_max:
+        ramp = (a0 + a_max) / jerk
+        # speed during the build-up: v + a0 u - jerk u^2 / 2; stopped within it?
+        u_stop = (a0 + math.sqrt(a0 * a0 + 2.0 * jerk * v)) / jerk
+        u = min(ramp, u_stop)
+        pieces.append((t, x, v, a0, -jerk))
+        x += v * u + a0 * u * u / 2.0 - jerk * u ** 3 / 6.0
+        v = max(v + a0 * u - jerk * u * u / 2.0, 0.0)
+        t += u
+        if u_stop <= ramp:
+            pieces.append((t, x, 0.0, 0.0, 0.0))
+            return pieces
+    if v > 0.0:
+        pieces.append((t, x, v, -a_max, 0.0))
+        u = v / a_max
+        x, t = x + v * u / 2.0, t + u
+    pieces.append((t, x, 0.0, 0.0, 0.0))
+    return pieces
+
+
+def _state(motion: list, t: float) -> tuple[float, float, float, float]:
+    """(x, v, a, jerk) of a piecewise motion at ``t`` (from the piece starting at or before)."""
+    t0, x0, v0, a0, j = motion[0]
+    for piece in motion:
+        if piece[0] <= t + 1e-12:
+            t0, x0, v0, a0, j = piece
+    u = t - t0
+    return (x0 + v0 * u + a0 * u * u / 2.0 + j * u ** 3 / 6.0, v0 + a0 * u + j * u * u / 2.0,
+            a0 + j * u, j)
 
 
 class CarefulDriver:
