@@ -8,8 +8,10 @@ driver the closed form :func:`braking_lead_min_gap` in two readings:
 
 * ``nominal``: from the scenario's numbers (both at ``v``, gap ``time_gap * v``, the ego
   holding its speed until it reacts) — the regulation's driver dropped into the case;
-* ``at onset``: from the ego's state when the lead starts braking (its speed, gap and
-  acceleration then: its ordinary IDM driving opens the gap a little before t = 3 s).
+* ``at onset``: from the state when the lead's braking becomes perceivable — when it starts,
+  or when the lead comes within the ego's sensor range (80 m, centre to centre) if later —
+  with the ego's speed, gap and acceleration then (ordinary driving before it, IDM toward
+  the 30 m/s limit, changes them a little).
 
     PYTHONPATH=$PWD python bench/bench_reference_grid.py [--drivers careful,idm,autopilot]
         [--sensor-range 80]
@@ -50,6 +52,14 @@ def gaps(traj):
     return traj.x[1] - traj.x[0] - 0.5 * (traj.length[0] + traj.length[1])
 
 
+def onset_index(traj, sensor_range):
+    """The sample where the lead's braking becomes perceivable: when it starts, or when it
+    first comes within the ego's sensor range (centre to centre) if that is later."""
+    k_brake = int(round(BRAKE_AT / traj.dt))
+    seen = np.hypot(traj.x[1] - traj.x[0], traj.y[1] - traj.y[0]) <= sensor_range
+    return max(k_brake, int(np.argmax(seen)))
+
+
 def main(argv=None):
     from pytest_avscenario.sim.drivers.reference import braking_lead_min_gap
 
@@ -68,11 +78,11 @@ def main(argv=None):
                 hit.append((v, tg, d))
             if driver != "careful":
                 continue
-            k = int(round(BRAKE_AT / traj.dt))
+            k = onset_index(traj, args.sensor_range or 80.0)
             nom = braking_lead_min_gap(tg * v, v, v, d)
             at = braking_lead_min_gap(float(gaps(traj)[k]), float(traj.speed[0, k]),
                                       float(traj.speed[1, k]), d,
-                                      accel=float(traj.signals["ego.acceleration"][k]))
+                                      accel=float(traj.signals["ego.acceleration"][k + 1]))
             nominal.append(nom <= 0)
             onset.append(at <= 0)
             if (at <= 0) != crashed:

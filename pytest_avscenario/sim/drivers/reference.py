@@ -87,6 +87,7 @@ class CarefulDriverOptions:
     time_headway: float = 1.6  # [s] IDM desired time gap
     min_gap: float = 2.0  # [m] IDM standstill gap, bumper to bumper
     idm_delta: float = 4.0  # IDM acceleration exponent
+    critical_decel: float = 1.5  # [m/s^2] a lead braking harder than this is a critical event
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -258,16 +259,30 @@ def _state(motion: list, t: float) -> tuple[float, float, float, float]:
             a0 + j * u, j)
 
 
+class _Hazard:
+    """One hazard the driver tracks: what it is, when it became perceivable, and (once
+    perceived) whether it was critical."""
+
+    __slots__ = ("name", "kind", "onset", "state")
+
+    def __init__(self, name: str, kind: str, onset: float) -> None:
+        self.name = name
+        self.kind = kind  # "braking", "cut-in", "revealed", "closing"
+        self.onset = onset  # [s] when it became perceivable
+        self.state = "pending"  # -> "critical" | "ordinary" once perceived
+
+
 class CarefulDriver:
     """The careful and competent driver of UN R157 (see the module doc for the model).
 
     ``CarefulDriver(**options)`` takes the fields of :class:`CarefulDriverOptions`;
     ``act(observation) -> (acceleration [m/s^2], steering [rad])``. It keeps its lane (the
     route's current lane), cruises at ``cruise_speed`` (else the scenario's target speed, else
-    the speed limit), follows what it has perceived in its path with IDM, and brakes with the
-    regulation's response — ramp at 12.65 m/s^3 to 0.774 g, hold — once a perceived hazard is
-    critical (TTC below 2 s), until it no longer closes in on it. ``last_reason`` names what
-    decided the last command ("cruise", "follow", "critical", "stopped").
+    the speed limit), follows what it has seen in its path with IDM, and answers a critical
+    hazard with the regulation's response: its command held from the hazard's onset until
+    ``t_p + t_r`` after it, then the ramp at 12.65 m/s^3 to 0.774 g, held until the hazard is
+    resolved. ``last_reason`` names what decided the last command ("cruise", "follow",
+    "reacting", "critical", "stopped").
     """
 
     name = "careful"
@@ -280,7 +295,13 @@ class CarefulDriver:
             raise TypeError(f"{exc}. Known CarefulDriver options: {known}") from None
         self._seen: deque = deque()  # (t [s], agents) observations, oldest first
         self._accel = 0.0  # [m/s^2] last command
-        self._critical: tuple[float, float] | None = None  # (onset t [s], command then)
+        self._commands: deque = deque()  # (t [s], command [m/s^2]) for the last few seconds
+        self._last: dict[str, tuple] = {}  # name -> (t, s, r, v_lon, in path) last seen
+        self._braking_until: dict[str, float] = {}  # name -> last t [s] seen braking hard
+        self._hazards: dict[str, _Hazard] = {}
+        # (when the brake acts [s], the command held until then, the command the build-up
+        # starts from: known once the brake acts)
+        self._response: tuple[float, float, float | None] | None = None
         self.last_reason = "cruise"
 
     def __repr__(self) -> str:
@@ -291,7 +312,7 @@ class CarefulDriver:
     # -- perception -------------------------------------------------------------------------
     def _view(self, obs: Any) -> tuple[float, tuple]:
         """The newest observation at least ``delay`` old: (its time, its agents); before one
-        exists, nothing has been perceived yet."""
+        exists, nothing has been seen yet. Ordinary driving (IDM) uses it."""
         self._seen.append((obs.t, obs.agents))
         cutoff = obs.t - self.options.delay + 1e-9
         while len(self._seen) > 1 and self._seen[1][0] <= cutoff:
@@ -299,15 +320,15 @@ class CarefulDriver:
         t0, agents = self._seen[0]
         return (t0, agents) if t0 <= cutoff else (obs.t, ())
 
-    def _hazards(self, obs: Any, lane: Any, t_seen: float, agents: tuple) -> list:
-        """Perceived agents in the ego's path ahead: (bumper gap now [m], speed along the
-        lane [m/s], name), the gap dead-reckoned from when they were seen."""
+    def _ahead(self, obs: Any, lane: Any, t_seen: float, agents: tuple) -> list:
+        """What ordinary driving follows: agents in the ego's path ahead as seen ``delay``
+        ago, (bumper gap now [m], speed along the lane [m/s], name), the gap dead-reckoned at
+        the speed they had then — a driver following traffic anticipates it at its pace."""
         o = self.options
         ego = obs.ego
-        s_e, r_e = obs.s, obs.r
-        hdg = lane.heading_at(s_e)
+        hdg = lane.heading_at(obs.s)
         tx, ty = math.cos(hdg), math.sin(hdg)
-        width = lane.width_at(s_e) if hasattr(lane, "width_at") else 3.5
+        width = lane.width_at(obs.s) if hasattr(lane, "width_at") else 3.5
         age = obs.t - t_seen
         out = []
         for a in agents:
@@ -315,16 +336,128 @@ class CarefulDriver:
             v_lon = a.vx * tx + a.vy * ty
             v_lat = a.vy * tx - a.vx * ty  # + toward the left
             s_now = s_a + v_lon * age
-            if s_now <= s_e:
-                continue  # behind the ego's centre: not its hazard
-            in_path = abs(r_a - r_e) < 0.5 * (ego.width + a.width)
-            # out of its wandering zone in the next lane, moving toward the ego's lane
+            if s_now <= obs.s:
+                continue  # behind the ego's centre: not its concern
+            in_path = abs(r_a - obs.r) < 0.5 * (ego.width + a.width)
             cutting_in = (abs(r_a) < 1.5 * width and abs(r_a) < width - o.lateral_wandering
                           and r_a * v_lat < 0.0)
             if in_path or cutting_in:
-                gap = s_now - s_e - 0.5 * (ego.length + a.length)
-                out.append((gap, v_lon, a.name))
+                out.append((s_now - obs.s - 0.5 * (ego.length + a.length), v_lon, a.name))
         return out
+
+    def _notice(self, obs: Any, lane: Any) -> list:
+        """Register the hazards that became perceivable since the last observation, from the
+        current one (the driver acts on them only ``t_p`` later, see :meth:`_perceive`).
+        Returns what is in the ego's path ahead now: (gap [m], speed along the lane [m/s],
+        deceleration [m/s^2], name)."""
+        o = self.options
+        ego = obs.ego
+        hdg = lane.heading_at(obs.s)
+        tx, ty = math.cos(hdg), math.sin(hdg)
+        width = lane.width_at(obs.s) if hasattr(lane, "width_at") else 3.5
+        edge = width - o.lateral_wandering  # |r| inside this: out of its wandering zone
+        v = ego.speed
+        now: dict[str, tuple] = {}
+        in_path_now = []
+        for a in obs.agents:
+            s_a, r_a = lane.local_coordinates((a.x, a.y))
+            v_lon = a.vx * tx + a.vy * ty
+            v_lat = a.vy * tx - a.vx * ty
+            in_path = abs(r_a - obs.r) < 0.5 * (ego.width + a.width)
+            now[a.name] = (obs.t, s_a, r_a, v_lon, in_path)
+            if s_a <= obs.s:
+                continue
+            gap = s_a - obs.s - 0.5 * (ego.length + a.length)
+            prev = self._last.get(a.name)
+            decel = 0.0
+            if prev is not None and obs.t > prev[0]:
+                decel = (prev[3] - v_lon) / (obs.t - prev[0])
+            toward = r_a * v_lat < 0.0
+            cutting_in = abs(r_a) < 1.5 * width and abs(r_a) < edge and toward
+            if decel > o.critical_decel and (in_path or cutting_in):
+                # braking since the previous sample at the latest: that is its onset
+                self._braking_until[a.name] = obs.t
+                self._register(a.name, "braking", prev[0])
+            if cutting_in and not in_path:
+                onset = obs.t
+                if prev is not None and abs(prev[2]) >= edge and obs.t > prev[0]:
+                    # it crossed the edge of its wandering zone between the two samples
+                    f = (abs(prev[2]) - edge) / max(abs(prev[2]) - abs(r_a), 1e-9)
+                    onset = prev[0] + min(max(f, 0.0), 1.0) * (obs.t - prev[0])
+                self._register(a.name, "cut-in", onset)
+            if in_path:
+                if prev is None or not prev[4]:
+                    # newly in the path: revealed (a car cutting out, the edge of the sensor
+                    # range) unless it came in as a cut-in already registered
+                    self._register(a.name, "revealed", obs.t)
+                closing = v - v_lon
+                if closing > 0.0 and gap < o.critical_ttc * closing:
+                    self._register(a.name, "closing", obs.t)
+                in_path_now.append((gap, v_lon, decel, a.name))
+        self._last = now
+        return in_path_now
+
+    def _register(self, name: str, kind: str, onset: float) -> None:
+        h = self._hazards.get(name)
+        if h is None or (h.state != "critical" and h.kind != kind and (
+                kind == "braking" or (kind == "closing" and h.state == "ordinary"))):
+            # a braking lead is critical whatever else was noticed about it (a car revealed
+            # already braking brakes from when it was first seen); a hazard judged ordinary
+            # becomes one again when ordinary following lets it within the critical TTC
+            self._hazards[name] = _Hazard(name, kind, onset)
+
+    def _perceive(self, obs: Any, path: list) -> None:
+        """Judge the hazards perceivable for ``t_p`` now, on what is seen now: a lead braking
+        harder than ``critical_decel`` is critical; a car cutting in, revealed or closing in
+        is critical when its time to collision is below ``critical_ttc``. A critical one
+        starts the response (if none runs): the brake acts ``t_p + t_r`` after its onset."""
+        o = self.options
+        v = obs.ego.speed
+        by_name = {p[3]: p for p in path}
+        for h in self._hazards.values():
+            if h.state != "pending" or obs.t + 1e-9 < h.onset + o.risk_perception_time:
+                continue
+            seen = by_name.get(h.name)
+            if h.kind == "braking":
+                critical = True
+            elif seen is None:
+                # a cut-in not yet in the path counts with its gap along the lane
+                seen = self._along(h.name, obs)
+                critical = seen is not None and v > seen[1] and seen[0] < o.critical_ttc * (
+                    v - seen[1])
+            else:
+                critical = v > seen[1] and seen[0] < o.critical_ttc * (v - seen[1])
+            h.state = "critical" if critical else "ordinary"
+            if critical and self._response is None:
+                self._response = (h.onset + o.delay, self._command_at(h.onset), None)
+
+    def _along(self, name: str, obs: Any) -> tuple | None:
+        rec = self._last.get(name)
+        if rec is None:
+            return None
+        a = next((x for x in obs.agents if x.name == name), None)
+        length = a.length if a is not None else obs.ego.length
+        return (rec[1] - obs.s - 0.5 * (obs.ego.length + length), rec[3])
+
+    def _command_at(self, t: float) -> float:
+        """The command that was in force at ``t`` [s] (the last one given at or before)."""
+        cmd = self._accel
+        for t_c, a in reversed(self._commands):
+            cmd = a
+            if t_c <= t + 1e-9:
+                break
+        return cmd
+
+    def _resolved(self, obs: Any, path: list) -> bool:
+        """The hazard is over once the ego closes in on nothing in its path and nothing there
+        has braked hard for ``t_p + t_r`` (so what ordinary driving sees is settled too)."""
+        v = obs.ego.speed
+        for gap, v_lon, _, name in path:
+            if v > v_lon + 1e-6:
+                return False
+            if obs.t - self._braking_until.get(name, -math.inf) < self.options.delay:
+                return False
+        return True
 
     # -- the step -----------------------------------------------------------------------------
     def act(self, obs: Any) -> tuple[float, float]:
@@ -337,65 +470,77 @@ class CarefulDriver:
         lane = obs.route[obs.route_index] if obs.route else None
         if lane is None:
             self.last_reason = "no route"
-            return self._finish(-o.comfort_decel, 0.0, v, dt)
-        hazards = self._hazards(obs, lane, t_seen, agents) if agents else []
+            return self._finish(obs.t, -o.comfort_decel, 0.0, v, dt)
+        path = self._notice(obs, lane)
+        self._perceive(obs, path)
+        ahead = self._ahead(obs, lane, t_seen, agents) if agents else []
 
         v0 = o.cruise_speed if o.cruise_speed is not None else (
             obs.target_speed if obs.target_speed is not None else obs.speed_limit)
         accel = o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else -o.comfort_decel
         reason = "cruise"
-        critical = False
-        if hazards:
-            gap, v_lead, _ = min(hazards)
+        if ahead:
+            gap, v_lead, _ = min(ahead)
             s_star = o.min_gap + max(0.0, v * o.time_headway + v * (v - v_lead)
                                      / (2.0 * math.sqrt(o.max_accel * o.comfort_decel)))
             accel -= o.max_accel * (s_star / max(gap, 0.1)) ** 2
             reason = "follow"
-            for gap_h, v_h, _ in hazards:
-                closing = v - v_h
-                if closing > 0.0 and gap_h < o.critical_ttc * closing:
-                    critical = True
-        if self._critical is not None and not any(v > v_h for _, v_h, _ in hazards):
-            self._critical = None  # no longer closing in on anything: the hazard is resolved
-        if critical and self._critical is None:
-            self._critical = (obs.t, min(self._accel, 0.0))
-        if self._critical is not None:
-            accel = self._response(obs.t, dt)
-            reason = "critical"
+        # ordinary driving's braking builds up at the model's jerk as well
+        if accel < self._accel:
+            accel = max(accel, min(self._accel, 0.0) - o.brake_jerk * dt)
+        if self._response is not None and obs.t >= self._response[0] and self._resolved(obs, path):
+            self._response = None
+            self._hazards = {k: h for k, h in self._hazards.items() if h.state == "pending"}
+        if self._response is not None:
+            t_b, held, a_pre = self._response
+            if obs.t + dt <= t_b:
+                # reacting: the command of the onset held, or more braking if ordinary driving
+                # asks for it (its own build-up at the model's jerk)
+                accel = min(accel, held)
+                reason = "reacting"
+            else:
+                if a_pre is None:
+                    # the brake acts: it builds up from what the driver was doing then
+                    self._response = (t_b, held, self._accel)
+                accel = self._profile(obs.t, dt)
+                reason = "critical"
         lookahead = max(v, 0.0) * 0.1
         steer = lane_steering(v, ego.heading, obs.r, lane.heading_at(obs.s + lookahead),
                               ego.length)
         self.last_reason = "stopped" if v <= 0.0 and accel <= 0.0 else reason
-        return self._finish(accel, steer, v, dt, ramp=self._critical is None)
+        return self._finish(obs.t, accel, steer, v, dt)
 
-    def _response(self, t: float, dt: float) -> float:
-        """The regulation's braking, averaged over the step [t, t + dt] so the speed follows
-        the continuous profile exactly at every sample: from the command at onset down at
-        the model's jerk to the maximum deceleration, then held."""
+    def _profile(self, t: float, dt: float) -> float:
+        """The regulation's response averaged over the step [t, t + dt], so the speed follows
+        the continuous profile exactly at every sample: the command of the reaction phase
+        until the brake acts at ``t_b``, then from it (or 0, if it was accelerating) down at
+        the model's jerk to the maximum deceleration, held."""
         o = self.options
-        t_on, a_on = self._critical
+        t_b, _, a_pre = self._response
         a_max, jerk = o.max_decel, o.brake_jerk
+        a_on = min(a_pre, 0.0)
 
-        def integral(u: float) -> float:  # of the profile from the onset to u seconds after
+        def integral(u: float) -> float:  # of the profile from t_b to t_b + u (u may be < 0)
+            if u <= 0.0:
+                return a_pre * u
             if math.isinf(jerk):
                 return -a_max * u
-            t_full = (a_on + a_max) / jerk  # when the ramp reaches -a_max
+            t_full = max((a_on + a_max) / jerk, 0.0)  # when the ramp reaches -a_max
             if u <= t_full:
                 return a_on * u - 0.5 * jerk * u * u
             return a_on * t_full - 0.5 * jerk * t_full * t_full - a_max * (u - t_full)
 
-        u0 = max(t - t_on, 0.0)
-        return (integral(u0 + dt) - integral(u0)) / dt
+        return (integral(t + dt - t_b) - integral(t - t_b)) / dt
 
-    def _finish(self, accel: float, steer: float, v: float, dt: float,
-                ramp: bool = True) -> tuple[float, float]:
-        """Human limits: braking builds up at the model's jerk and stops at its maximum;
-        braking never reverses the car."""
+    def _finish(self, t: float, accel: float, steer: float, v: float,
+                dt: float) -> tuple[float, float]:
+        """Human limits: braking stops at the model's maximum and never reverses the car."""
         o = self.options
-        if ramp and accel < self._accel:
-            accel = max(accel, min(self._accel, 0.0) - o.brake_jerk * dt)
         accel = max(-o.max_decel, min(o.max_accel, accel))
         if v >= 0.0:
             accel = max(accel, -v / dt)
         self._accel = accel
+        self._commands.append((t, accel))
+        while len(self._commands) > 2 and self._commands[1][0] < t - 2.0 * o.delay:
+            self._commands.popleft()
         return accel, steer
