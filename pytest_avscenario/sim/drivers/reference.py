@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 from ..control import lane_steering
@@ -420,16 +420,29 @@ class CarefulDriver:
             seen = by_name.get(h.name)
             if h.kind == "braking":
                 critical = True
-            elif seen is None:
-                # a cut-in not yet in the path counts with its gap along the lane
-                seen = self._along(h.name, obs)
-                critical = seen is not None and v > seen[1] and seen[0] < o.critical_ttc * (
-                    v - seen[1])
             else:
-                critical = v > seen[1] and seen[0] < o.critical_ttc * (v - seen[1])
+                if seen is None:  # a cut-in not yet in the path: its gap along the lane
+                    seen = self._along(h.name, obs)
+                critical = seen is not None and self._needs_response(v, seen[0], seen[1])
             h.state = "critical" if critical else "ordinary"
             if critical and self._response is None:
                 self._response = (h.onset + o.delay, self._command_at(h.onset), None)
+
+    def _needs_response(self, v: float, gap: float, v_other: float) -> bool:
+        """Is closing in on something ``gap`` [m] ahead at ``v_other`` [m/s] critical? R157's
+        criterion, a time to collision below ``critical_ttc``; or when ordinary braking (the
+        comfortable deceleration, after the reaction time) would not stop the ego
+        ``min_gap`` short of it — the model's own closed form says only its full response
+        will do (a standing car revealed 2.5 s ahead is critical whatever its TTC)."""
+        o = self.options
+        closing = v - v_other
+        if closing <= 0.0:
+            return False
+        if gap < o.critical_ttc * closing:
+            return True
+        ordinary = replace(o, risk_perception_time=0.0,
+                           max_decel_g=o.comfort_decel / STANDARD_GRAVITY)
+        return braking_lead_min_gap(max(gap, 0.0), v, v_other, 0.0, options=ordinary) < o.min_gap
 
     def _along(self, name: str, obs: Any) -> tuple | None:
         rec = self._last.get(name)
@@ -493,7 +506,7 @@ class CarefulDriver:
             self._hazards = {k: h for k, h in self._hazards.items() if h.state == "pending"}
         if self._response is not None:
             t_b, held, a_pre = self._response
-            if obs.t + dt <= t_b:
+            if obs.t + dt <= t_b + 1e-9:  # (a step that ends where the brake acts)
                 # reacting: the command of the onset held, or more braking if ordinary driving
                 # asks for it (its own build-up at the model's jerk)
                 accel = min(accel, held)
