@@ -18,9 +18,9 @@ human driver (pages 43-45 of the consolidated text R157e.pdf). The facts carried
   (a jerk of 0.774 x 9.80665 / 0.6 = 12.65 m/s^3), then holds until the hazard is resolved;
 * **lateral wandering distance** 0.375 m: how far a vehicle drifts from its lane centre in
   ordinary driving; a vehicle of the next lane further toward the ego's lane than that,
-  moving toward it, is perceived as cutting in;
-* a perceived hazard is **critical** when the time to collision is below 2 s; only then does
-  the driver brake with the model's full response.
+  moving toward it, is perceivable as cutting in;
+* a perceived cut-in is **critical** when its time to collision is below 2 s; only then does
+  the driver answer with the model's full response.
 
 So from speed ``v`` with a standing obstacle appearing ahead, the C&C driver stands still
 after (the closed form :func:`stopping_distance`; ``T`` = build-up time, ``a`` = maximum
@@ -30,23 +30,69 @@ deceleration, ``t_p + t_r`` = 1.15 s)::
 
 the middle term being the jerk-limited build-up (the distance covered during the 0.6 s ramp
 less the speed it already takes off). For a cut-in at constant speed the same formula of the
-closing speed gives the gap the driver needs (:func:`closing_distance`).
+closing speed gives the gap the driver needs (:func:`closing_distance`). Behind a lead that
+brakes at ``d`` to a stop the two motions must be compared over time:
+:func:`braking_lead_min_gap` is the smallest gap, from exact piecewise kinematics (the
+lead's constant deceleration; the ego's held acceleration through the delay, the linear
+build-up, the held maximum), negative where the careful driver collides — e.g. from 20 m/s
+at a 1 s time gap behind a 6 m/s^2 stop (-1.9 m), not behind a 4 m/s^2 one (+1.2 m).
 
-Simplifications (deliberate, documented so a reader can judge a verdict):
+How the driver follows the model, step by step:
 
-* one delay ``t_p + t_r`` for every hazard: the driver sees the other agents as they were
-  1.15 s ago, dead-reckoned along the lane at their speed then (a hard-braking lead is noticed
-  1.15 s late, a revealed obstacle 1.15 s after it appears, a cut-in 1.15 s after it leaves
-  its wandering zone); its own speed it knows at once. The regulation's distinction of gentle
-  lead deceleration (reaction time only) is not made;
-* ordinary driving between hazards (keeping the lane, cruise speed, following) is the
+* **onset**: the moment a hazard becomes perceivable, taken from the observations as they
+  come: a vehicle in its path (or cutting in) whose speed drops faster than
+  ``critical_decel`` between two observations started braking at the first of them (or when
+  it was first seen, if it came into view braking); a car of the next lane cuts in when it
+  crosses the edge of its wandering zone, interpolated between the two observations around
+  it; a car newly in the path (revealed by one cutting out, or at the edge of the sensor
+  range) appears when first seen there; and, as a last resort, anything it closes in on
+  within the critical TTC is a hazard from then on;
+* **perception** ``t_p`` after the onset, judged on what it sees then (not dead-reckoned
+  from stale speeds): is the hazard critical? A lead braking harder than ``critical_decel``
+  is (R157 counts the risk perception time from the onset of the lead's deceleration and
+  gives no threshold; see below). A car cutting in, revealed or closed in on is critical
+  when its TTC is below ``critical_ttc`` (R157's criterion) or when ordinary braking — the
+  comfortable deceleration after the reaction time — would not stop ``min_gap`` short of
+  it (the model's own closed form says only its full response will do: a standing car
+  revealed 2.5 s ahead at 20 m/s is critical, though its TTC is above 2 s);
+* **reaction**: from the perception until ``t_p + t_r`` after the onset the driver keeps the
+  command it gave at the onset (its foot on its way to the brake), or brakes more if
+  ordinary driving asks for it;
+* **response**: from ``t_p + t_r`` after the onset the brake builds up at the model's jerk
+  from what it was doing to 0.774 g, held (integrated exactly over each step, so the speed
+  follows the continuous profile at every sample) until the hazard is resolved: the ego
+  closes in on nothing in its path and nothing there has braked hard for ``t_p + t_r``;
+* a hazard that is not critical is left to ordinary driving.
+
+What the regulation leaves open, and what this driver chose:
+
+* **which lead deceleration is critical**: R157 times the risk perception from the start of
+  the lead's deceleration and applies the 2 s TTC to cut-ins, where a TTC exists at the
+  moment of perception; behind a lead at the same speed there is none. Here a lead braking
+  harder than ``critical_decel`` = 1.5 m/s^2 — the comfortable deceleration ordinary
+  following itself uses (IDM's b) — is a critical event and gets the full response at
+  once; gentler deceleration is ordinary traffic that IDM follows. (esmini's R157 reference
+  driver takes 5 m/s^2; with it, 2-4 m/s^2 stops would be followed by IDM alone and the
+  closed form would not describe them.) R157 sets gentle lead decelerations apart from
+  critical ones without a figure a simulation can use; this threshold is that line, an
+  option, and the closed form describes everything above it;
+* **what the driver does during the delay**: R157's figures hold the speed; here the driver
+  keeps its command of the onset, which is the speed held when it was cruising. The closed
+  form takes that acceleration as an argument;
+* **ordinary driving** between hazards (keeping the lane, cruise speed, following) is the
   Intelligent Driver Model with the highway parameters of Treiber, Hennecke and Helbing
   (2000): a = 1.0 m/s^2, b = 1.5 m/s^2, T = 1.6 s, s0 = 2 m, delta = 4 — the regulation
-  describes only the response to a critical event; every braking ramps at the model's jerk
-  and stops at 0.774 g;
-* no automatic emergency braking, no evasive steering, no reaction to crossing traffic,
-  pedestrians off its lane or vehicles behind: the regulation's model is a lane-keeping
-  motorway driver, and so is this one (straight or gently curved lanes).
+  describes only the response to a critical event. It sees the other agents as they were
+  ``t_p + t_r`` ago, dead-reckoned at their speed then (a driver following traffic
+  anticipates it at its pace; hazards are not judged on that view), and its braking builds
+  up at the model's jerk and stops at 0.774 g.
+
+Simplifications (deliberate, documented so a reader can judge a verdict): no automatic
+emergency braking, no evasive steering, no reaction to crossing traffic, pedestrians off its
+lane or vehicles behind: the regulation's model is a lane-keeping motorway driver, and so is
+this one (straight or gently curved lanes). It sees what the world's sensor range shows (80
+m by default, centre to centre): a lead that brakes beyond it is a hazard from when it comes
+into view.
 
 Deterministic: no randomness, no clock; one instance drives one case.
 """
@@ -71,8 +117,10 @@ STANDARD_GRAVITY = 9.80665
 class CarefulDriverOptions:
     """Parameters of the C&C driver; every field can be passed to ``CarefulDriver(**options)``.
 
-    The first six are the regulation's (R157 Annex 4 Appendix 3); the rest shape ordinary
-    driving between critical events (IDM, Treiber et al. 2000).
+    The first six are the regulation's (R157 Annex 4 Appendix 3); the next six shape
+    ordinary driving between critical events (IDM, Treiber et al. 2000); ``critical_decel``
+    is where this driver draws the line the regulation leaves open between a lead's gentle
+    and critical deceleration (see the module doc).
     """
 
     risk_perception_time: float = 0.4  # [s] R157: hazard perceivable -> risk perceived
