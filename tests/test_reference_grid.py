@@ -31,8 +31,12 @@ import pytest
 
 from pytest_avscenario.sim import World
 from pytest_avscenario.sim import behaviors as b
-from pytest_avscenario.sim.drivers import CarefulDriverOptions
-from pytest_avscenario.sim.drivers.reference import braking_lead_min_gap
+from pytest_avscenario.sim.drivers import (
+    CarefulDriverOptions,
+    closing_distance,
+    stopping_distance,
+)
+from pytest_avscenario.sim.drivers.reference import STANDARD_GRAVITY, braking_lead_min_gap
 
 DT = 0.1  # [s] the world's default step
 SAMPLING = 0.05  # [m] the minimum gap sampled every DT, not continuously
@@ -48,6 +52,32 @@ def _outcome(traj, k_on: int) -> tuple[bool, float]:
     stopped = traj.speed[0, k_on:] <= 0.0
     end = k_on + int(np.argmax(stopped)) if stopped.any() else gap.size - 1
     return bool(traj.crashed[0].any()), float(gap[k_on:end + 1].min())
+
+
+def test_the_closed_form_in_its_limits_by_hand():
+    a_max, jerk = 0.774 * STANDARD_GRAVITY, 0.774 * STANDARD_GRAVITY / 0.6
+    # a standing obstacle: the stopping distance; a lead keeping its speed: the closing one
+    assert braking_lead_min_gap(60.0, 20.0, 0.0, 0.0) == pytest.approx(
+        60.0 - stopping_distance(20.0))
+    assert braking_lead_min_gap(30.0, 25.0, 15.0, 0.0) == pytest.approx(
+        30.0 - closing_distance(10.0))
+    # a lead braking harder than the careful driver can (9 > 7.59 m/s^2): both stand when
+    # they are closest, the ego's stopping distance against the lead's v^2 / 2d
+    assert braking_lead_min_gap(40.0, 20.0, 20.0, 9.0) == pytest.approx(
+        40.0 - stopping_distance(20.0) + 20.0 ** 2 / 18.0)
+    # the ego already braking at 2 m/s^2 keeps that through the 1.15 s, then builds up from
+    # it: the ramp is (a_max - 2) / jerk long; written out piece by piece
+    v, a, td = 20.0, 2.0, 1.15
+    x1, v1 = v * td - a * td ** 2 / 2, v - a * td
+    u = (a_max - a) / jerk
+    x2, v2 = v1 * u - a * u ** 2 / 2 - jerk * u ** 3 / 6, v1 - a * u - jerk * u ** 2 / 2
+    stop = x1 + x2 + v2 ** 2 / (2 * a_max)
+    assert braking_lead_min_gap(60.0, v, 0.0, 0.0, accel=-a) == pytest.approx(60.0 - stop)
+    # behind a lead braking to a stop from the ego's speed: the harder, the closer
+    gaps = [braking_lead_min_gap(20.0, 20.0, 20.0, d) for d in (2.0, 4.0, 6.0, 8.0)]
+    assert gaps == sorted(gaps, reverse=True) and gaps[1] > 0 > gaps[2]
+    with pytest.raises(ValueError, match="speed"):
+        braking_lead_min_gap(20.0, -1.0, 20.0, 4.0)
 
 
 def braking_lead(v: float, time_gap: float, decel: float):

@@ -447,11 +447,12 @@ class CarefulDriver:
 
     def _register(self, name: str, kind: str, onset: float) -> None:
         h = self._hazards.get(name)
-        if h is None or (h.state != "critical" and h.kind != kind and (
-                kind == "braking" or (kind == "closing" and h.state == "ordinary"))):
+        if (h is None or (h.state == "ordinary" and kind in ("braking", "closing"))
+                or (h.state == "pending" and kind == "braking" and h.kind != kind)):
             # a braking lead is critical whatever else was noticed about it (a car revealed
-            # already braking brakes from when it was first seen); a hazard judged ordinary
-            # becomes one again when ordinary following lets it within the critical TTC
+            # already braking brakes from when it was first seen); one judged ordinary is a
+            # hazard again when it brakes, or when ordinary following lets it within the
+            # critical TTC
             self._hazards[name] = _Hazard(name, kind, onset)
 
     def _perceive(self, obs: Any, path: list) -> None:
