@@ -19,7 +19,10 @@ ahead of the exact one by dt/2 times the speed it has lost. At the closest appro
 drive at the same speed, so the sampled gap is the exact one less dt/2 x (closing speed at
 the onset) — 0 behind a lead braking from the ego's speed, up to 0.45 m for a cut-in 9 m/s
 slower. The test subtracts that term (``euler``) and allows 5 cm for sampling the minimum
-every 0.1 s; no case lies within that band of the boundary.
+every 0.1 s; no case lies within that band of the boundary. One more term for the closest
+approach after a cut-in: the formula's cutter keeps its speed along the road, the simulated
+one keeps it along its heading, so while it is turned it loses ``v (1 - cos)`` along the road
+(under 0.25 m here, read from the run) and the gap with it.
 """
 
 from __future__ import annotations
@@ -119,6 +122,7 @@ def cut_in(v: float, lateral_speed: float, dv: float, gap: float):
     return world.run(8.0, dt=DT)
 
 
+COMFORTABLE = CarefulDriverOptions(risk_perception_time=0.0, max_decel_g=1.5 / STANDARD_GRAVITY)
 CUT_INS = list(itertools.product((20.0, 30.0), (1.0, 2.0), (3.0, 6.0, 9.0),
                                  (10.0, 14.0, 18.0, 22.0)))
 
@@ -138,9 +142,12 @@ def test_a_car_cutting_in_is_hit_exactly_where_the_closed_form_says():
         formula = braking_lead_min_gap(gap_on, v, v - dv, 0.0)
         euler = DT / 2 * dv
         crashed, sim_gap = _outcome(traj, k)
-        # R157: critical when the TTC seen at perception (0.4 s on) is below 2 s; else
+        # critical when the TTC seen at perception (0.4 s on) is below R157's 2 s, or when
+        # braking comfortably after the reaction time would not stop 2 m short; else
         # ordinary driving (IDM) handles it, and the formula predicts no collision there
-        critical = gap_on - cc.risk_perception_time * dv < cc.critical_ttc * dv
+        gap_p = gap_on - cc.risk_perception_time * dv
+        critical = gap_p < cc.critical_ttc * dv or braking_lead_min_gap(
+            gap_p, v, v - dv, 0.0, options=COMFORTABLE) < cc.min_gap
         assert critical or formula > 0.0
         critical_cases += critical
         assert abs(formula - euler) > SAMPLING, "a case this close to the boundary says nothing"
@@ -152,7 +159,7 @@ def test_a_car_cutting_in_is_hit_exactly_where_the_closed_form_says():
             gap = traj.x[1] - traj.x[0] - LENGTH
             k_min = k + int(np.argmin(gap[k:]))
             dip = float(np.sum((v - dv) - traj.vx[1, k:k_min])) * DT
-            assert 0.0 <= dip < 0.15
+            assert 0.0 <= dip < 0.25, dip  # v (1 - cos) of a turn across 3.5 m, brief
             if abs(sim_gap - (formula - euler - dip)) > SAMPLING:
                 off.append((v, u, dv, gap0, round(formula, 3), round(sim_gap, 3)))
     assert not disagree, f"(speed, lateral, dv, gap, formula, simulated min gap): {disagree}"
