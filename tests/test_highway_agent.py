@@ -19,7 +19,7 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.kinematics import Vehicle
 
 import pytest_avscenario.sim.drivers.highway_agent  # noqa: F401  (imported before any pytester run)
-from pytest_avscenario.sim import DriverError, SimError, World
+from pytest_avscenario.sim import AgentSpeedWarning, AgentStepWarning, DriverError, SimError, World
 from pytest_avscenario.sim.behaviors import Behavior
 from pytest_avscenario.sim.drivers import highway_env_agent
 
@@ -219,20 +219,28 @@ def test_one_decision_per_policy_period_at_any_dividing_dt():
     w = World(seed=0, name="test_period")
     road = w.straight_road(lanes=3, length=800, lane_width=4.0)
     w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
-    w.run(4.95, dt=0.05)
+    with pytest.warns(AgentStepWarning, match=r"runs at dt=0\.05 s \(world\.run\(dt=0\.05\)\), not "
+                      r"at its environment's step 0\.2 s.*it still decides every 1 s"):
+        w.run(4.95, dt=0.05)
     assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 1.0, 2.0, 3.0, 4.0])
 
 
-def test_a_world_step_that_does_not_divide_the_policy_period_is_refused():
+def test_a_world_step_that_does_not_divide_the_policy_period_warns_and_decides_near_it():
     agent = highway_env_agent(LinearPolicy(n_out=5, seed=0))
     w = World(seed=0, name="tests/x.py::test_dt[3]")
     road = w.straight_road(lanes=3, length=500, lane_width=4.0)
     w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
-    with pytest.raises(SimError) as err:
-        w.run(5, dt=0.3)
-    msg = str(err.value)
-    assert "tests/x.py::test_dt[3]" in msg and "policy_frequency 1 Hz" in msg
-    assert "dt=0.3" in msg and "run with dt=0.2" in msg
+    with pytest.warns(AgentStepWarning) as got:
+        w.run(3.0, dt=0.3)
+    assert len(got) == 1
+    msg = str(got[0].message)
+    assert msg.startswith("tests/x.py::test_dt[3]: highway_env_agent(LinearPolicy, "
+                          "env='highway-fast-v0') runs at dt=0.3 s (world.run(dt=0.3)), not at "
+                          "its environment's step 0.2 s (simulation_frequency 5 Hz)")
+    assert "0.3 s does not divide its policy period 1 s (policy_frequency 1 Hz), so it " \
+           "decides every 0.9 s instead" in msg
+    assert msg.endswith("leave dt to the driver (world.run() without dt=) or give dt=0.2")
+    assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 0.9, 1.8, 2.7])
 
 
 @pytest.mark.parametrize("answer, expected", [

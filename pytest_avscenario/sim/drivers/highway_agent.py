@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DriverError, SimError
+from ..errors import AgentSpeedWarning, AgentStepWarning, DriverError, SimError
 
 __all__ = ["HighwayEnvAgent"]
 
@@ -173,7 +173,44 @@ class HighwayEnvAgent:
             ego = cls(None, position, heading, speed, **kwargs)
         ego.session = _Session(self, env, world, ego)
         ego.decisions = []
+        self._check_speeds(world, ego, speed, target_speed)
         return ego
+
+    def _check_speeds(self, world: Any, ego: Any, speed: float, target_speed: float | None) -> None:
+        """Warn (once per test) when the scenario's ego speeds are ones the action type cannot
+        hold: the agent then starts in a state it never met in training (an ego placed at
+        5.6 m/s under DiscreteMetaAction's 20/25/30 m/s is at ~22 m/s a second later)."""
+        from highway_env.envs.common.action import ContinuousAction, DiscreteMetaAction
+
+        at = ego.session.action_type
+        asked = [("speed", float(speed))]
+        if target_speed is not None:
+            asked.append(("target_speed", float(target_speed)))
+        if isinstance(at, DiscreteMetaAction):
+            targets = np.asarray(at.target_speeds, dtype=float)
+            lo, hi = float(targets.min()), float(targets.max())
+            holds = f"its target speeds are {', '.join(f'{v:g}' for v in targets)} m/s"
+            after = (f", so the ego (highway-env's MDPVehicle) heads for "
+                     f"{float(ego.target_speed):g} m/s from the start")
+            name = "DiscreteMetaAction"
+        elif isinstance(at, ContinuousAction):  # DiscreteAction too
+            rng = at.speed_range or (ego.MIN_SPEED, ego.MAX_SPEED)
+            lo, hi = float(min(rng)), float(max(rng))
+            holds = f"its speed_range is [{lo:g}, {hi:g}] m/s"
+            after = ""
+            name = type(at).__name__
+        else:  # pragma: no cover - _check_config admits no other action type
+            return
+        tol = 1e-6
+        off = [(k, v) for k, v in asked if not lo - tol <= v <= hi + tol]
+        if not off:
+            return
+        given = ", ".join(f"{k}={v:g} m/s" for k, v in off)
+        world.warn(AgentSpeedWarning(
+            f"{world.name}: the scenario places the ego at {given}, outside what "
+            f"{self!r}'s {name} can hold: {holds}{after}; the agent starts where it never was "
+            f"in training — place the ego within [{lo:g}, {hi:g}] m/s, or test an agent "
+            "trained for these speeds"), "agent-speed")
 
     def reset(self, world: Any) -> None:
         """Per case, before the run: decision timing from the world's ``dt``, the mirrored road."""
@@ -313,21 +350,43 @@ class _Session:
         self.rng = np.random.default_rng([world.seed, 0x6877])
 
     def start(self, world: Any) -> None:
-        env_dt = self.agent.policy_period
+        period = self.agent.policy_period
+        own = self.agent.dt
         dt = float(world.dt)
-        every = int(round(env_dt / dt))
-        if every < 1 or abs(every * dt - env_dt) > 1e-9 * max(env_dt, 1.0):
-            cfg = self.env.config
-            raise SimError(
-                f"{self.agent!r} decides every {env_dt:g} s (policy_frequency "
-                f"{cfg['policy_frequency']} Hz, simulation_frequency "
-                f"{cfg['simulation_frequency']} Hz), which world.run(dt={dt:g}) does not divide; "
-                f"run with dt={1 / float(cfg['simulation_frequency']):g} (highway-env's own step, "
-                "agent.dt) or another dt that divides the policy period",
-                test=world.name, agent=world.agents[0].name)
+        every = int(round(period / dt))
+        divides = every >= 1 and abs(every * dt - period) <= 1e-9 * max(period, 1.0)
+        every = max(every, 1)
+        # Another step than the environment's still runs (a scenario may need its own), but
+        # the ego then moves as it never did in training: say so, once per test.
+        if not divides or abs(dt - own) > 1e-9 * max(own, 1.0):
+            world.warn(AgentStepWarning(self.step_text(world, dt, every, divides)),
+                       "agent-step")
         self.every = every
         self.k = 0
         self.mirror = _Mirror(world.engine_road.network)
+
+    def step_text(self, world: Any, dt: float, every: int, divides: bool) -> str:
+        cfg = self.env.config
+        sim, pol = cfg["simulation_frequency"], cfg["policy_frequency"]
+        own = self.agent.dt
+        period = self.agent.policy_period
+        source = world.dt_from
+        head = (f"{world.name}: {self.agent!r} runs at dt={dt:g} s ({source}), not at "
+                f"its environment's step {own:g} s (simulation_frequency {sim:g} Hz)")
+        if divides:
+            what = (f"it still decides every {period:g} s (policy_frequency {pol:g} Hz), but "
+                    "highway-env's controllers run at the world's step, so the ego does not "
+                    "move as in its environment")
+        else:
+            what = (f"{dt:g} s does not divide its policy period {period:g} s (policy_frequency "
+                    f"{pol:g} Hz), so it decides every {every * dt:g} s instead")
+        if source.startswith("world.run("):
+            fix = (f"to reproduce highway-env, leave dt to the driver (world.run() without dt=) "
+                   f"or give dt={own:g}")
+        else:
+            fix = (f"to reproduce highway-env, let the driver choose the step (--avs-dt auto, "
+                   f"or @scenario(dt='auto')) or give dt={own:g}")
+        return f"{head}: {what}; {fix}"
 
     def tick(self, ego: Any) -> None:
         if self.mirror is None:
