@@ -239,7 +239,7 @@ def test_a_world_step_that_does_not_divide_the_policy_period_warns_and_decides_n
                           "its environment's step 0.2 s (simulation_frequency 5 Hz)")
     assert "0.3 s does not divide its policy period 1 s (policy_frequency 1 Hz), so it " \
            "decides every 0.9 s instead" in msg
-    assert msg.endswith("leave dt to the driver (world.run() without dt=) or give dt=0.2")
+    assert msg.endswith("leave the step to the driver (world.run() without dt=) or give dt=0.2")
     assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 0.9, 1.8, 2.7])
 
 

@@ -380,13 +380,17 @@ class _Session:
         else:
             what = (f"{dt:g} s does not divide its policy period {period:g} s (policy_frequency "
                     f"{pol:g} Hz), so it decides every {every * dt:g} s instead")
+        # where the step was set is where it is changed back
         if source.startswith("world.run("):
-            fix = (f"to reproduce highway-env, leave dt to the driver (world.run() without dt=) "
-                   f"or give dt={own:g}")
+            how = "world.run() without dt="
+        elif source.startswith("@scenario("):
+            how = "drop dt= from @scenario, or dt='auto'"
+        elif source.startswith("--"):
+            how = "--avs-dt auto"
         else:
-            fix = (f"to reproduce highway-env, let the driver choose the step (--avs-dt auto, "
-                   f"or @scenario(dt='auto')) or give dt={own:g}")
-        return f"{head}: {what}; {fix}"
+            how = f"{source} = auto, or --avs-dt auto"
+        return (f"{head}: {what}; to reproduce highway-env, leave the step to the driver "
+                f"({how}) or give dt={own:g}")
 
     def tick(self, ego: Any) -> None:
         if self.mirror is None:
