@@ -24,6 +24,11 @@
   ``make_ego(world, position, heading, speed, *, lane_index, route, target_speed, name)``
   that returns the ego vehicle, which then drives itself.
 
+Any driver may declare ``dt`` [s], the step it was made for: ``world.run()`` without ``dt=``
+then steps at it (unless ``--avs-dt`` or ``@scenario(dt=...)`` says otherwise); a
+:func:`highway_env_agent` declares its environment's ``1 / simulation_frequency``, a plain
+callable nothing (0.1 s).
+
 Any driver may have the per-case hook ``reset(world)`` (or ``reset()``): the world calls it
 once per case, after every agent is placed and before the first step, so a driver object
 reused across cases starts each one afresh, and a stack that needs more than its

@@ -16,10 +16,16 @@ the action type, ``policy_frequency`` and ``simulation_frequency``. Per case:
 * every policy period — ``int(simulation_frequency // policy_frequency)`` highway-env steps,
   as in its ``step`` — the ego is observed by highway-env's observation object, the model
   answers, and highway-env's action object applies the answer; between decisions the
-  vehicle's own controllers run every world step, as in highway-env's ``_simulate``. With
-  ``world.run(dt=1 / simulation_frequency)`` (``agent.dt``) the steps are highway-env's own;
-  another ``dt`` that divides the policy period keeps the decision times and runs the
-  controllers at the world's rate.
+  vehicle's own controllers run every world step, as in highway-env's ``_simulate``. The
+  agent declares ``dt = 1 / simulation_frequency``, the step ``world.run()`` takes when the
+  test sets none, so the steps are highway-env's own. Another step still runs, with one
+  ``AgentStepWarning`` per test: a ``dt`` that divides the policy period
+  keeps the decision times and runs the controllers at the world's rate; one that does not
+  decides at the nearest multiple of it.
+* the scenario's ego speeds (``world.ego(speed=, target_speed=)``) outside what the action
+  type holds (``DiscreteMetaAction``'s target speeds, ``ContinuousAction``'s
+  ``speed_range``) get one ``AgentSpeedWarning`` per test: the agent starts
+  in a state it never met in training.
 
 Frames. The world's frame is highway-env's mirrored: a point ``(x, y)`` with heading ``h``
 in the world is ``(x, -y)`` with heading ``-h`` in highway-env; lane numbers are the same
@@ -60,9 +66,9 @@ ACTIONS = ("DiscreteMetaAction", "ContinuousAction", "DiscreteAction")
 class HighwayEnvAgent:
     """A model trained on a highway-env environment, driving the world's ego (see module doc).
 
-    ``dt`` [s] is the environment's step, ``1 / simulation_frequency``: run the world with it
-    to reproduce highway-env's stepping exactly. The ego keeps its ``decisions``: a list of
-    ``(t [s], action)``.
+    ``dt`` [s] is the environment's step, ``1 / simulation_frequency``: the world runs at it
+    unless the test says otherwise, which reproduces highway-env's stepping exactly. The ego
+    keeps its ``decisions``: a list of ``(t [s], action)``.
     """
 
     def __init__(self, model: Any, env: Any = "highway-fast-v0", config: dict | None = None) -> None:
