@@ -453,6 +453,21 @@ def test_the_step_follows_the_scenarios_agent_when_a_reference_drives_the_ego():
     assert w.run(1.0).t[1] == 0.2
 
 
+def test_a_reference_replay_on_a_cluster_takes_the_scenarios_agents_step_along():
+    # away from this process the replay's world knows only the reference as its driver
+    from types import SimpleNamespace
+
+    from pytest_avscenario.pytest_plugin.campaign import _remote_step
+
+    agent = highway_env_agent(LinearPolicy(n_out=5, seed=3), env="highway-v0")
+    plan = SimpleNamespace(dt=None, dt_from="")
+    assert _remote_step(plan, agent, "careful")["world_dt"] == 1 / 15
+    assert _remote_step(plan, agent, None)["world_dt"] is None  # the agent drives: it knows
+    assert _remote_step(plan, lambda obs: (0, 0), "careful")["world_dt"] is None
+    pinned = SimpleNamespace(dt=0.05, dt_from="--avs-dt")
+    assert _remote_step(pinned, agent, "careful") == {"world_dt": 0.05, "world_dt_from": "--avs-dt"}
+
+
 def test_a_plain_driver_keeps_the_default_step_and_a_driver_may_declare_its_own():
     assert _scene(lambda obs: (0.0, 0.0)).run(1.0).t[1] == 0.1
 

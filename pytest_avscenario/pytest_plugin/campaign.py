@@ -606,10 +606,27 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
         fresh_world=fresh_world or reference is not None, timeout_s=plan.case_timeout_s,
         make_world=lambda c: build_world(c, driver, item.nodeid, ego_driver=reference,
                                          plan=plan, item=item),
-        world_dt=plan.dt, world_dt_from=plan.dt_from,
+        **_remote_step(plan, driver, reference),
         on_stuck=None if prefetch else stuck_case_handler(
             item, plan.case_timeout_s, lambda o: make_row(item, item_case(item), o), plan.info, during),
     )
+
+
+def _remote_step(plan: ScenarioPlan, driver: Any, reference: str | None) -> dict[str, Any]:
+    """The world's step setting for a job run away from this process. A reference replay
+    there has only the reference as its driver, so the scenario's driver's own step goes
+    with it (in-process the world finds it itself): the other agents move as in the case."""
+    if plan.dt is not None or reference is None:
+        return {"world_dt": plan.dt, "world_dt_from": plan.dt_from}
+    from ..sim.drivers import declared_step
+
+    try:
+        step = declared_step(driver)
+    except Exception:  # the replay reports a driver that cannot be made; only its step is wanted
+        step = None
+    if not isinstance(step, (int, float)) or isinstance(step, bool):
+        return {"world_dt": None, "world_dt_from": ""}
+    return {"world_dt": float(step), "world_dt_from": f"the scenario's driver's step ({driver!r})"}
 
 
 def item_case(item: pytest.Item) -> Case:

@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .drivers import IDMDriver, PolicyDriver as _PolicyDriver, resolve
+from .drivers import IDMDriver, declared_step, resolve
 from .errors import DriverError, SimError
 from .geometry import footprints_overlap
 from .observation import AgentState, Observation, StopLine as ObsStopLine
@@ -810,9 +810,7 @@ class World:
         """run()'s step when it gives none, and where it came from (see :meth:`run`)."""
         if self.step_setting is not None:
             return self.step_setting, self.step_setting_from
-        declared = getattr(self._step_driver, "dt", None)
-        if declared is None and isinstance(self._step_driver, _PolicyDriver):
-            declared = getattr(self._step_driver.target, "dt", None)
+        declared = None if self._step_driver is None else declared_step(self._step_driver)
         if declared is None:
             return 0.1, "the default"
         try:

@@ -48,7 +48,7 @@ from typing import Any, Callable
 from ..errors import SimError
 from .reference import CarefulDriver, CarefulDriverOptions, closing_distance, stopping_distance
 
-__all__ = ["resolve", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
+__all__ = ["resolve", "declared_step", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
            "CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance",
            "highway_env_agent"]
 
@@ -189,6 +189,19 @@ def resolve(driver: Any) -> Any:
     raise SimError(
         f"cannot drive with {driver!r} ({type(driver).__name__}): a driver is 'autopilot', "
         "'idm', 'careful', a callable policy(observation), or an object with act() or predict()")
+
+
+def declared_step(driver: Any) -> Any:
+    """The ``dt`` [s] a driver declares (see module doc), as given; None when it declares none.
+
+    ``driver`` is resolved first (a name, ``sb3:...``, a user object); a user object's own
+    ``dt`` counts, not only the adapter's.
+    """
+    drv = resolve(driver)
+    declared = getattr(drv, "dt", None)
+    if declared is None and isinstance(drv, PolicyDriver):
+        declared = getattr(drv.target, "dt", None)
+    return declared
 
 
 def action_pair(raw: Any) -> tuple[float, float]:
