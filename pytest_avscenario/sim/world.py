@@ -735,10 +735,9 @@ class World:
         ``stop_on_collision`` ends it at the step the ego first crashes. The recording has
         ``round(seconds / dt) + 1`` samples (fewer when stopped early), t = 0 first.
         """
+        dt_from = None  # the test's own: said once dt is known to be a number
         if dt is None:
             dt, dt_from = self._default_step()
-        else:
-            dt_from = f"world.run(dt={dt!r})"
         for label, val in (("seconds", seconds), ("dt", dt)):
             try:
                 ok = math.isfinite(float(val)) and float(val) > 0
@@ -754,7 +753,7 @@ class World:
         seconds, dt = float(seconds), float(dt)
         n_steps = max(1, int(round(seconds / dt)))
         self.dt = dt
-        self.dt_from = dt_from
+        self.dt_from = dt_from or f"world.run(dt={dt:g})"
         ego = self._ego
         agents = [ego] + self._others
         for a in agents:
