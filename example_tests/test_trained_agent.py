@@ -8,7 +8,11 @@ built, the model picks one of highway-env's meta-actions (lane left, idle, lane 
 slower) and highway-env's ``MDPVehicle`` controllers execute it. The world runs at the
 environment's own step, 0.2 s (5 Hz), so the agent is driven exactly as in training. With
 ``--avs-driver`` (``autopilot``, ``idm``, ``sb3:PATH@ENV``) the same scenarios test that
-driver instead. The module skips, saying why, when stable-baselines3 is not installed
+driver instead — still at 0.2 s: ``world.run(dt=DT)`` fixes the step for every driver, so
+the drivers compared in ``train_dqn.py``'s table (and in the README) met the same
+simulation. An agent from an environment with another step (``sb3:PATH@highway-v0``,
+15 Hz) runs here at 0.2 s with an ``AgentStepWarning``; the scenario speeds lie within
+``highway-fast-v0``'s target speeds (20-30 m/s), so no ``AgentSpeedWarning``. The module skips, saying why, when stable-baselines3 is not installed
 (``pip install -e ".[sb3]"``) or the model file is missing (train it with
 ``python example_tests/train_dqn.py``).
 

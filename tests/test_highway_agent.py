@@ -19,7 +19,7 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.kinematics import Vehicle
 
 import pytest_avscenario.sim.drivers.highway_agent  # noqa: F401  (imported before any pytester run)
-from pytest_avscenario.sim import DriverError, SimError, World
+from pytest_avscenario.sim import AgentSpeedWarning, AgentStepWarning, DriverError, SimError, World
 from pytest_avscenario.sim.behaviors import Behavior
 from pytest_avscenario.sim.drivers import highway_env_agent
 
@@ -219,20 +219,28 @@ def test_one_decision_per_policy_period_at_any_dividing_dt():
     w = World(seed=0, name="test_period")
     road = w.straight_road(lanes=3, length=800, lane_width=4.0)
     w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
-    w.run(4.95, dt=0.05)
+    with pytest.warns(AgentStepWarning, match=r"runs at dt=0\.05 s \(world\.run\(dt=0\.05\)\), not "
+                      r"at its environment's step 0\.2 s.*it still decides every 1 s"):
+        w.run(4.95, dt=0.05)
     assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 1.0, 2.0, 3.0, 4.0])
 
 
-def test_a_world_step_that_does_not_divide_the_policy_period_is_refused():
+def test_a_world_step_that_does_not_divide_the_policy_period_warns_and_decides_near_it():
     agent = highway_env_agent(LinearPolicy(n_out=5, seed=0))
     w = World(seed=0, name="tests/x.py::test_dt[3]")
     road = w.straight_road(lanes=3, length=500, lane_width=4.0)
     w.ego(road.lane(1), s=50, speed=25.0, driver=agent)
-    with pytest.raises(SimError) as err:
-        w.run(5, dt=0.3)
-    msg = str(err.value)
-    assert "tests/x.py::test_dt[3]" in msg and "policy_frequency 1 Hz" in msg
-    assert "dt=0.3" in msg and "run with dt=0.2" in msg
+    with pytest.warns(AgentStepWarning) as got:
+        w.run(3.0, dt=0.3)
+    assert len(got) == 1
+    msg = str(got[0].message)
+    assert msg.startswith("tests/x.py::test_dt[3]: highway_env_agent(LinearPolicy, "
+                          "env='highway-fast-v0') runs at dt=0.3 s (world.run(dt=0.3)), not at "
+                          "its environment's step 0.2 s (simulation_frequency 5 Hz)")
+    assert "0.3 s does not divide its policy period 1 s (policy_frequency 1 Hz), so it " \
+           "decides every 0.9 s instead" in msg
+    assert msg.endswith("leave the step to the driver (world.run() without dt=) or give dt=0.2")
+    assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 0.9, 1.8, 2.7])
 
 
 @pytest.mark.parametrize("answer, expected", [
@@ -418,3 +426,177 @@ def avs_driver():
     result.stdout.fnmatch_lines([
         "*Unexpected observation shape ()*predict() gets the plugin's Observation*"
         "highway_env_agent(model, env='highway-fast-v0')*"])
+
+
+# -- the agent's own step and speeds ------------------------------------------------------------
+
+def _scene(ego, name="t.py::test_x[halton-000]", speed=25.0, **world):
+    w = World(seed=0, name=name, **world)
+    road = w.straight_road(lanes=3, length=800, lane_width=4.0)
+    w.ego(road.lane(1), s=50, speed=speed, driver=ego)
+    w.car(road.lane(1), s=90, speed=22.0)
+    return w
+
+
+@pytest.mark.parametrize("env, step", [("highway-fast-v0", 0.2), ("highway-v0", 1 / 15)])
+def test_without_dt_the_world_steps_at_the_agents_environment_step(env, step):
+    w = _scene(highway_env_agent(LinearPolicy(n_out=5, seed=3), env=env))
+    tr = w.run(2.0)
+    assert tr.t[1] == step and w.dt == step and len(tr.t) == round(2.0 / step) + 1
+    assert [t for t, _ in w.agent("ego").decisions] == pytest.approx([0.0, 1.0])
+
+
+def test_the_step_follows_the_scenarios_agent_when_a_reference_drives_the_ego():
+    # the avoidability replay: the reference drives, the other agents move as in the case
+    w = _scene(None, driver=highway_env_agent(LinearPolicy(n_out=5, seed=3)), ego_driver="careful")
+    assert "CarefulDriver" in repr(w.agent("ego").driver)
+    assert w.run(1.0).t[1] == 0.2
+
+
+def test_a_reference_replay_on_a_cluster_takes_the_scenarios_agents_step_along():
+    # away from this process the replay's world knows only the reference as its driver
+    from types import SimpleNamespace
+
+    from pytest_avscenario.pytest_plugin.campaign import _remote_step
+
+    agent = highway_env_agent(LinearPolicy(n_out=5, seed=3), env="highway-v0")
+    plan = SimpleNamespace(dt=None, dt_from="")
+    assert _remote_step(plan, agent, "careful")["world_dt"] == 1 / 15
+    assert _remote_step(plan, agent, None)["world_dt"] is None  # the agent drives: it knows
+    assert _remote_step(plan, lambda obs: (0, 0), "careful")["world_dt"] is None
+    pinned = SimpleNamespace(dt=0.05, dt_from="--avs-dt")
+    assert _remote_step(pinned, agent, "careful") == {"world_dt": 0.05, "world_dt_from": "--avs-dt"}
+
+
+def test_a_plain_driver_keeps_the_default_step_and_a_driver_may_declare_its_own():
+    assert _scene(lambda obs: (0.0, 0.0)).run(1.0).t[1] == 0.1
+
+    class Stack:
+        dt = 0.05  # [s] the rate the stack was built for
+
+        def act(self, obs):
+            return 0.0, 0.0
+
+    assert _scene(Stack()).run(1.0).t[1] == 0.05
+    Stack.dt = -1
+    with pytest.raises(SimError, match=r"declares dt=-1: a driver's dt is the step it was made for"):
+        _scene(Stack()).run(1.0)
+
+
+def test_an_agent_at_its_own_step_gives_the_same_bits_every_time():
+    def run():
+        return _scene(highway_env_agent(LinearPolicy(n_out=5, seed=3)), speed=5.0).run(6.0)
+
+    with pytest.warns(AgentSpeedWarning):
+        a, b = run(), run()
+    for field in ("x", "y", "speed", "heading"):
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+
+
+@pytest.mark.parametrize("config, speed, target, words", [
+    (None, 5.6, None, "the scenario places the ego at speed=5.6 m/s, outside what "
+     "highway_env_agent(<lambda>, env='highway-fast-v0')'s DiscreteMetaAction can hold: its "
+     "target speeds are 20, 25, 30 m/s, so the ego (highway-env's MDPVehicle) heads for 20 m/s "
+     "from the start; the agent starts where it never was in training — place the ego within "
+     "[20, 30] m/s, or test an agent trained for these speeds"),
+    (None, 25.0, 35.0, "at target_speed=35 m/s, outside what"),
+    ({"action": {"type": "ContinuousAction", "speed_range": [20, 30]}}, 12.0, None,
+     "at speed=12 m/s, outside what highway_env_agent(<lambda>, env='highway-fast-v0')'s "
+     "ContinuousAction can hold: its speed_range is [20, 30] m/s; the agent starts"),
+])
+def test_speeds_the_action_type_cannot_hold_are_warned(config, speed, target, words):
+    answer = np.zeros(2, dtype=np.float32) if config else 1
+    agent = highway_env_agent(lambda obs: answer, config=config)
+    w = World(seed=0, name="t.py::test_x[halton-000]")
+    road = w.straight_road(lanes=3, length=800, lane_width=4.0)
+    with pytest.warns(AgentSpeedWarning) as got:
+        w.ego(road.lane(1), s=50, speed=speed, target_speed=target, driver=agent)
+    assert len(got) == 1
+    assert str(got[0].message).startswith("t.py::test_x[halton-000]: ")
+    assert words in str(got[0].message)
+
+
+STEP_TEST = """
+import pytest
+from pytest_avscenario import scenario, Uniform
+
+@scenario(speed=Uniform(SPEEDS), samples=3MARKER)
+def test_follow(case, world, avs_driver):
+    road = world.straight_road(lanes=3, length=1000, lane_width=4.0)
+    world.ego(road.lane(1), s=50, speed=case.speed)
+    world.car(road.lane(1), s=120, speed=20.0)
+    trajectory = world.run(3RUN)
+    assert trajectory.t[1] == pytest.approx(STEP, abs=0)
+"""
+
+
+def step_test(pytester, step, speeds="20, 30", marker="", run=""):
+    pytester.makeconftest(AGENT_CONFTEST.replace("CONFIG", "None"))
+    pytester.makepyfile(test_agent=STEP_TEST.replace("SPEEDS", speeds).replace("MARKER", marker)
+                        .replace("RUN", run).replace("STEP", repr(step)))
+
+
+ARGS = ("--avs-seed=1", "--avs-db=none", "--avs-report=none", "-p", "no:xdist")
+
+
+@pytest.mark.parametrize("marker, run, options, step, source", [
+    ("", "", (), 0.2, None),  # the agent's own step
+    ("", ", dt=0.1", (), 0.1, "world.run(dt=0.1)"),
+    ("", ", dt=0.1", ("--avs-dt=0.05",), 0.1, "world.run(dt=0.1)"),  # the test's own dt wins
+    ("", "", ("--avs-dt=0.1",), 0.1, "--avs-dt"),
+    (", dt=0.05", "", ("--avs-dt=0.1",), 0.05, "@scenario(dt=0.05)"),  # marker > command line
+    (", dt='auto'", "", ("--avs-dt=0.1",), 0.2, None),
+    ("", "", ("--avs-dt=auto",), 0.2, None),
+])
+def test_the_step_is_the_tests_else_the_command_lines_else_the_agents(
+        pytester, marker, run, options, step, source):
+    step_test(pytester, step, marker=marker, run=run)
+    result = pytester.runpytest(*ARGS, *options)
+    if source is None:
+        result.assert_outcomes(passed=3)
+        return
+    result.assert_outcomes(passed=3, warnings=1)  # once per test, not once per case
+    result.stdout.fnmatch_lines([
+        f"*AgentStepWarning: test_agent.py::test_follow[[]halton-000]: highway_env_agent(Cautious, "
+        f"env='highway-fast-v0') runs at dt={step:g} s ({source}), not at its environment's step "
+        "0.2 s (simulation_frequency 5 Hz): it still decides every 1 s (policy_frequency 1 Hz)*"
+        "or give dt=0.2"])
+
+
+def test_the_ini_file_sets_the_step_below_the_command_line(pytester):
+    step_test(pytester, 0.1)
+    pytester.makeini("[pytest]\navs_dt = 0.1\n")
+    result = pytester.runpytest(*ARGS)
+    result.assert_outcomes(passed=3, warnings=1)
+    result.stdout.fnmatch_lines(["*runs at dt=0.1 s (ini avs_dt)*(ini avs_dt = auto, or --avs-dt "
+                                 "auto) or give dt=0.2"])
+    step_test(pytester, 0.2)
+    pytester.runpytest(*ARGS, "--avs-dt=auto").assert_outcomes(passed=3)
+
+
+def test_scenario_speeds_outside_the_agents_targets_are_warned_once_per_test(pytester):
+    step_test(pytester, 0.2, speeds="4, 12")
+    result = pytester.runpytest(*ARGS)
+    result.assert_outcomes(passed=3, warnings=1)
+    result.stdout.fnmatch_lines([
+        "*AgentSpeedWarning: test_agent.py::test_follow[[]halton-000]: the scenario places the ego "
+        "at speed=8 m/s, outside what highway_env_agent(Cautious, env='highway-fast-v0')'s "
+        "DiscreteMetaAction can hold: its target speeds are 20, 25, 30 m/s*"])
+
+
+@pytest.mark.parametrize("where, value, message", [
+    ("--avs-dt", "fast", "ERROR: --avs-dt: dt must be a step in seconds (0 < dt <= 10) or "
+                         "'auto', got 'fast'"),
+    ("--avs-dt", "0", "ERROR: --avs-dt: dt must be a step in seconds*got '0'"),
+    ("marker", "-0.1", "*test_agent.py::test_follow*dt must be a step in seconds (0 < dt <= 10) "
+                       "or 'auto', got -0.1 (from @scenario(dt=...))*"),
+])
+def test_a_bad_step_names_where_it_was_given(pytester, where, value, message):
+    step_test(pytester, 0.2, marker=f", dt={value}" if where == "marker" else "")
+    result = pytester.runpytest(*ARGS, *([f"--avs-dt={value}"] if where != "marker" else []))
+    if where == "marker":
+        result.assert_outcomes(errors=1)
+        result.stdout.fnmatch_lines([message])
+    else:
+        assert result.ret == pytest.ExitCode.USAGE_ERROR
+        result.stderr.fnmatch_lines([message])

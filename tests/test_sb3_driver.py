@@ -97,9 +97,22 @@ def test_check_answers_an_absolute_path_and_reads_the_algorithm_from_the_zip(tmp
      "*observation type 'KinematicsGoal' is not supported*the environment 'parking-v0'*"),
     (lambda d: sb3_zip(d / "m.zip", obs_shape=[7, 5]), "sb3:m.zip",
      "*takes observations of shape (7, 5), but 'highway-fast-v0' in its default config gives (5, 5)*"),
-    (lambda d: sb3_zip(d / "m.zip", n_actions=3), "sb3:m.zip", "*chooses among 3 actions*has 5"),
+    (lambda d: sb3_zip(d / "m.zip", n_actions=3), "sb3:m.zip",
+     "*chooses among 3 actions*has 5; run it from an avs_driver fixture in conftest.py, giving "
+     "the config it was trained with: return highway_env_agent(DQN.load('*m.zip'), "
+     "env='highway-fast-v0', config={'action': {...}})"),
+    # a continuous model: sb3: runs the environment's default config; the fixture takes config=
+    (lambda d: sb3_zip(d / "m.zip", policy_module="stable_baselines3.sac.policies",
+                       action_space={":type:": "<class 'gymnasium.spaces.box.Box'>", "_shape": [2]}),
+     "sb3:m.zip", "*the model at */m.zip was trained with Box actions, 'highway-fast-v0' in its "
+     "default config has Discrete actions; sb3: runs an environment in its default config only, "
+     "so run it from an avs_driver fixture in conftest.py, giving the config it was trained "
+     "with: return highway_env_agent(SAC.load('*m.zip'), env='highway-fast-v0', "
+     "config={'action': {'type': 'ContinuousAction'}})"),
     (lambda d: sb3_zip(d / "m.zip", policy_module="my_algos.policies"), "sb3:m.zip",
-     "*cannot tell the algorithm*'my_algos.policies'*name it: sb3:ALGO:PATH@ENV*"),
+     "*cannot tell the algorithm*'my_algos.policies'*name it: sb3:ALGO:PATH@ENV*; for another "
+     "algorithm, run it from an avs_driver fixture in conftest.py: "
+     "return highway_env_agent(MyAlgo.load('*m.zip'), env='highway-fast-v0')"),
     (None, "sb3:xyz:m.zip", "*unknown algorithm 'xyz'; stable-baselines3's are A2C, *"),
     (None, "sb3:", "*names no model file; write sb3:PATH*"),
 ])
@@ -170,3 +183,59 @@ def test_the_driver_pickles_as_its_path_and_decides_as_the_model(tmp_path):
     assert again.model._model is None
     reference = DQN.load(MODEL, device="cpu").predict(obs, deterministic=True)[0]
     assert int(again.predict(obs)) == int(first) == int(reference)
+
+
+# -- the agent's own step, without torch: a stand-in stable_baselines3 whose DQN.load gives a
+# numpy policy with the same predict(obs, deterministic=...) -------------------------------------
+
+def fake_sb3(monkeypatch):
+    import numpy as np
+
+    class Policy:
+        def predict(self, obs, state=None, episode_start=None, deterministic=False):
+            assert np.asarray(obs).shape == (5, 5)
+            return np.array(1), None  # IDLE
+
+    class DQN:
+        @staticmethod
+        def load(path, device="auto"):
+            return Policy()
+
+    module = types.ModuleType("stable_baselines3")
+    module.DQN = DQN
+    monkeypatch.setitem(sys.modules, "stable_baselines3", module)
+
+
+STEP_SCENARIO = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(20, 40), samples=2)
+def test_follow(case, world):
+    road = world.straight_road(lanes=3, length=600, lane_width=4.0, speed_limit=30.0)
+    world.ego(road.lane(1), s=50.0, speed=25.0)
+    world.car(road.lane(1), s=50.0 + case.gap, speed=22.0)
+    trajectory = world.run(seconds=3)
+    assert "sb3:m.zip" in repr(world.agent("ego").driver)
+    assert trajectory.t[1] == STEP and world.dt == STEP
+    assert [t for t, _ in world.agent("ego").decisions] == [0.0, 1.0, 2.0]
+"""
+
+
+@pytest.mark.parametrize("env, step", [("highway-fast-v0", 0.2), ("highway-v0", 1 / 15)])
+def test_a_saved_model_runs_at_its_environments_step_unless_told(pytester, monkeypatch, env, step):
+    # world.run() without dt: 1 / simulation_frequency of the model's environment
+    fake_sb3(monkeypatch)
+    sb3_zip(pytester.path / "m.zip")
+    pytester.makepyfile(test_follow=STEP_SCENARIO.replace("STEP", repr(step)))
+    args = ["--avs-db=none", "--avs-report=none", "-p", "no:xdist", "--avs-seed=1"]
+    result = pytester.runpytest(*args, f"--avs-driver=sb3:m.zip@{env}")
+    result.assert_outcomes(passed=2)
+    # --avs-dt: the command line chooses another step, and hears once what that costs
+    pytester.makepyfile(test_follow=STEP_SCENARIO.replace("STEP", "0.1"))
+    result = pytester.runpytest(*args, f"--avs-driver=sb3:m.zip@{env}", "--avs-dt=0.1")
+    result.assert_outcomes(passed=2, warnings=1)
+    result.stdout.fnmatch_lines([
+        f"*AgentStepWarning: test_follow.py::test_follow[[]halton-000]: "
+        f"highway_env_agent(sb3:m.zip, env='{env}') runs at dt=0.1 s (--avs-dt), not at its "
+        f"environment's step {step:g} s*leave the step to the driver (--avs-dt auto) or give "
+        f"dt={step:g}"])

@@ -34,6 +34,8 @@ class CaseJob:
     fresh_world: bool = True  # build a new world for the case (False: use fixtures["world"])
     timeout_s: float | None = None  # wall-time limit of the body (None: none)
     make_world: Callable[[Case], Any] | None = field(default=None, repr=False)
+    world_dt: float | None = None  # [s] the world's step setting (None: the driver's own)
+    world_dt_from: str = ""  # where it was set (quoted by warnings)
     #: in-process: called from a watchdog thread when the case passed its time limit and
     #: does not stop (see :func:`pytest_avscenario.runner.time_limit`)
     on_stuck: Callable[[float], None] | None = field(default=None, repr=False)

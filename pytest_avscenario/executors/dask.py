@@ -316,7 +316,7 @@ class DaskExecutor(Executor):
         if hit is None:
             spec = TestSpec(module_path=job.module_path, rootdir=job.rootdir, function=job.function,
                             argnames=tuple(job.argnames), monitor_set=job.monitor_set,
-                            driver=job.driver)
+                            driver=job.driver, dt=job.world_dt, dt_from=job.world_dt_from)
             data = pack_spec(spec)
             hit = (data, spec_digest(data))
             if isinstance(cache_key[-1], (str, type(None))):  # objects may die and reuse their id

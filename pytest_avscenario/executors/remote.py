@@ -51,6 +51,8 @@ class TestSpec:
     argnames: tuple[str, ...]
     monitor_set: Any
     driver: Any
+    dt: float | None = None  # [s] the world's step setting (None: the driver's own step)
+    dt_from: str = ""
 
 
 @dataclass
@@ -130,7 +132,8 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
     def make_world(c: Case) -> Any:
         from ..sim import World
 
-        return World(seed=c.seed, rng=c.rng, driver=driver, name=nodeid)
+        return World(seed=c.seed, rng=c.rng, driver=driver, name=nodeid, dt=spec.dt,
+                     dt_from=spec.dt_from)
 
     fixtures = {"avs_driver": driver} if "avs_driver" in spec.argnames else {}
     body = func if fields.timeout_s is None else _bounded(func, float(fields.timeout_s))

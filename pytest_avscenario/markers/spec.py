@@ -27,6 +27,7 @@ SPEC_KEYWORDS = (
     "reference_driver",
     "reference_max",
     "unavoidable",
+    "dt",
 )
 
 _UNSET: Any = object()
@@ -51,6 +52,7 @@ class ScenarioSpec:
     reference_driver: Any = None
     reference_max: Any = None
     unavoidable: Any = None
+    dt: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
     given: frozenset[str] = field(default_factory=frozenset)
     #: what was wrong with the call itself (positional arguments, a bare ``@scenario``), told
@@ -74,6 +76,7 @@ def scenario(
     reference_driver: str | None = _UNSET,
     reference_max: int | None = _UNSET,
     unavoidable: str = _UNSET,
+    dt: float | str = _UNSET,
     **parameters: Any,
 ) -> pytest.MarkDecorator:
     """Declare an abstract scenario on a test; returns a ``pytest.mark.scenario`` mark.
@@ -112,6 +115,10 @@ def scenario(
     :param unavoidable: ``"keep"`` (default) or ``"discard"``: an active sampler is told
         nothing of a case that starts RSS-unsafe or of a counterexample the reference driver
         cannot avoid either (it is still run and reported), so it does not converge on them.
+    :param dt: the step [s] of ``world.run()`` calls that give no ``dt=``, or ``"auto"``
+        (default): the step the ego's driver declares (a highway-env agent: its environment's
+        ``1 / simulation_frequency``), else 0.1 s. Beats ``--avs-dt``; ``world.run(dt=...)``
+        beats it.
     """
     given = {
         k
@@ -120,7 +127,7 @@ def scenario(
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
             reference_driver=reference_driver, reference_max=reference_max,
-            unavoidable=unavoidable,
+            unavoidable=unavoidable, dt=dt,
         ).items()
         if v is not _UNSET
     }
@@ -131,7 +138,7 @@ def scenario(
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
             reference_driver=reference_driver, reference_max=reference_max,
-            unavoidable=unavoidable,
+            unavoidable=unavoidable, dt=dt,
         ).items()
     }
     problem = None

@@ -507,10 +507,34 @@ def outcome_sampler(item: pytest.Item) -> str:
     return slot.sampler if slot is not None else ""
 
 
-def build_world(case: Case, driver: Any, name: str, ego_driver: Any = None) -> Any:
+def build_world(case: Case, driver: Any, name: str, ego_driver: Any = None, *,
+                plan: ScenarioPlan | None = None, item: pytest.Item | None = None) -> Any:
+    """The case's world: its step setting from the plan, its warnings said once per test."""
     from ..sim import World
 
-    return World(seed=case.seed, rng=case.rng, driver=driver, name=name, ego_driver=ego_driver)
+    return World(seed=case.seed, rng=case.rng, driver=driver, name=name, ego_driver=ego_driver,
+                 dt=plan.dt if plan is not None else None,
+                 dt_from=plan.dt_from if plan is not None else "",
+                 warn=None if item is None else world_warner(item))
+
+
+#: (test function id, warning key) already said in this process
+_warned_key = pytest.StashKey[set]()
+
+
+def world_warner(item: pytest.Item) -> Any:
+    """``World.warn`` for the worlds of ``item``'s test: each kind of warning once per test
+    function and process, not once per case, shrink candidate or replay."""
+    said = item.config.stash.setdefault(_warned_key, set())
+    test = function_id(item)
+
+    def warn(warning: Warning, key: str) -> None:
+        if (test, key or str(warning)) in said:
+            return
+        said.add((test, key or str(warning)))
+        warnings.warn(warning, stacklevel=2)
+
+    return warn
 
 
 def executor_of(config: pytest.Config) -> Any:
@@ -580,10 +604,29 @@ def make_job(item: pytest.Function, plan: ScenarioPlan, case: Case, fresh_world:
         function=item.originalname, func=item.obj, argnames=argnames, fixtures=fixtures,
         case=case, monitor_set=plan.monitor_set, driver=driver if reference is None else reference,
         fresh_world=fresh_world or reference is not None, timeout_s=plan.case_timeout_s,
-        make_world=lambda c: build_world(c, driver, item.nodeid, ego_driver=reference),
+        make_world=lambda c: build_world(c, driver, item.nodeid, ego_driver=reference,
+                                         plan=plan, item=item),
+        **_remote_step(plan, driver, reference),
         on_stuck=None if prefetch else stuck_case_handler(
             item, plan.case_timeout_s, lambda o: make_row(item, item_case(item), o), plan.info, during),
     )
+
+
+def _remote_step(plan: ScenarioPlan, driver: Any, reference: str | None) -> dict[str, Any]:
+    """The world's step setting for a job run away from this process. A reference replay
+    there has only the reference as its driver, so the scenario's driver's own step goes
+    with it (in-process the world finds it itself): the other agents move as in the case."""
+    if plan.dt is not None or reference is None:
+        return {"world_dt": plan.dt, "world_dt_from": plan.dt_from}
+    from ..sim.drivers import declared_step
+
+    try:
+        step = declared_step(driver)
+    except Exception:  # the replay reports a driver that cannot be made; only its step is wanted
+        step = None
+    if not isinstance(step, (int, float)) or isinstance(step, bool):
+        return {"world_dt": None, "world_dt_from": ""}
+    return {"world_dt": float(step), "world_dt_from": f"the scenario's driver's step ({driver!r})"}
 
 
 def item_case(item: pytest.Item) -> Case:

@@ -70,6 +70,8 @@ class ScenarioPlan:
     reference_driver: str | None = None  # judges avoidability of counterexamples (None: off)
     reference_max: int | None = None  # counterexamples per sampler judged (None: all)
     discard_unavoidable: bool = False  # active samplers learn nothing of unfair cases
+    dt: float | None = None  # [s] world.run()'s step when it gives none (None: the driver's)
+    dt_from: str = ""  # where dt was set, for the warnings that quote it
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -184,7 +186,8 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         shrink_max=own.shrink_max, case_timeout_s=own.case_timeout_s,
         replays=types.MappingProxyType(replays), accept=own.accept,
         reference_driver=own.reference_driver if "world" in metafunc.fixturenames else None,
-        reference_max=own.reference_max, discard_unavoidable=own.unavoidable == "discard")
+        reference_max=own.reference_max, discard_unavoidable=own.unavoidable == "discard",
+        dt=own.dt, dt_from=own.dt_from)
     if own.accept.avoidable and plan.reference_driver is None:
         raise DeclarationError(
             "accept='avoidable' counts only counterexamples a reference driver avoids, but this "

@@ -208,7 +208,8 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
 @pytest.fixture
 def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
     """A fresh simulated world for this case, seeded from it, with ``avs_driver`` as the ego's."""
-    return build_world(case, avs_driver, request.node.nodeid)
+    return build_world(case, avs_driver, request.node.nodeid,
+                       plan=campaign_of(request.node).plan, item=request.node)
 
 
 def _is_scenario_case(item: pytest.Item) -> bool:

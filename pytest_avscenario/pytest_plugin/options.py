@@ -165,6 +165,26 @@ def _reference(raw: Any) -> str | None:
     return value
 
 
+MAX_DT_S = 10.0  # [s] a simulation step beyond this is a typo (ms for s), not a scenario
+
+
+def _dt(raw: Any) -> float | None:
+    """A simulation step [s], or None for 'auto' (the driver's own step, else 0.1 s)."""
+    if isinstance(raw, str) and raw.strip().lower() == "auto":
+        return None
+    bad = ValueError(f"must be a step in seconds (0 < dt <= {MAX_DT_S:g}) or 'auto', "
+                     f"got {_show(raw)}")
+    if isinstance(raw, bool):
+        raise bad
+    try:
+        value = float(raw.strip() if isinstance(raw, str) else raw)
+    except (TypeError, ValueError):
+        raise bad from None
+    if not (math.isfinite(value) and 0 < value <= MAX_DT_S):
+        raise bad
+    return value
+
+
 def _accept(raw: Any) -> Any:
     from ..acceptance import parse_accept
 
@@ -237,6 +257,14 @@ OPTIONS = (
            "driver of the ego (autopilot, idm, careful, package.module:Name or sb3:PATH@ENV) "
            "when avs_driver is not overridden",
            _driver),
+    Option("dt", "SECONDS|auto",
+           "simulation step of world.run() calls that give no dt=: 'auto' (default) is the "
+           "step the ego's driver declares (a highway-env agent or sb3:PATH@ENV: its "
+           "environment's 1/simulation_frequency), else 0.1 s; a marker's dt= beats this, an "
+           "explicit world.run(dt=...) beats both",
+           "simulation step [s] of world.run() calls that give no dt= (auto: the driver's own "
+           "step, else 0.1)",
+           _dt, per_test=True),
     Option("report", "DIR",
            "write the scenario report under DIR (default avs-report; 'none' disables)",
            "directory of the scenario report (error table, summary, plots); 'none' disables",
@@ -395,6 +423,8 @@ class TestSettings:
     reference_driver: str | None  # None: no avoidability check
     reference_max: int | None  # counterexamples per sampler judged (None: all)
     unavoidable: str  # "keep" or "discard"
+    dt: float | None = None  # [s] world.run()'s step when it gives none (None: the driver's)
+    dt_from: str = ""  # where dt came from: "@scenario(dt=...)", "--avs-dt", "ini avs_dt"
 
 
 @dataclass(frozen=True)
@@ -451,7 +481,18 @@ class Settings:
             reference_driver=self._reference_for(spec),
             reference_max=pick("reference_max"),
             unavoidable=pick("unavoidable") or "keep",
+            **self._dt_for(spec),
         )
+
+    def _dt_for(self, spec: ScenarioSpec) -> dict[str, Any]:
+        # the value and its source: a warning about the step says where it was set
+        found = self.per_test.get("dt")
+        if "dt" in spec.given:
+            found = _validated(_BY_KEY["dt"], spec.dt, "@scenario(dt=...)", DeclarationError)
+        if found is None or found.value is None:
+            return {"dt": None, "dt_from": ""}
+        shown = {"@scenario(dt=...)": f"@scenario(dt={spec.dt!r})"}.get(found.source, found.source)
+        return {"dt": found.value, "dt_from": shown}
 
     def _reference_for(self, spec: ScenarioSpec) -> str | None:
         # None is a value here ('none', or reference_driver=None: no check), so "not given"

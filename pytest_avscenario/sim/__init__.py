@@ -31,13 +31,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from .errors import DriverError, SimError
+from .errors import AgentSpeedWarning, AgentStepWarning, DriverError, SimError, SimWarning
 
 if TYPE_CHECKING:  # pragma: no cover
     from .world import World
 
-__all__ = ["World", "SimError", "DriverError", "Trajectory", "Observation", "behaviors",
-           "drivers", "places"]
+__all__ = ["World", "SimError", "DriverError", "SimWarning", "AgentStepWarning",
+           "AgentSpeedWarning", "Trajectory", "Observation", "behaviors", "drivers", "places"]
 
 _LAZY = {
     "World": (".world", "World"),

@@ -8,7 +8,7 @@ simulator (a position, a duration, a driver's answer), never about the simulator
 
 from __future__ import annotations
 
-__all__ = ["SimError", "DriverError"]
+__all__ = ["SimError", "DriverError", "SimWarning", "AgentStepWarning", "AgentSpeedWarning"]
 
 
 class SimError(ValueError):
@@ -39,3 +39,19 @@ class DriverError(SimError):
         if driver_traceback:
             message = f"{message}\n--- driver traceback ---\n{driver_traceback.rstrip()}"
         super().__init__(message, test=test, agent=agent)
+
+
+class SimWarning(UserWarning):
+    """The simulation ran, but not as the scenario or its driver meant; the text says why.
+
+    A ``UserWarning`` (the simulator knows nothing of pytest), so a suite filters it by class:
+    ``filterwarnings = ignore::pytest_avscenario.sim.AgentSpeedWarning``.
+    """
+
+
+class AgentStepWarning(SimWarning):
+    """A driver that declares its own step (a highway-env agent) ran at another ``dt``."""
+
+
+class AgentSpeedWarning(SimWarning):
+    """The scenario placed the ego at a speed its agent's action type cannot hold."""

@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .drivers import IDMDriver, resolve
+from .drivers import IDMDriver, declared_step, resolve
 from .errors import DriverError, SimError
 from .geometry import footprints_overlap
 from .observation import AgentState, Observation, StopLine as ObsStopLine
@@ -38,10 +38,16 @@ class World:
     the pytest node id, quoted in every error. ``ego_driver``, when given, drives the ego
     whatever driver the scenario names (the plugin's avoidability check puts its reference
     driver there).
+
+    ``dt`` [s] is the step of a :meth:`run` that gives none (the plugin's ``--avs-dt`` or
+    ``@scenario(dt=...)``, ``dt_from`` saying which); None leaves it to the driver (see
+    :meth:`run`). ``warn(warning, key)`` reports a :class:`~.errors.SimWarning` (default
+    ``warnings.warn``); the plugin gives one that says each ``key`` once per test.
     """
 
     def __init__(self, seed: int, rng: np.random.Generator | None = None, driver: Any = None,
-                 name: str = "", ego_driver: Any = None) -> None:
+                 name: str = "", ego_driver: Any = None, *, dt: float | None = None,
+                 dt_from: str = "", warn: Callable[[Warning, str], None] | None = None) -> None:
         try:
             self.seed = int(seed)
         except (TypeError, ValueError):
@@ -54,8 +60,22 @@ class World:
         self.driver = driver
         self.ego_driver = ego_driver
         self.name = str(name)
+        if dt is not None:
+            try:
+                ok = math.isfinite(float(dt)) and float(dt) > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise SimError(f"World(dt={dt!r}) (from {dt_from or 'the caller'}): need a "
+                               "finite number > 0 [s], or None for the driver's own step",
+                               test=str(name))
+        self.step_setting = None if dt is None else float(dt)  # [s] run()'s step when it gives none
+        self.step_setting_from = dt_from or (f"World(dt={dt!r})" if dt is not None else "")
+        self._warn = warn
         self.t = 0.0  # [s] simulation time of the state being acted on
         self.dt = 0.1  # [s]
+        self.dt_from = "the default"  # where the last run's dt came from, for messages
+        self._step_driver: Any = None  # the scenario's ego driver: its declared step, if any
         self.trajectory: Trajectory | None = None
         self.road: Any = None  # our road object (StraightRoad, TwoWayRoad, Intersection)
         self._road: Any = None  # the highway-env Road
@@ -425,6 +445,10 @@ class World:
         lanes, k = self._route_for(spot, route, name)
         drv = resolve(self.ego_driver if self.ego_driver is not None
                       else driver if driver is not None else self.driver)
+        # the step follows the scenario's driver even when a reference replaces it, so a
+        # replay with the reference sees the other agents move as in the case it judges
+        self._step_driver = drv if self.ego_driver is None else _quietly_resolved(
+            driver if driver is not None else self.driver)
         self._check_route_continues(lanes, drv, name)
         pos = spot.position
         heading = spot.heading
@@ -698,14 +722,22 @@ class World:
             agent_lanes=_view.agent_lanes(self._index, agents), stop_marks=cached[2])
 
     # -- running -----------------------------------------------------------------------------------
-    def run(self, seconds: float, dt: float = 0.1, until: Callable[["World"], bool] | None = None,
+    def run(self, seconds: float, dt: float | None = None,
+            until: Callable[["World"], bool] | None = None,
             stop_on_collision: bool = False) -> Trajectory:
         """Simulate ``seconds`` [s] in steps of ``dt`` [s] and record; returns the trajectory.
 
+        ``dt`` given is the step, whatever the driver. Without it the step is the world's
+        ``dt`` setting (the plugin's ``@scenario(dt=...)`` > ``--avs-dt`` > ini ``avs_dt``),
+        else the step the ego's driver declares as its ``dt`` attribute (a highway-env
+        agent: its environment's ``1 / simulation_frequency``), else 0.1 s.
         ``until(world)`` is asked after every step and ends the run early when true;
         ``stop_on_collision`` ends it at the step the ego first crashes. The recording has
         ``round(seconds / dt) + 1`` samples (fewer when stopped early), t = 0 first.
         """
+        dt_from = None  # the test's own: said once dt is known to be a number
+        if dt is None:
+            dt, dt_from = self._default_step()
         for label, val in (("seconds", seconds), ("dt", dt)):
             try:
                 ok = math.isfinite(float(val)) and float(val) > 0
@@ -721,6 +753,7 @@ class World:
         seconds, dt = float(seconds), float(dt)
         n_steps = max(1, int(round(seconds / dt)))
         self.dt = dt
+        self.dt_from = dt_from or f"world.run(dt={dt:g})"
         ego = self._ego
         agents = [ego] + self._others
         for a in agents:
@@ -771,6 +804,34 @@ class World:
                 break
         self.trajectory = rec.finish(k + 1, seconds=seconds, stopped=reason)
         return self.trajectory
+
+    def _default_step(self) -> tuple[Any, str]:
+        """run()'s step when it gives none, and where it came from (see :meth:`run`)."""
+        if self.step_setting is not None:
+            return self.step_setting, self.step_setting_from
+        declared = None if self._step_driver is None else declared_step(self._step_driver)
+        if declared is None:
+            return 0.1, "the default"
+        try:
+            ok = not isinstance(declared, bool) and math.isfinite(float(declared)) \
+                and float(declared) > 0
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise SimError(f"driver {self._step_driver!r} declares dt={declared!r}: a driver's "
+                           "dt is the step it was made for, a finite number > 0 [s] (or None)",
+                           test=self.name, agent=self._ego.name)
+        return float(declared), f"the driver's own step ({self._step_driver!r})"
+
+    def warn(self, warning: Warning, key: str = "") -> None:
+        """Report ``warning`` (a :class:`~.errors.SimWarning`); ``key`` names what it is about,
+        so that the plugin says it once per test."""
+        if self._warn is not None:
+            self._warn(warning, key)
+        else:
+            import warnings
+
+            warnings.warn(warning, stacklevel=3)
 
     def _reset_driver(self, ego: Any) -> None:
         """The driver's per-case hook: ``reset(world)`` once, before the first step."""
@@ -833,6 +894,15 @@ class World:
         from .render import render_gif
 
         return render_gif(self, path, every=every, **kw)
+
+
+def _quietly_resolved(driver: Any) -> Any:
+    """The driver object for ``driver``, or None when it cannot be made (only its step is
+    wanted: the driver that drives is another)."""
+    try:
+        return resolve(driver)
+    except Exception:
+        return None
 
 
 def _frozen(cls: Any, values: dict) -> Any:

@@ -24,6 +24,11 @@
   ``make_ego(world, position, heading, speed, *, lane_index, route, target_speed, name)``
   that returns the ego vehicle, which then drives itself.
 
+Any driver may declare ``dt`` [s], the step it was made for: ``world.run()`` without ``dt=``
+then steps at it (unless ``--avs-dt`` or ``@scenario(dt=...)`` says otherwise); a
+:func:`highway_env_agent` declares its environment's ``1 / simulation_frequency``, a plain
+callable nothing (0.1 s).
+
 Any driver may have the per-case hook ``reset(world)`` (or ``reset()``): the world calls it
 once per case, after every agent is placed and before the first step, so a driver object
 reused across cases starts each one afresh, and a stack that needs more than its
@@ -43,7 +48,7 @@ from typing import Any, Callable
 from ..errors import SimError
 from .reference import CarefulDriver, CarefulDriverOptions, closing_distance, stopping_distance
 
-__all__ = ["resolve", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
+__all__ = ["resolve", "declared_step", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
            "CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance",
            "highway_env_agent"]
 
@@ -184,6 +189,19 @@ def resolve(driver: Any) -> Any:
     raise SimError(
         f"cannot drive with {driver!r} ({type(driver).__name__}): a driver is 'autopilot', "
         "'idm', 'careful', a callable policy(observation), or an object with act() or predict()")
+
+
+def declared_step(driver: Any) -> Any:
+    """The ``dt`` [s] a driver declares (see module doc), as given; None when it declares none.
+
+    ``driver`` is resolved first (a name, ``sb3:...``, a user object); a user object's own
+    ``dt`` counts, not only the adapter's.
+    """
+    drv = resolve(driver)
+    declared = getattr(drv, "dt", None)
+    if declared is None and isinstance(drv, PolicyDriver):
+        declared = getattr(drv.target, "dt", None)
+    return declared
 
 
 def action_pair(raw: Any) -> tuple[float, float]:

@@ -16,10 +16,16 @@ the action type, ``policy_frequency`` and ``simulation_frequency``. Per case:
 * every policy period — ``int(simulation_frequency // policy_frequency)`` highway-env steps,
   as in its ``step`` — the ego is observed by highway-env's observation object, the model
   answers, and highway-env's action object applies the answer; between decisions the
-  vehicle's own controllers run every world step, as in highway-env's ``_simulate``. With
-  ``world.run(dt=1 / simulation_frequency)`` (``agent.dt``) the steps are highway-env's own;
-  another ``dt`` that divides the policy period keeps the decision times and runs the
-  controllers at the world's rate.
+  vehicle's own controllers run every world step, as in highway-env's ``_simulate``. The
+  agent declares ``dt = 1 / simulation_frequency``, the step ``world.run()`` takes when the
+  test sets none, so the steps are highway-env's own. Another step still runs, with one
+  ``AgentStepWarning`` per test: a ``dt`` that divides the policy period
+  keeps the decision times and runs the controllers at the world's rate; one that does not
+  decides at the nearest multiple of it.
+* the scenario's ego speeds (``world.ego(speed=, target_speed=)``) outside what the action
+  type holds (``DiscreteMetaAction``'s target speeds, ``ContinuousAction``'s
+  ``speed_range``) get one ``AgentSpeedWarning`` per test: the agent starts
+  in a state it never met in training.
 
 Frames. The world's frame is highway-env's mirrored: a point ``(x, y)`` with heading ``h``
 in the world is ``(x, -y)`` with heading ``-h`` in highway-env; lane numbers are the same
@@ -49,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DriverError, SimError
+from ..errors import AgentSpeedWarning, AgentStepWarning, DriverError, SimError
 
 __all__ = ["HighwayEnvAgent"]
 
@@ -60,9 +66,9 @@ ACTIONS = ("DiscreteMetaAction", "ContinuousAction", "DiscreteAction")
 class HighwayEnvAgent:
     """A model trained on a highway-env environment, driving the world's ego (see module doc).
 
-    ``dt`` [s] is the environment's step, ``1 / simulation_frequency``: run the world with it
-    to reproduce highway-env's stepping exactly. The ego keeps its ``decisions``: a list of
-    ``(t [s], action)``.
+    ``dt`` [s] is the environment's step, ``1 / simulation_frequency``: the world runs at it
+    unless the test says otherwise, which reproduces highway-env's stepping exactly. The ego
+    keeps its ``decisions``: a list of ``(t [s], action)``.
     """
 
     def __init__(self, model: Any, env: Any = "highway-fast-v0", config: dict | None = None) -> None:
@@ -173,7 +179,44 @@ class HighwayEnvAgent:
             ego = cls(None, position, heading, speed, **kwargs)
         ego.session = _Session(self, env, world, ego)
         ego.decisions = []
+        self._check_speeds(world, ego, speed, target_speed)
         return ego
+
+    def _check_speeds(self, world: Any, ego: Any, speed: float, target_speed: float | None) -> None:
+        """Warn (once per test) when the scenario's ego speeds are ones the action type cannot
+        hold: the agent then starts in a state it never met in training (an ego placed at
+        5.6 m/s under DiscreteMetaAction's 20/25/30 m/s is at ~22 m/s a second later)."""
+        from highway_env.envs.common.action import ContinuousAction, DiscreteMetaAction
+
+        at = ego.session.action_type
+        asked = [("speed", float(speed))]
+        if target_speed is not None:
+            asked.append(("target_speed", float(target_speed)))
+        if isinstance(at, DiscreteMetaAction):
+            targets = np.asarray(at.target_speeds, dtype=float)
+            lo, hi = float(targets.min()), float(targets.max())
+            holds = f"its target speeds are {', '.join(f'{v:g}' for v in targets)} m/s"
+            after = (f", so the ego (highway-env's MDPVehicle) heads for "
+                     f"{float(ego.target_speed):g} m/s from the start")
+            name = "DiscreteMetaAction"
+        elif isinstance(at, ContinuousAction):  # DiscreteAction too
+            rng = at.speed_range or (ego.MIN_SPEED, ego.MAX_SPEED)
+            lo, hi = float(min(rng)), float(max(rng))
+            holds = f"its speed_range is [{lo:g}, {hi:g}] m/s"
+            after = ""
+            name = type(at).__name__
+        else:  # pragma: no cover - _check_config admits no other action type
+            return
+        tol = 1e-6
+        off = [(k, v) for k, v in asked if not lo - tol <= v <= hi + tol]
+        if not off:
+            return
+        given = ", ".join(f"{k}={v:g} m/s" for k, v in off)
+        world.warn(AgentSpeedWarning(
+            f"{world.name}: the scenario places the ego at {given}, outside what "
+            f"{self!r}'s {name} can hold: {holds}{after}; the agent starts where it never was "
+            f"in training — place the ego within [{lo:g}, {hi:g}] m/s, or test an agent "
+            "trained for these speeds"), "agent-speed")
 
     def reset(self, world: Any) -> None:
         """Per case, before the run: decision timing from the world's ``dt``, the mirrored road."""
@@ -313,21 +356,47 @@ class _Session:
         self.rng = np.random.default_rng([world.seed, 0x6877])
 
     def start(self, world: Any) -> None:
-        env_dt = self.agent.policy_period
+        period = self.agent.policy_period
+        own = self.agent.dt
         dt = float(world.dt)
-        every = int(round(env_dt / dt))
-        if every < 1 or abs(every * dt - env_dt) > 1e-9 * max(env_dt, 1.0):
-            cfg = self.env.config
-            raise SimError(
-                f"{self.agent!r} decides every {env_dt:g} s (policy_frequency "
-                f"{cfg['policy_frequency']} Hz, simulation_frequency "
-                f"{cfg['simulation_frequency']} Hz), which world.run(dt={dt:g}) does not divide; "
-                f"run with dt={1 / float(cfg['simulation_frequency']):g} (highway-env's own step, "
-                "agent.dt) or another dt that divides the policy period",
-                test=world.name, agent=world.agents[0].name)
+        every = int(round(period / dt))
+        divides = every >= 1 and abs(every * dt - period) <= 1e-9 * max(period, 1.0)
+        every = max(every, 1)
+        # Another step than the environment's still runs (a scenario may need its own), but
+        # the ego then moves as it never did in training: say so, once per test.
+        if not divides or abs(dt - own) > 1e-9 * max(own, 1.0):
+            world.warn(AgentStepWarning(self.step_text(world, dt, every, divides)),
+                       "agent-step")
         self.every = every
         self.k = 0
         self.mirror = _Mirror(world.engine_road.network)
+
+    def step_text(self, world: Any, dt: float, every: int, divides: bool) -> str:
+        cfg = self.env.config
+        sim, pol = cfg["simulation_frequency"], cfg["policy_frequency"]
+        own = self.agent.dt
+        period = self.agent.policy_period
+        source = world.dt_from
+        head = (f"{world.name}: {self.agent!r} runs at dt={dt:g} s ({source}), not at "
+                f"its environment's step {own:g} s (simulation_frequency {sim:g} Hz)")
+        if divides:
+            what = (f"it still decides every {period:g} s (policy_frequency {pol:g} Hz), but "
+                    "highway-env's controllers run at the world's step, so the ego does not "
+                    "move as in its environment")
+        else:
+            what = (f"{dt:g} s does not divide its policy period {period:g} s (policy_frequency "
+                    f"{pol:g} Hz), so it decides every {every * dt:g} s instead")
+        # where the step was set is where it is changed back
+        if source.startswith("world.run("):
+            how = "world.run() without dt="
+        elif source.startswith("@scenario("):
+            how = "drop dt= from @scenario, or dt='auto'"
+        elif source.startswith("--"):
+            how = "--avs-dt auto"
+        else:
+            how = f"{source} = auto, or --avs-dt auto"
+        return (f"{head}: {what}; to reproduce highway-env, leave the step to the driver "
+                f"({how}) or give dt={own:g}")
 
     def tick(self, ego: Any) -> None:
         if self.mirror is None:

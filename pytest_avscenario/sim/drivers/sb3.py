@@ -138,8 +138,8 @@ def check(text: str, base: os.PathLike | str) -> str:
         raise ValueError(f"driver {shown!r}: {path} is not a file (give the .zip that "
                          "model.save() wrote)")
     data = _read_data(path, shown)
-    algorithm = spec.algorithm or _algorithm_of(data, path, shown)
-    _check_env(spec.env, data, path, shown)
+    algorithm = spec.algorithm or _algorithm_of(data, path, shown, spec.env)
+    _check_env(spec.env, data, path, shown, algorithm)
     if not _installed("stable_baselines3"):
         raise ValueError(f"driver {shown!r} needs stable-baselines3, which is not installed: "
                          f"{INSTALL} (it brings torch)")
@@ -169,7 +169,15 @@ def _read_data(path: Path, shown: str) -> dict:
     return data
 
 
-def _algorithm_of(data: dict, path: Path, shown: str) -> str:
+def fixture_hint(algorithm: str, path: Path | str, env_id: str, config: str | None = None) -> str:
+    """How to run a model ``sb3:`` cannot: the ``avs_driver`` fixture, as one line of code."""
+    cfg = f", config={config}" if config else ""
+    given = ", giving the config it was trained with" if config else ""
+    return (f"run it from an avs_driver fixture in conftest.py{given}: "
+            f"return highway_env_agent({algorithm}.load({str(path)!r}), env={env_id!r}{cfg})")
+
+
+def _algorithm_of(data: dict, path: Path, shown: str, env_id: str = DEFAULT_ENV) -> str:
     policy = data.get("policy_class")
     module = policy.get("__module__") if isinstance(policy, dict) else None
     if module in _BY_POLICY_MODULE:
@@ -180,10 +188,11 @@ def _algorithm_of(data: dict, path: Path, shown: str) -> str:
         return "PPO" if "clip_range" in data else "A2C"
     raise ValueError(f"driver {shown!r}: cannot tell the algorithm of {path} (its policy class "
                      f"comes from {module!r}); name it: sb3:ALGO:PATH@ENV with ALGO one of "
-                     f"{', '.join(sorted(ALGORITHMS))}")
+                     f"{', '.join(sorted(ALGORITHMS))}; for another algorithm, "
+                     + fixture_hint("MyAlgo", path, env_id))
 
 
-def _check_env(env_id: str, data: dict, path: Path, shown: str) -> None:
+def _check_env(env_id: str, data: dict, path: Path, shown: str, algorithm: str = "DQN") -> None:
     """The environment is registered and its spaces are the ones the model was trained on."""
     try:
         import gymnasium
@@ -213,13 +222,15 @@ def _check_env(env_id: str, data: dict, path: Path, shown: str) -> None:
         _check_config(config, f"driver {shown!r}", "", "")
     except SimError as exc:
         raise ValueError(f"{exc} — the environment {env_id!r} in its default config") from None
+    # sb3: knows an environment only in its default config; a model trained on a changed one
+    # (another observation, continuous actions) runs through the fixture, which takes config=
     want = _shape(data.get("observation_space"))
     if want is not None and tuple(obs_space.shape or ()) != want:
         raise ValueError(
             f"driver {shown!r}: the model at {path} takes observations of shape {want}, but "
             f"{env_id!r} in its default config gives {tuple(obs_space.shape)}; give the "
-            "environment it was trained on (sb3:PATH@ENV), or an avs_driver fixture with "
-            "highway_env_agent(model, env=..., config=...) for a changed config")
+            "environment it was trained on (sb3:PATH@ENV), or, for a changed config, "
+            + fixture_hint(algorithm, path, env_id, "{'observation': {...}}"))
     model_act = data.get("action_space")
     if isinstance(model_act, dict):
         kind = str(model_act.get(":type:", ""))
@@ -228,11 +239,18 @@ def _check_env(env_id: str, data: dict, path: Path, shown: str) -> None:
         if "Discrete" in kind and env_kind == "Discrete" and n is not None \
                 and str(n) != str(int(act_space.n)):
             raise ValueError(f"driver {shown!r}: the model at {path} chooses among {n} actions, "
-                             f"{env_id!r} has {int(act_space.n)}")
+                             f"{env_id!r} has {int(act_space.n)}; "
+                             + fixture_hint(algorithm, path, env_id, "{'action': {...}}"))
         if ("Discrete" in kind) != (env_kind == "Discrete") and kind:
-            raise ValueError(f"driver {shown!r}: the model at {path} was trained with "
-                             f"{kind.split('.')[-1].rstrip(chr(39) + '>')} actions, "
-                             f"{env_id!r} has {env_kind} actions")
+            continuous = "Discrete" not in kind
+            raise ValueError(
+                f"driver {shown!r}: the model at {path} was trained with "
+                f"{kind.split('.')[-1].rstrip(chr(39) + '>')} actions, {env_id!r} in its "
+                f"default config has {env_kind} actions; sb3: runs an environment in its "
+                "default config only, so "
+                + fixture_hint(algorithm, path, env_id,
+                               "{'action': {'type': 'ContinuousAction'}}" if continuous
+                               else "{'action': {...}}"))
 
 
 def _shape(space: Any) -> tuple | None:
