@@ -15,7 +15,7 @@ import keyword
 import types
 import warnings
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +70,9 @@ class ScenarioPlan:
     reference_driver: str | None = None  # judges avoidability of counterexamples (None: off)
     reference_max: int | None = None  # counterexamples per sampler judged (None: all)
     discard_unavoidable: bool = False  # active samplers learn nothing of unfair cases
+    #: metric -> margin of the avoidability judgement in the metric's unit (absent: the
+    #: default of monitors.conflict: 0.2 m for a collision, 0 otherwise)
+    reference_margin: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def metrics(self) -> tuple[str, ...]:
