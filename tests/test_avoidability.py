@@ -284,3 +284,63 @@ def test_a_metric_of_the_ego_alone_is_judged_on_the_reference_ego():
     standing = conflict_traj(np.zeros_like(t), np.full_like(t, 500.0), t)
     assert judge_conflict(progress(11.0), moving, "ego", 4.9).avoided is True
     assert judge_conflict(progress(11.0), standing, "ego", 4.9).avoided is False
+
+
+def test_a_minimized_case_is_judged_too_and_the_card_says_which_case_is_which(pytester):
+    # gap 10 m is unavoidable; minimizing moves it to the nominal 120 m, still a collision for
+    # the blind driver but one the careful driver avoids: the two judgements differ
+    pytester.makeconftest(BLIND)
+    pytester.makepyfile(test_stopped=STOPPED.replace("Choice([10.0, 120.0])", "Choice([120.0, 10.0])")
+                        .format(extra="").replace("shrink_budget=0", "shrink_budget=4"))
+    result = pytester.runpytest("--avs-db=none", "-p", "no:xdist", "--junitxml=out.xml")
+    result.assert_outcomes(failed=2)
+    row = by_gap(pytester)[10.0]
+    assert row["minimized"] == {"gap": 120.0}
+    assert row["avoidable"] == {"collision": False}
+    assert row["minimized_avoidable"] == {"collision": True}
+    assert "t" in row["minimized_violations"]["collision"]  # where the minimized case failed first
+    # the shrink row of the minimized candidate carries its judgement as well
+    table = (pytester.path / "avs-report" / "shrink.jsonl").read_text().splitlines()
+    shrunk = [r for r in map(json.loads, table) if r["params"] == {"gap": 120.0}]
+    assert shrunk and shrunk[-1]["avoidable"] == {"collision": True}
+    out = result.stdout.str()
+    assert "(found case): UNAVOIDABLE" in out and "(minimized case): avoidable" in out
+    assert 'name="avs.minimized_avoidable.collision" value="true"' in (pytester.path / "out.xml").read_text()
+    item = row["item"].partition("[")[2].rstrip("]")
+    card = next((pytester.path / "avs-report" / "cases").glob(f"*.{item}.html")).read_text()
+    assert "reference driver, case as found" in card and "reference driver, minimized case" in card
+    assert "show the <b>minimized case</b> (gap=120)" in card
+    assert "(minimized case)</figcaption>" in card
+
+
+def test_whether_a_scene_starts_rss_unsafe_does_not_depend_on_the_egos_first_action():
+    # a car 50 m ahead in the ego's lane at the ego's speed: RSS-unsafe from t = 0 (in line,
+    # closer than the safe ~90 m). If the ego changes lane in its first step, the lane
+    # direction estimated from the step after tilts by ~7 degrees, the car ahead appears
+    # 6 m to the side and the initial scene looked laterally safe: not unsafe at all.
+    from pytest_avscenario.monitors.rss import rss_margins
+    from pytest_avscenario.outcome import CaseOutcome
+    from pytest_avscenario.pytest_plugin.campaign import starts_unsafe
+    from pytest_avscenario.trajectory import Trajectory
+
+    t = np.arange(0.0, 2.0, 0.1)
+
+    def scene(lateral_mps):
+        y = -lateral_mps * t  # leaving the lane centre from the first step on
+        vy = np.full_like(t, -lateral_mps)
+        vy[0] = 0.0  # placed driving along its lane
+        heading = np.arctan2(vy, 25.0)
+        return Trajectory.from_arrays(t, agents={
+            "ego": {"x": 25.0 * t, "y": y, "vx": 25.0, "vy": vy, "heading": heading,
+                    "lane": "L0", "lane_offset": y},
+            "lead": {"x": 50.0 + 25.0 * t, "y": 0.0 * t, "vx": 25.0, "vy": 0.0, "heading": 0.0,
+                     "lane": "L0", "lane_offset": 0.0},
+        })
+
+    straight, swerving = scene(0.0), scene(3.0)
+    for traj in (straight, swerving):
+        lon, lat = rss_margins(traj)
+        assert lon[0, 0] < 0 and lat[0, 0] < 0
+        assert starts_unsafe(CaseOutcome(params={}, verdict="fail", trajectory=traj))
+    np.testing.assert_allclose(np.stack(rss_margins(swerving))[:, :, 0],
+                               np.stack(rss_margins(straight))[:, :, 0])
