@@ -98,6 +98,20 @@ def test_the_check_can_be_turned_off_or_capped(pytester):
     assert sum("avoidable" in r for r in rows_of(pytester)) == 1
 
 
+@pytest.mark.parametrize("how", ["marker", "option"])
+def test_the_margin_is_configurable(pytester, how):
+    # the careful driver stops 5.6 m short of the car 120 m ahead: avoided with the default
+    # margin of 0.2 m, unknown with a margin of 6 m
+    pytester.makeconftest(BLIND)
+    extra = ", reference_margin={'collision': 6.0}" if how == "marker" else ""
+    pytester.makepyfile(test_stopped=STOPPED.format(extra=extra))
+    args = ["--avs-reference-margin=collision=6"] if how == "option" else []
+    pytester.runpytest("--avs-db=none", "-p", "no:xdist", *args)
+    rows = by_gap(pytester)
+    assert rows[120.0]["avoidable"] == {"collision": None}
+    assert rows[10.0]["avoidable"] == {"collision": False}  # a real impact either way
+
+
 def test_the_marker_names_another_reference_driver(pytester):
     pytester.makeconftest(BLIND)
     pytester.makepyfile(test_stopped=STOPPED.format(extra=", reference_driver='idm'"))
@@ -110,6 +124,8 @@ def test_the_marker_names_another_reference_driver(pytester):
 @pytest.mark.parametrize("declaration, message", [
     ("reference_driver='nobody'", "reference_driver must be a built-in driver"),
     ("accept='avoidable', monitors=[collision()]", "accept='avoidable' counts only counterexamples a reference driver avoids"),
+    ("reference_margin={'colision': 0.5}, monitors=[collision()]", "reference_margin names 'colision'"),
+    ("reference_margin={'collision': -1}, monitors=[collision()]", "margin of 'collision' must be a number >= 0"),
 ])
 def test_bad_avoidability_settings_are_collection_errors(pytester, declaration, message):
     pytester.makepyfile(f"""

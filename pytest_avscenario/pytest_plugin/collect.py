@@ -187,7 +187,15 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         shrink_max=own.shrink_max, case_timeout_s=own.case_timeout_s,
         replays=types.MappingProxyType(replays), accept=own.accept,
         reference_driver=own.reference_driver if "world" in metafunc.fixturenames else None,
-        reference_max=own.reference_max, discard_unavoidable=own.unavoidable == "discard")
+        reference_max=own.reference_max, discard_unavoidable=own.unavoidable == "discard",
+        reference_margin=types.MappingProxyType(dict(own.reference_margin or {})))
+    # a marker's margins must name this test's metrics (a typo would silently keep the
+    # default); the command line's apply to whichever tests monitor the metrics it names
+    unknown = sorted(set(plan.reference_margin) - set(plan.metrics))
+    if unknown and "reference_margin" in spec.given:
+        raise DeclarationError(
+            f"reference_margin names {', '.join(repr(m) for m in unknown)}, which this test does "
+            f"not monitor; its metrics: {', '.join(plan.metrics) or '(none)'}")
     if own.accept.avoidable and plan.reference_driver is None:
         raise DeclarationError(
             "accept='avoidable' counts only counterexamples a reference driver avoids, but this "
