@@ -360,3 +360,24 @@ def test_whether_a_scene_starts_rss_unsafe_does_not_depend_on_the_egos_first_act
         assert starts_unsafe(CaseOutcome(params={}, verdict="fail", trajectory=traj))
     np.testing.assert_allclose(np.stack(rss_margins(swerving))[:, :, 0],
                                np.stack(rss_margins(straight))[:, :, 0])
+
+
+def test_rows_keep_both_judgements_and_old_rows_still_read():
+    from pytest_avscenario.outcome import CaseRow
+
+    old = {"test": "t.py::test_x", "sampler": "halton", "index": 3, "origin": "sampled",
+           "params": {"gap": 10.0}, "rho": {"collision": -0.0}, "verdict": "fail",
+           "avoidable": {"collision": False}}
+    row = CaseRow.from_json(old)
+    assert row.unavoidable and row.conflicts is None and row.minimized_avoidable is None
+    conflict = {"agent": "side", "t": 0.5, "until": 2.5, "rho": 1.5, "why": "keeps 1.50 m from side"}
+    new = CaseRow.from_json({**old, "avoidable": {"collision": True},
+                             "conflicts": {"collision": conflict}, "minimized": {"gap": 120.0},
+                             "minimized_violations": {"collision": {"t": 5.8, "agent": None}},
+                             "minimized_avoidable": {"collision": None},
+                             "minimized_conflicts": {"collision": {**conflict, "agent": "late"}}})
+    again = CaseRow.from_json(json.loads(json.dumps(new.to_json())))
+    assert again.conflicts == {"collision": conflict}
+    assert again.minimized_avoidable == {"collision": None}
+    assert again.minimized_conflicts["collision"]["agent"] == "late"
+    assert again.minimized_violations == {"collision": {"t": 5.8, "agent": None}}
