@@ -307,7 +307,7 @@ def test_a_minimized_case_is_judged_too_and_the_card_says_which_case_is_which(py
     # the blind driver but one the careful driver avoids: the two judgements differ
     pytester.makeconftest(BLIND)
     pytester.makepyfile(test_stopped=STOPPED.replace("Choice([10.0, 120.0])", "Choice([120.0, 10.0])")
-                        .format(extra="").replace("shrink_budget=0", "shrink_budget=4"))
+                        .format(extra="").replace("shrink_budget=0", "shrink_budget=2"))
     result = pytester.runpytest("--avs-db=none", "-p", "no:xdist", "--junitxml=out.xml")
     result.assert_outcomes(failed=2)
     row = by_gap(pytester)[10.0]

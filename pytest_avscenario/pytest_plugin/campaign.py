@@ -751,7 +751,7 @@ def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
     judged = Avoidability(reference, {}, {k: float(v) for k, v in ref.rho.items()},
                           unsafe_first=unsafe_first(outcome))
     traj = ref.trajectory
-    if traj is None:
+    if ref.verdict == "error" or traj is None:  # a run that went wrong is no evidence either way
         judged.error = ref.error or "it recorded no trajectory"
         judged.avoidable = {m: None for m in outcome.violated}
         return judged
