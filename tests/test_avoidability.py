@@ -298,7 +298,8 @@ def test_a_metric_of_the_ego_alone_is_judged_on_the_reference_ego():
     t = np.arange(0.0, 5.0, 0.1)
     moving = conflict_traj(5.0 * t, np.full_like(t, 500.0), t)
     standing = conflict_traj(np.zeros_like(t), np.full_like(t, 500.0), t)
-    assert judge_conflict(progress(11.0), moving, "ego", 4.9).avoided is True
+    kept = judge_conflict(progress(11.0), moving, "ego", 4.9)
+    assert kept.avoided is True and kept.ego_alone
     assert judge_conflict(progress(11.0), standing, "ego", 4.9).avoided is False
 
 

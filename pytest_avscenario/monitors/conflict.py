@@ -75,6 +75,7 @@ class ConflictVerdict:
     avoided: bool | None
     rho: float | None
     why: str
+    ego_alone: bool = False  # a metric of the ego alone: no other road user in the conflict
 
     def to_json(self) -> dict[str, Any]:
         from ..codec import rho_to_json
@@ -149,22 +150,25 @@ def judge_conflict(monitor: Monitor, reference: Trajectory, agent: str | None, t
         partner = crash_partner(reference)
         crashed_at = partner[1] if partner is not None and partner[0] == agent else None
         return _judge_collision(name, view, agent, t, until, n, margin, crashed_at)
+    alone = view.n_agents == 1
+
+    def verdict(avoided: bool | None, rho: float | None, why: str) -> ConflictVerdict:
+        return ConflictVerdict(name, agent, t, until, avoided, rho, why, ego_alone=alone)
+
     try:
         within = monitor.evaluate(view.prefix(n)).rho if n < view.n_steps else None
         whole = monitor.evaluate(view).rho
     except Exception as exc:  # a monitor that cannot judge the pair alone (e.g. names a third agent)
-        return unknown(f"{name} cannot be evaluated on the ego{with_whom} alone: {exc}")
+        return verdict(None, None, f"{name} cannot be evaluated on the ego{with_whom} alone: {exc}")
     within = whole if within is None else within
     if within < -margin:
-        return ConflictVerdict(name, agent, t, until, False, within,
-                               f"violates it too{with_whom}{upto} (rho {within:+.3g})")
+        return verdict(False, within, f"violates it too{with_whom}{upto} (rho {within:+.3g})")
     if whole >= margin:
-        return ConflictVerdict(name, agent, t, until, True, within,
-                               f"keeps it{with_whom} (rho {whole:+.3g})")
+        return verdict(True, within, f"keeps it{with_whom} (rho {whole:+.3g})")
     if within < margin:
-        return unknown(f"within the margin of {margin:g}{with_whom}{upto} (rho {within:+.3g})", within)
-    return unknown(f"keeps it{with_whom}{upto} but not afterwards (rho {whole:+.3g}): a later "
-                   "conflict, maybe another one", within)
+        return verdict(None, within, f"within the margin of {margin:g}{with_whom}{upto} (rho {within:+.3g})")
+    return verdict(None, within, f"keeps it{with_whom}{upto} but not afterwards (rho {whole:+.3g}): "
+                   "a later conflict, maybe another one")
 
 
 def _judge_collision(name: str, view: Trajectory, agent: str, t: float | None, until: float | None,

@@ -706,7 +706,7 @@ class Avoidability:
                 verb = {True: "keeps it", False: "violates it too", None: "was not judged on it"}[ok]
                 c = self.conflicts.get(m)
                 if c is not None:
-                    where = f" with {c.agent}" if c.agent and c.agent != "ego" else ""
+                    where = f" with {c.agent}" if c.agent and not c.ego_alone else ""
                     when = f" at t = {c.t:.1f} s" if c.t is not None else ""
                     verb = {True: "keeps it", False: "violates it too", None: "cannot tell"}[ok]
                     lines.append(f"{m}{where}{when}{of}: {word} — the {self.driver} reference driver "
