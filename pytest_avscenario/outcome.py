@@ -164,6 +164,15 @@ class CaseRow:
     #: violated metric -> whether the reference driver avoids it (True: avoidable; False: it
     #: violates it too; None: unknown — the reference run failed); None: not judged
     avoidable: Mapping[str, bool | None] | None = None
+    #: violated metric -> the conflict the judgement is about and what the reference did in
+    #: it: {"agent": the other agent, "t": first violation [s], "until": end of the window [s],
+    #: "rho": the reference's value toward that agent, "why": text}; None: not judged
+    conflicts: Mapping[str, Mapping[str, Any]] | None = None
+    #: the minimized case's own first violations (as ``violations``) and its own judgement
+    #: against the reference driver (as ``avoidable`` and ``conflicts``), when it was judged
+    minimized_violations: Mapping[str, Mapping[str, Any]] | None = None
+    minimized_avoidable: Mapping[str, bool | None] | None = None
+    minimized_conflicts: Mapping[str, Mapping[str, Any]] | None = None
     #: the agent that entered an RSS-unsafe state first by its own responsibility, and when
     #: ({"agent": name or "both", "t": seconds}); None: not judged or nobody did
     unsafe_first: Mapping[str, Any] | None = None
@@ -204,6 +213,12 @@ class CaseRow:
             out["avoidable"] = dict(self.avoidable)
         if self.unsafe_first is not None:
             out["unsafe_first"] = dict(self.unsafe_first)
+        for key in ("conflicts", "minimized_violations", "minimized_conflicts"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = {k: jsonable(dict(v)) for k, v in value.items()}
+        if self.minimized_avoidable is not None:
+            out["minimized_avoidable"] = dict(self.minimized_avoidable)
         if self.violations is not None:
             out["violations"] = {k: jsonable(dict(v)) for k, v in self.violations.items()}
         if self.drawn is not None:
@@ -234,6 +249,11 @@ class CaseRow:
             flaky=bool(data.get("flaky", False)),
             avoidable=_avoidable(data.get("avoidable")),
             unsafe_first=data.get("unsafe_first") if isinstance(data.get("unsafe_first"), Mapping) else None,
+            # absent in rows written before judgements were per conflict
+            conflicts=_violations(data.get("conflicts")),
+            minimized_violations=_violations(data.get("minimized_violations")),
+            minimized_avoidable=_avoidable(data.get("minimized_avoidable")),
+            minimized_conflicts=_violations(data.get("minimized_conflicts")),
             violations=_violations(data.get("violations")),
             drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
         )

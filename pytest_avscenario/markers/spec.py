@@ -26,6 +26,7 @@ SPEC_KEYWORDS = (
     "accept",
     "reference_driver",
     "reference_max",
+    "reference_margin",
     "unavoidable",
     "dt",
 )
@@ -51,6 +52,7 @@ class ScenarioSpec:
     accept: Any = None
     reference_driver: Any = None
     reference_max: Any = None
+    reference_margin: Any = None
     unavoidable: Any = None
     dt: Any = None
     #: keyword arguments given to @scenario explicitly (so "not given" differs from None)
@@ -75,6 +77,7 @@ def scenario(
     accept: Any = _UNSET,
     reference_driver: str | None = _UNSET,
     reference_max: int | None = _UNSET,
+    reference_margin: Mapping[str, float] | None = _UNSET,
     unavoidable: str = _UNSET,
     dt: float | str = _UNSET,
     **parameters: Any,
@@ -112,6 +115,9 @@ def scenario(
         whether its violations were avoidable (default ``"careful"``, UN R157's careful and
         competent driver; ``"none"`` turns the check off).
     :param reference_max: judge only the first N counterexamples per sampler (default: all).
+    :param reference_margin: ``{metric: margin}`` in each metric's unit: the band within which
+        the reference's value toward the same agent decides nothing (avoidability unknown);
+        default 0.2 m for a collision, 0 otherwise.
     :param unavoidable: ``"keep"`` (default) or ``"discard"``: an active sampler is told
         nothing of a case that starts RSS-unsafe or of a counterexample the reference driver
         cannot avoid either (it is still run and reported), so it does not converge on them.
@@ -127,7 +133,7 @@ def scenario(
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
             reference_driver=reference_driver, reference_max=reference_max,
-            unavoidable=unavoidable, dt=dt,
+            reference_margin=reference_margin, unavoidable=unavoidable, dt=dt,
         ).items()
         if v is not _UNSET
     }
@@ -138,7 +144,7 @@ def scenario(
             sampler_options=sampler_options, shrink_budget=shrink_budget, shrink_max=shrink_max,
             time_budget=time_budget, case_timeout=case_timeout, accept=accept,
             reference_driver=reference_driver, reference_max=reference_max,
-            unavoidable=unavoidable, dt=dt,
+            reference_margin=reference_margin, unavoidable=unavoidable, dt=dt,
         ).items()
     }
     problem = None

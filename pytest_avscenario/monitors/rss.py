@@ -46,7 +46,8 @@ Simplifications, so a reader can judge a verdict:
 
 * the longitudinal axis is the ego's lane direction, estimated per step from the ego's
   heading and the rate of its recorded lane offset (the ego's heading where it has no lane),
-  or a fixed ``axis`` [rad]; one axis for every pair (straight or gently curved roads, not
+  or a fixed ``axis`` [rad]; at t = 0 it is the ego's heading as placed, never the step
+  after (the ego's first action must not decide whether the scene starts unsafe); one axis for every pair (straight or gently curved roads, not
   intersections, whose route geometry the paper handles separately);
 * lateral velocities are the plain ones, not the paper's mu-lateral-velocity;
 * in opposite directions the trajectory does not say which car is in its correct lane, so
@@ -197,7 +198,12 @@ def _road_axis(traj: Trajectory, axis: float | None) -> np.ndarray:
     ok = (lane[1:] == lane[:-1]) & (lane[1:] != "") & np.isfinite(off[1:]) & np.isfinite(off[:-1])
     with np.errstate(invalid="ignore", divide="ignore"):
         step = np.where(ok, (off[1:] - off[:-1]) / np.diff(t), np.nan)
-    around = np.stack([np.concatenate([[np.nan], step]), np.concatenate([step, [np.nan]])])
+    # the rate at a step is the mean of the steps before and after it — except at t = 0,
+    # which is the initial scene as placed: the step after is the ego's first action (a lane
+    # change there would tilt the axis and decide whether the scene *starts* unsafe)
+    after = np.concatenate([step, [np.nan]])
+    after[0] = np.nan
+    around = np.stack([np.concatenate([[np.nan], step]), after])
     n = np.isfinite(around).sum(axis=0)
     rate = np.where(n > 0, np.nansum(np.where(np.isfinite(around), around, 0.0), axis=0)
                     / np.maximum(n, 1), 0.0)

@@ -303,12 +303,21 @@ def run_item(item: pytest.Function) -> ItemResult:
         judged = None  # not a counterexample of the scenario: nothing to judge
     elif not known:
         judged = judge_avoidability(item, campaign, case_obj, outcome)
+    min_judged = judge_minimized(item, campaign, case_obj, shrink, judged) if minimized else None
+    min_outcome = shrink.outcome if minimized else None
     row = make_row(item, case_obj, outcome,
                    minimized=shrink.minimized if minimized else None,
                    shrink_sims=shrink.sims if minimized else None,
                    flaky=shrink is not None and shrink.flaky,
                    avoidable=judged.avoidable if judged else None,
-                   unsafe_first=judged.unsafe_first if judged else None)
+                   unsafe_first=judged.unsafe_first if judged else None,
+                   conflicts=judged.conflicts_json() if judged else None,
+                   minimized_violations=violations_of(min_outcome.results, min_outcome.first)
+                   if min_outcome is not None else None,
+                   minimized_avoidable=min_judged.avoidable if min_judged else None,
+                   minimized_conflicts=min_judged.conflicts_json() if min_judged else None)
+    if min_judged is not None:
+        shrink.rows = judged_shrink_rows(shrink.rows, shrink.minimized, min_judged)
     item.stash[row_key] = row
     item.stash[shrink_rows_key] = shrink.rows if shrink is not None else []
     if item.config.stash[settings_key].junit == "properties":
@@ -324,8 +333,10 @@ def run_item(item: pytest.Function) -> ItemResult:
         item.stash[pictures_key] = render_case(item, campaign, outcome, shrink)
     if outcome.verdict == "pass":
         return ItemResult(outcome)
+    judgements = [j.text(case) for j, case in ((judged, "found" if min_judged else ""),
+                                                (min_judged, "minimized")) if j is not None]
     message = failure_message(item, case_obj, outcome, shrink, note,
-                              avoidability=judged.text() if judged else None)
+                              avoidability="\n".join(judgements) or None)
     # the body's own exception keeps its traceback; monitor errors are our message alone
     reraise = outcome.exc is not None and not isinstance(outcome.exc, monitor_error_type())
     accepted = None
@@ -709,30 +720,45 @@ def update_db(item: pytest.Item, plan: ScenarioPlan, slot: CaseSlot, case: Case,
 
 @dataclass
 class Avoidability:
-    """What the reference driver made of one counterexample."""
+    """What the reference driver made of one counterexample: per violated metric, whether it
+    avoids the same conflict (:mod:`pytest_avscenario.monitors.conflict`)."""
 
     driver: str
     avoidable: dict[str, bool | None]  # violated metric -> avoided by the reference?
-    reference_rho: dict[str, float]
+    reference_rho: dict[str, float]  # the reference run's own rho (every agent, whole run)
     unsafe_first: dict[str, Any] | None = None  # {"agent": ..., "t": ...}
     error: str | None = None  # the reference run could not be judged
+    conflicts: dict[str, Any] = field(default_factory=dict)  # metric -> ConflictVerdict
 
     @property
     def all_unavoidable(self) -> bool:
         return all_unavoidable(self.avoidable)
 
-    def text(self) -> str:
+    def conflicts_json(self) -> dict[str, dict[str, Any]] | None:
+        return {m: c.to_json() for m, c in self.conflicts.items()} or None
+
+    def text(self, case: str = "") -> str:
+        """The failure text's lines; ``case`` names which case was judged (e.g. "minimized")."""
         lines = []
+        of = f" ({case} case)" if case else ""
         if self.error is not None:
-            lines.append(f"avoidability unknown: the {self.driver} reference run failed ({self.error})")
+            lines.append(f"avoidability unknown{of}: the {self.driver} reference run failed ({self.error})")
         else:
             for m, ok in self.avoidable.items():
-                rho = self.reference_rho.get(m)
-                how = "" if rho is None else f" (reference rho {fmt_rho(rho)})"
                 word = {True: "avoidable", False: "UNAVOIDABLE", None: "avoidability unknown"}[ok]
                 verb = {True: "keeps it", False: "violates it too", None: "was not judged on it"}[ok]
-                lines.append(f"{m}: {word} — the {self.driver} reference driver {verb}{how}")
-        if self.unsafe_first is not None:
+                c = self.conflicts.get(m)
+                if c is not None:
+                    where = f" with {c.agent}" if c.agent and not c.ego_alone else ""
+                    when = f" at t = {c.t:.1f} s" if c.t is not None else ""
+                    verb = {True: "keeps it", False: "violates it too", None: "cannot tell"}[ok]
+                    lines.append(f"{m}{where}{when}{of}: {word} — the {self.driver} reference driver "
+                                 f"{verb}: {c.why}")
+                    continue
+                rho = self.reference_rho.get(m)
+                how = "" if rho is None else f" (reference rho {fmt_rho(rho)})"
+                lines.append(f"{m}{of}: {word} — the {self.driver} reference driver {verb}{how}")
+        if self.unsafe_first is not None and not case:
             who = self.unsafe_first["agent"]
             subject = "both cars" if who == "both" else who
             lines.append(f"RSS: {subject} entered an unsafe state first, at "
@@ -741,31 +767,85 @@ class Avoidability:
 
 
 def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
-                       outcome: CaseOutcome, fixtures: Mapping[str, Any] | None = None) -> Avoidability | None:
+                       outcome: CaseOutcome, fixtures: Mapping[str, Any] | None = None,
+                       *, extra: bool = False) -> Avoidability | None:
     """Simulate a counterexample again with the plan's reference driver as the ego (same seed,
-    same other agents and behaviours) and classify each violated metric; name who entered an
+    same other agents and behaviours) and judge each violated metric on the same conflict
+    (the same other agent, around the same time, with a margin); name who entered an
     RSS-unsafe state first. None when not judged (no reference, no violated monitor, budget
-    spent)."""
+    spent). ``extra``: the minimized case of a counterexample judged already (not counted
+    against ``reference_max``: it is part of judging that counterexample).
+
+    The reference runs in this process whatever the executor: the judgement needs its
+    recording, which a remote outcome leaves behind."""
     plan = campaign.plan
     reference = plan.reference_driver
     if reference is None or not outcome.failed or not outcome.violated:
         return None
-    done = campaign.judged.get(case.sampler, 0)
-    if plan.reference_max is not None and done >= plan.reference_max:
-        return None
-    campaign.judged[case.sampler] = done + 1
-    ref = executor_of(item.config).run(make_job(item, plan, case, fresh_world=True, reference=reference,
-                                                fixtures=fixtures))
+    if not extra:
+        done = campaign.judged.get(case.sampler, 0)
+        if plan.reference_max is not None and done >= plan.reference_max:
+            return None
+        campaign.judged[case.sampler] = done + 1
+    from ..executors import InProcessExecutor
+
+    ref = InProcessExecutor().run(make_job(item, plan, case, fresh_world=True, reference=reference,
+                                           fixtures=fixtures))
     judged = Avoidability(reference, {}, {k: float(v) for k, v in ref.rho.items()},
                           unsafe_first=unsafe_first(outcome))
-    if ref.verdict == "error" and not ref.rho:
-        judged.error = ref.error
+    traj = ref.trajectory
+    if ref.verdict == "error" or traj is None:  # a run that went wrong is no evidence either way
+        judged.error = ref.error or "it recorded no trajectory"
         judged.avoidable = {m: None for m in outcome.violated}
         return judged
+    from ..monitors.conflict import crash_partner, judge_conflict
+    from ..monitors.metrics import CollisionMonitor
+
+    monitors = {m.name: m for m in (plan.monitor_set or ())}
+    where = violations_of(outcome.results, outcome.first) or {}
     for m in outcome.violated:
-        rho = ref.rho.get(m)
-        judged.avoidable[m] = None if rho is None or rho != rho else bool(rho >= 0)
+        monitor = monitors.get(m)
+        if monitor is None:
+            judged.avoidable[m] = None
+            continue
+        agent, t = where.get(m, {}).get("agent"), where.get(m, {}).get("t")
+        if agent is None and isinstance(monitor, CollisionMonitor) and outcome.trajectory is not None:
+            # a crash flag without a visible overlap (a crash between two samples): the
+            # simulator flagged the other car of it at the same step
+            partner = crash_partner(outcome.trajectory)
+            if partner is not None:
+                agent, t = partner[0], partner[1] if t is None else t
+        verdict = judge_conflict(monitor, traj, agent, t, margin=plan.reference_margin.get(m))
+        judged.conflicts[m] = verdict
+        judged.avoidable[m] = verdict.avoided
     return judged
+
+
+def judge_minimized(item: pytest.Function, campaign: Campaign, case: Case, shrink: ShrinkReport,
+                    found: Avoidability | None) -> Avoidability | None:
+    """The minimized case's own judgement: the reference driven on the minimized parameters
+    (it may meet another agent than the case as found did). Only for a counterexample whose
+    found case was judged — one more reference simulation for it, beyond ``reference_max``'s
+    count of counterexamples — and the found case's judgement when minimizing changed nothing."""
+    if found is None or shrink.minimized is None or shrink.outcome is None:
+        return None
+    if dict(shrink.minimized) == dict(case.params):
+        return found
+    small = slot_of(item).case(item.nodeid, dict(shrink.minimized), origin="shrink")
+    return judge_avoidability(item, campaign, small, shrink.outcome, extra=True)
+
+
+def judged_shrink_rows(rows: list[CaseRow], params: Mapping[str, Any], judged: Avoidability) -> list[CaseRow]:
+    """The shrink rows with the minimized candidate's row carrying its judgement."""
+    from dataclasses import replace
+
+    out = list(rows)
+    for k in range(len(out) - 1, -1, -1):
+        if dict(out[k].params) == dict(params) and out[k].verdict == "fail":
+            out[k] = replace(out[k], avoidable=judged.avoidable, unsafe_first=judged.unsafe_first,
+                             conflicts=judged.conflicts_json())
+            break
+    return out
 
 
 def unsafe_first(outcome: CaseOutcome) -> dict[str, Any] | None:
@@ -803,11 +883,17 @@ def body_rho(outcome: CaseOutcome) -> float:
 def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
              minimized: Mapping[str, Any] | None = None, shrink_sims: int | None = None,
              flaky: bool = False, avoidable: Mapping[str, bool | None] | None = None,
-             unsafe_first: Mapping[str, Any] | None = None) -> CaseRow:
+             unsafe_first: Mapping[str, Any] | None = None,
+             conflicts: Mapping[str, Mapping[str, Any]] | None = None,
+             minimized_violations: Mapping[str, Mapping[str, Any]] | None = None,
+             minimized_avoidable: Mapping[str, bool | None] | None = None,
+             minimized_conflicts: Mapping[str, Mapping[str, Any]] | None = None) -> CaseRow:
     """The error-table row of one finished case."""
     return CaseRow(
         test=function_id(item), item=item.nodeid, sampler=case.sampler, index=case.index,
         seed=case.seed, origin=case.origin, params=case.params, rho=outcome.rho,
         verdict=outcome.verdict, sim_time_s=outcome.sim_time_s, error=outcome.error,
         minimized=minimized, shrink_sims=shrink_sims, flaky=flaky, avoidable=avoidable,
-        unsafe_first=unsafe_first, violations=violations_of(outcome.results, outcome.first), drawn=outcome.drawn)
+        unsafe_first=unsafe_first, violations=violations_of(outcome.results, outcome.first), drawn=outcome.drawn,
+        conflicts=conflicts, minimized_violations=minimized_violations,
+        minimized_avoidable=minimized_avoidable, minimized_conflicts=minimized_conflicts)

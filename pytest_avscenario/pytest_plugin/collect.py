@@ -15,7 +15,7 @@ import keyword
 import types
 import warnings
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +72,9 @@ class ScenarioPlan:
     discard_unavoidable: bool = False  # active samplers learn nothing of unfair cases
     dt: float | None = None  # [s] world.run()'s step when it gives none (None: the driver's)
     dt_from: str = ""  # where dt was set, for the warnings that quote it
+    #: metric -> margin of the avoidability judgement in the metric's unit (absent: the
+    #: default of monitors.conflict: 0.2 m for a collision, 0 otherwise)
+    reference_margin: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def metrics(self) -> tuple[str, ...]:
@@ -187,7 +190,15 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
         replays=types.MappingProxyType(replays), accept=own.accept,
         reference_driver=own.reference_driver if "world" in metafunc.fixturenames else None,
         reference_max=own.reference_max, discard_unavoidable=own.unavoidable == "discard",
-        dt=own.dt, dt_from=own.dt_from)
+        dt=own.dt, dt_from=own.dt_from,
+        reference_margin=types.MappingProxyType(dict(own.reference_margin or {})))
+    # a marker's margins must name this test's metrics (a typo would silently keep the
+    # default); the command line's apply to whichever tests monitor the metrics it names
+    unknown = sorted(set(plan.reference_margin) - set(plan.metrics))
+    if unknown and "reference_margin" in spec.given:
+        raise DeclarationError(
+            f"reference_margin names {', '.join(repr(m) for m in unknown)}, which this test does "
+            f"not monitor; its metrics: {', '.join(plan.metrics) or '(none)'}")
     if own.accept.avoidable and plan.reference_driver is None:
         raise DeclarationError(
             "accept='avoidable' counts only counterexamples a reference driver avoids, but this "

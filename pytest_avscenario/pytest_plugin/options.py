@@ -154,6 +154,34 @@ def _sb3_driver(found: Found, config: pytest.Config) -> str:
         raise pytest.UsageError(f"{found.source}: {exc}") from None
 
 
+def _margins(raw: Any) -> dict[str, float]:
+    """``{metric: margin}`` from a marker's mapping or ``"collision=0.3,distance=1"``: the
+    band around zero within which the reference's value decides no avoidability judgement,
+    in each metric's unit (see :mod:`pytest_avscenario.monitors.conflict`)."""
+    if isinstance(raw, Mapping):
+        pairs = list(raw.items())
+    elif isinstance(raw, str):
+        pairs = []
+        for part in filter(None, (p.strip() for p in raw.split(","))):
+            metric, eq, value = part.partition("=")
+            if not eq or not metric.strip():
+                raise ValueError(f"must be METRIC=MARGIN[,METRIC=MARGIN], got {_show(raw)}")
+            pairs.append((metric.strip(), value.strip()))
+    else:
+        raise ValueError(f"must be a mapping {{metric: margin}} or 'METRIC=MARGIN,...', got {_show(raw)}")
+    out = {}
+    for metric, value in pairs:
+        try:
+            margin = float(value)
+        except (TypeError, ValueError):
+            margin = math.nan
+        if isinstance(value, bool) or not math.isfinite(margin) or margin < 0:
+            raise ValueError(f"margin of {metric!r} must be a number >= 0 in the metric's unit, "
+                             f"got {_show(value)}")
+        out[str(metric)] = margin
+    return out
+
+
 def _reference(raw: Any) -> str | None:
     """A built-in driver's name, or None for 'none' (no avoidability check)."""
     value = str(raw).strip() if isinstance(raw, str) or raw is None else raw
@@ -303,6 +331,12 @@ OPTIONS = (
            "runs (one extra simulation each; default: all)",
            "counterexamples per test and sampler whose avoidability is judged (default: all)",
            _integer(0), per_test=True),
+    Option("reference-margin", "METRIC=MARGIN[,...]",
+           "the margin of the avoidability judgement per metric, in the metric's unit: the "
+           "reference avoids a violation only with at least this much robustness toward the "
+           "same agent (default collision=0.2 [m], others 0)",
+           "avoidability margin per metric, e.g. collision=0.2,distance=0.5",
+           _margins, per_test=True),
     Option("unavoidable", "keep|discard",
            "'discard': active samplers are told nothing of cases that start RSS-unsafe or of "
            "counterexamples the reference driver cannot avoid either, so they do not converge "
@@ -425,6 +459,7 @@ class TestSettings:
     unavoidable: str  # "keep" or "discard"
     dt: float | None = None  # [s] world.run()'s step when it gives none (None: the driver's)
     dt_from: str = ""  # where dt came from: "@scenario(dt=...)", "--avs-dt", "ini avs_dt"
+    reference_margin: Mapping[str, float] | None = None  # metric -> margin (None: defaults)
 
 
 @dataclass(frozen=True)
@@ -481,6 +516,7 @@ class Settings:
             reference_driver=self._reference_for(spec),
             reference_max=pick("reference_max"),
             unavoidable=pick("unavoidable") or "keep",
+            reference_margin=pick("reference_margin"),
             **self._dt_for(spec),
         )
 

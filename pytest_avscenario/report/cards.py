@@ -230,11 +230,37 @@ def _parameter_table(row: CaseRow, space: Any) -> str:
     return "\n".join(out)
 
 
+#: a judgement's words on the card (True: the reference avoids the conflict)
+_JUDGEMENT = {True: "avoids it", False: "violates it too (unavoidable)", None: "unknown"}
+
+
+def _judgement_cell(avoidable: Mapping[str, Any] | None, conflicts: Mapping[str, Any] | None,
+                    metric: str, bad: bool) -> str:
+    if not bad:
+        return "<td></td>"
+    if avoidable is None or metric not in avoidable:
+        return f"<td>{DASH}</td>"
+    text = _JUDGEMENT.get(avoidable[metric], "unknown")
+    why = ((conflicts or {}).get(metric) or {}).get("why")
+    return f"<td>{e(text)}" + (f"<br><span class='meta'>{e(why)}</span>" if why else "") + "</td>"
+
+
 def _metric_table(row: CaseRow, metrics: Sequence[str]) -> str:
+    """Each metric as found; with a minimized case, where that one violated it first and with
+    whom; with a judgement, what the reference driver did in each case's conflict — every
+    column says which case it is about."""
     names = list(dict.fromkeys([*metrics, *row.rho]))
     judged = row.avoidable is not None
-    out = ["<table class='metrics'>", "<thead><tr><th>metric</th><th>ρ</th><th>threshold</th>"
-           "<th>first violation [s]</th><th>agent</th>" + ("<th>reference driver</th>" if judged else "")
+    small = row.minimized is not None and row.minimized_violations is not None
+    small_judged = row.minimized_avoidable is not None
+    head = ["metric", "ρ (as found)", "threshold", "first violation [s] (as found)", "agent (as found)"]
+    if judged:
+        head.append("reference driver, case as found")
+    if small:
+        head += ["first violation [s] (minimized)", "agent (minimized)"]
+    if small_judged:
+        head.append("reference driver, minimized case")
+    out = ["<table class='metrics'>", "<thead><tr>" + "".join(f"<th>{e(h)}</th>" for h in head)
            + "</tr></thead><tbody>"]
     for m in names:
         rho = row.rho.get(m)
@@ -248,10 +274,14 @@ def _metric_table(row: CaseRow, metrics: Sequence[str]) -> str:
                  f"<td class='num'>{DASH if t is None else f'{float(t):.2f}'}</td>",
                  f"<td>{e(where.get('agent') or DASH)}</td>"]
         if judged:
-            verdict = (row.avoidable or {}).get(m, "—") if bad else ""
-            text = {True: "avoids it", False: "violates it too (unavoidable)", None: "unknown"}.get(verdict, "") \
-                if verdict != "—" else DASH
-            cells.append(f"<td>{e(text)}</td>")
+            cells.append(_judgement_cell(row.avoidable, row.conflicts, m, bad))
+        if small:
+            there = (row.minimized_violations or {}).get(m) or {}
+            ts = there.get("t")
+            cells += [f"<td class='num'>{DASH if ts is None else f'{float(ts):.2f}'}</td>",
+                      f"<td>{e(there.get('agent') or DASH)}</td>"]
+        if small_judged:
+            cells.append(_judgement_cell(row.minimized_avoidable, row.minimized_conflicts, m, bad))
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</tbody></table>")
     return "\n".join(out)
@@ -309,7 +339,9 @@ def render_card(
     if row.flaky:
         facts.append("FLAKY: a replay with the same seed did not fail the same way")
     if row.unavoidable:
-        facts.append("unavoidable: the reference driver violates it too")
+        facts.append("unavoidable: the reference driver violates it too (case as found)")
+    if row.minimized_avoidable and all(v is False for v in row.minimized_avoidable.values()):
+        facts.append("minimized case unavoidable: the reference driver violates it too")
     parts.append(f"<p class='bad'>{e(what)}</p><p class='meta'>{e(' · '.join(facts))}</p>")
     if row.error and violated:
         parts.append(f"<p class='meta'>The body said: {e(row.error)}</p>")
@@ -342,13 +374,20 @@ def render_card(
             replay_data = None
     if pictures or replay_data is not None:
         parts.append("<h2>What happened</h2>")
+        # the pictures and the replay are drawn from the minimized case when there is one
+        # (the one an engineer studies), which may meet another agent than the case as found
+        which = "minimized case" if row.minimized is not None else "case as found"
         if row.minimized is not None:
-            parts.append("<p class='meta'>The pictures show the minimized case.</p>")
+            parts.append("<p class='meta'>The replay and the pictures show the <b>minimized case</b> "
+                         f"({e(', '.join(f'{k}={fmt_value(v)}' for k, v in row.minimized.items()))}), "
+                         "not the case as found; the metrics table says where each violated first.</p>")
         if replay_data is not None:
+            parts.append(f"<h3>Replay ({e(which)})</h3>")
             parts.append(replay(replay_data, row))
         for kind, path in pictures:
             link = href(directory, path)
-            parts.append(f"<figure><a href='{link}'><img src='{link}' alt='{e(FILE_CAPTIONS[kind])}: {e(row.item)}'></a>"
-                         f"<figcaption>{e(FILE_CAPTIONS[kind])}</figcaption></figure>")
+            caption = f"{FILE_CAPTIONS[kind]} ({which})"
+            parts.append(f"<figure><a href='{link}'><img src='{link}' alt='{e(caption)}: {e(row.item)}'></a>"
+                         f"<figcaption>{e(caption)}</figcaption></figure>")
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"

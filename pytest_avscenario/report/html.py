@@ -51,7 +51,7 @@ COLUMN_LEGEND = {
          "the samples leave no big hole): the smallest ε such that every point of a mesh lies within ε of a sample",
     "cex": "counterexamples: cases that violated a metric or failed the test body",
     "min": "counterexamples minimized (shrunk to the smallest departure from the nominal scenario)",
-    "unavoid": "counterexamples the reference driver fails too (unavoidable for a driver of its standard)",
+    "unavoid": "counterexamples the reference driver fails too, in the same conflict (unavoidable for a driver of its standard)",
     "modes": "failure modes: groups of counterexamples with the same first violated metric and agent, "
              "near each other in parameter space (each test's section lists them with their rules)",
     "errors": "cases that could not be judged (an exception, a timeout, no trajectory)",

@@ -74,7 +74,9 @@ def case_properties(
     ``avs.minimized`` (JSON of the minimal parameters) and ``avs.shrink_sims`` (simulations
     the shrinking spent), from the row unless given; ``avs.error`` when the simulation raised;
     ``avs.avoidable.<metric>`` (``true``/``false``/``unknown``) for a counterexample judged
-    against the reference driver, and ``avs.unsafe_first`` (``agent@seconds``).
+    against the reference driver, ``avs.conflict.<metric>`` (the other agent of the conflict
+    it was judged on, ``agent@seconds``), ``avs.minimized_avoidable.<metric>`` for the
+    minimized case's own judgement, and ``avs.unsafe_first`` (``agent@seconds``).
     """
     r = CaseRow.coerce(row)
     minimized = r.minimized if minimized is None else minimized
@@ -98,6 +100,10 @@ def case_properties(
         props.append(("avs.flaky", "true"))
     for m, ok in (r.avoidable or {}).items():
         props.append((f"avs.avoidable.{m}", {True: "true", False: "false"}.get(ok, "unknown")))
+    for m, c in (r.conflicts or {}).items():
+        props.append((f"avs.conflict.{m}", f"{c.get('agent')}@{c.get('t')}"))
+    for m, ok in (r.minimized_avoidable or {}).items():
+        props.append((f"avs.minimized_avoidable.{m}", {True: "true", False: "false"}.get(ok, "unknown")))
     if r.unsafe_first:
         props.append(("avs.unsafe_first", f"{r.unsafe_first.get('agent')}@{r.unsafe_first.get('t')}"))
     return [(name, xml_safe(value)) for name, value in props]

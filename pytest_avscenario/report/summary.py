@@ -95,7 +95,8 @@ class SummaryRow:
     #: campaign was not judged)
     reasons: tuple[str, ...] | None = None
     #: counterexamples whose avoidability was judged, and those of them the reference driver
-    #: could not avoid either (every violated metric violated by the reference too)
+    #: could not avoid either (it violates every violated metric too, in the same conflict:
+    #: the same other agent around the same time; judgements of the case as found)
     judged: int = 0
     unavoidable: int = 0
     #: the campaign's failure modes (:func:`.modes.failure_modes`), the largest first
@@ -323,7 +324,7 @@ LEGEND = "ε: coverage of the continuous parameters (smaller: better) · cex: co
 #: added when a column "modes" is shown
 LEGEND_MODES = " · modes: failure modes (kinds of counterexample, in the report)"
 #: added when a column "unavoid" is shown
-LEGEND_UNAVOIDABLE = " · unavoid: counterexamples the reference driver fails too"
+LEGEND_UNAVOIDABLE = " · unavoid: counterexamples the reference driver fails too, in the same conflict"
 
 
 def _legend(header: Sequence[str]) -> str:
