@@ -100,12 +100,12 @@ def test_the_check_can_be_turned_off_or_capped(pytester):
 
 @pytest.mark.parametrize("how", ["marker", "option"])
 def test_the_margin_is_configurable(pytester, how):
-    # the careful driver stops 5.6 m short of the car 120 m ahead: avoided with the default
-    # margin of 0.2 m, unknown with a margin of 6 m
+    # the careful driver stops 27.6 m short of the car 120 m ahead: avoided with the default
+    # margin of 0.2 m, unknown with a margin of 40 m
     pytester.makeconftest(BLIND)
-    extra = ", reference_margin={'collision': 6.0}" if how == "marker" else ""
+    extra = ", reference_margin={'collision': 40.0}" if how == "marker" else ""
     pytester.makepyfile(test_stopped=STOPPED.format(extra=extra))
-    args = ["--avs-reference-margin=collision=6"] if how == "option" else []
+    args = ["--avs-reference-margin=collision=40"] if how == "option" else []
     pytester.runpytest("--avs-db=none", "-p", "no:xdist", *args)
     rows = by_gap(pytester)
     assert rows[120.0]["avoidable"] == {"collision": None}
