@@ -146,9 +146,11 @@ def footprint_separation(traj: Trajectory) -> np.ndarray:
     return np.where(_pair_mask(traj), sep, np.inf)
 
 
-def _sat_separation(x0, y0, h0, l0, w0, xa, ya, ha, la, wa) -> np.ndarray:
-    """Separating-axis separation [m] of rectangle 0 (centre, heading, half length and half
-    width) from rectangles a; every argument broadcasts against the others."""
+def _sat_axes(x0, y0, h0, l0, w0, xa, ya, ha, la, wa) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For the four edge normals of rectangle 0 and rectangles a (centre, heading, half length
+    and half width; all broadcast): the signed projection of the centre offset and the sum of
+    the two half extents along the normal. The rectangles are apart along a normal by
+    ``|projection| - extent``."""
     c0, s0 = np.cos(h0), np.sin(h0)
     ca, sa = np.cos(ha), np.sin(ha)
     dx = xa - x0
@@ -156,14 +158,49 @@ def _sat_separation(x0, y0, h0, l0, w0, xa, ya, ha, la, wa) -> np.ndarray:
     # |cos| and |sin| of the angle between the two headings give every cross projection
     cr = np.abs(c0 * ca + s0 * sa)
     sr = np.abs(c0 * sa - s0 * ca)
-    return np.maximum(
+    return [
         # the first rectangle's axes: along (c0, s0) and across (-s0, c0)
-        np.maximum(np.abs(dx * c0 + dy * s0) - l0 - la * cr - wa * sr,
-                   np.abs(-dx * s0 + dy * c0) - w0 - la * sr - wa * cr),
+        (dx * c0 + dy * s0, l0 + la * cr + wa * sr),
+        (-dx * s0 + dy * c0, w0 + la * sr + wa * cr),
         # the other's axes
-        np.maximum(np.abs(dx * ca + dy * sa) - la - l0 * cr - w0 * sr,
-                   np.abs(-dx * sa + dy * ca) - wa - l0 * sr - w0 * cr),
-    )
+        (dx * ca + dy * sa, la + l0 * cr + w0 * sr),
+        (-dx * sa + dy * ca, wa + l0 * sr + w0 * cr),
+    ]
+
+
+def _sat_separation(*pose_and_size) -> np.ndarray:
+    """Separating-axis separation [m] of rectangle 0 from rectangles a (see :func:`_sat_axes`)."""
+    (p0, e0), (p1, e1), (p2, e2), (p3, e3) = _sat_axes(*pose_and_size)
+    return np.maximum(np.maximum(np.abs(p0) - e0, np.abs(p1) - e1),
+                      np.maximum(np.abs(p2) - e2, np.abs(p3) - e3))
+
+
+def _swept_box_separation(traj: Trajectory, k: int) -> np.ndarray:
+    """``(A-1,)`` highway-env's own "will they meet" test of the ego with each other agent over
+    the step from sample ``k``, as a separation [m] (<= 0: it predicts a contact; +inf absent).
+
+    Each agent moves on at its recorded velocity; along each of the four edge normals the
+    projections must stay apart over the whole step. Unlike the exact test of
+    :func:`swept_contacts` it never tries the axis across the relative motion, so it can
+    predict a contact for two corners that pass within centimetres on a diagonal."""
+    dt = float(traj.t[k + 1] - traj.t[k])
+    hl, hw = traj.length / 2, traj.width / 2
+    pose = lambda a, shift: (traj.x[a, k] + shift * traj.vx[a, k] * dt,
+                             traj.y[a, k] + shift * traj.vy[a, k] * dt, traj.heading[a, k])
+    ego = (traj.x[0, k], traj.y[0, k], traj.heading[0, k], hl[0], hw[0])
+    start = _sat_axes(*ego, *pose(slice(1, None), 0.0), hl[1:], hw[1:])
+    # the others' motion relative to the ego's: shift them by their displacement minus the ego's
+    rx = traj.x[1:, k] + (traj.vx[1:, k] - traj.vx[0, k]) * dt
+    ry = traj.y[1:, k] + (traj.vy[1:, k] - traj.vy[0, k]) * dt
+    end = _sat_axes(*ego, rx, ry, traj.heading[1:, k], hl[1:], hw[1:])
+    seps = []
+    for (p_start, extent), (p_end, _) in zip(start, end):
+        # distance from 0 to the projections swept from start to end
+        reach = np.where(p_start * p_end <= 0, 0.0, np.minimum(np.abs(p_start), np.abs(p_end)))
+        seps.append(reach - extent)
+    out = np.max(seps, axis=0)
+    both = traj.present[0, k] & traj.present[1:, k]
+    return np.where(both & np.isfinite(out), out, np.inf)
 
 
 #: [m] resolution of the swept-footprint search: a contact that only grazes, less than half
@@ -171,10 +208,14 @@ def _sat_separation(x0, y0, h0, l0, w0, xa, ya, ha, la, wa) -> np.ndarray:
 SWEPT_TOL_M = 1e-3
 #: equal sub-steps of a recorded interval at which the depth of a between-steps overlap is read
 DEPTH_SUBSTEPS = 32
+#: [m] footprints overlapping by less than this are touching: highway-env pushes crashed
+#: vehicles exactly into contact, which rounding reads as a 1e-16 m overlap
+CONTACT_EPS_M = 1e-9
 
 
 def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
-                   intervals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                   intervals: np.ndarray | None = None,
+                   separation: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(A-1, T-1)`` first contact time [s] and depth [m] of the ego's footprint with each
     other agent's while they move between recorded steps ``k`` and ``k+1``; NaN where they
     stay apart (or either agent is absent at either end).
@@ -183,7 +224,8 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
     interpolated linearly between the two recorded poses (highway-env's own Euler step moves
     a vehicle exactly so); with ``extrapolate`` each agent keeps its recorded velocity and
     heading from step ``k`` for the interval (the test highway-env makes to predict a contact,
-    after which it pushes the pair apart). ``intervals`` (``(T-1,)`` bool) limits the search.
+    after which it pushes the pair apart). ``intervals`` (``(T-1,)`` bool) limits the search;
+    ``separation`` is :func:`footprint_separation` of ``traj`` when the caller has it.
 
     The search is exact up to :data:`SWEPT_TOL_M`: a point of either footprint moves at most
     ``L = |relative displacement| + R_ego |heading change| + R_other |heading change|`` over an
@@ -220,7 +262,7 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
     with np.errstate(invalid="ignore"):
         lip = (np.hypot(dx[1:] - dx[0], dy[1:] - dy[0])
                + radius[0] * np.abs(dh[0]) + radius[1:] * np.abs(dh[1:]))
-        sep = footprint_separation(traj)
+        sep = footprint_separation(traj) if separation is None else separation
         s_start = sep[:, :-1]
         if extrapolate:
             s_end = _sat_separation(x1[0], y1[0], h1[0], hl[0], hw[0], x1[1:], y1[1:], h1[1:],
@@ -228,7 +270,7 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
         else:
             s_end = sep[:, 1:]
         # most intervals are proved free by their two ends alone
-        ok &= ~((s_start >= 0) & (s_end >= 0) & (s_start + s_end >= lip))
+        ok &= ~(np.maximum(s_start, 0.0) + np.maximum(s_end, 0.0) >= lip)
     rows, cols = np.nonzero(ok)
     if rows.size == 0:
         return t_contact, depth
@@ -247,20 +289,21 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
     n = rows.size
     s_a, s_b = s_start[rows, cols], s_end[rows, cols]
     first = np.full(n, np.inf)  # earliest overlapping probe (fraction of the interval)
-    first[s_b < 0] = 1.0
-    first[s_a < 0] = 0.0
+    first[s_b < -CONTACT_EPS_M] = 1.0
+    first[s_a < -CONTACT_EPS_M] = 0.0
     j = np.arange(n)
     a, b = np.zeros(n), np.ones(n)
     for _ in range(64):  # halvings; L / 2**64 is far below any tolerance
         span = L[j] * (b - a)
-        proved = (s_a >= 0) & (s_b >= 0) & (s_a + s_b >= span)
+        # a separation is a lower bound of the gap only where it is positive
+        proved = np.maximum(s_a, 0.0) + np.maximum(s_b, 0.0) >= span
         live = (a < first[j]) & (span >= SWEPT_TOL_M) & ~proved
         if not live.any():
             break
         j, a, b, s_a, s_b = j[live], a[live], b[live], s_a[live], s_b[live]
         m = (a + b) / 2
         s_m = sep_at(j, m)
-        hit = s_m < 0
+        hit = s_m < -CONTACT_EPS_M
         np.minimum.at(first, j[hit], m[hit])
         j, a, b = np.concatenate([j, j]), np.concatenate([a, m]), np.concatenate([m, b])
         s_a, s_b = np.concatenate([s_a, s_m]), np.concatenate([s_m, s_b])
@@ -459,9 +502,10 @@ def lane_keeping(threshold: float = 0.5, *, name: str = "lane_keeping") -> Monit
 
 class CollisionMonitor(Monitor):
     threshold = 0.0
-    #: robustness [m] charged for a recorded crash flag that no recorded agent's footprint
-    #: explains (e.g. the simulator's crash with a static object that is not in the trajectory)
+    #: robustness [m] charged for a recorded crash flag without an overlap to measure: one the
+    #: simulator's coarser test predicted, or with something not in the trajectory
     FLAG_RHO = -0.01
+    CONTACT_EPS = CONTACT_EPS_M
 
     invariant = True  # must hold at every step (first_violation bisects prefixes)
 
@@ -472,6 +516,7 @@ class CollisionMonitor(Monitor):
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "heading"))
         sep = footprint_separation(traj)
+        sep = np.where(np.abs(sep) < self.CONTACT_EPS, 0.0, sep)
         if not (sep.size and np.isfinite(sep).any()):
             res = MonitorResult(self.name, math.inf, 0.0, None, None, "no other agent present")
         else:
@@ -481,35 +526,45 @@ class CollisionMonitor(Monitor):
             if v < 0:
                 return MonitorResult(self.name, v, 0.0, fmt_t(traj, step), who,
                                      f"overlap {-v:.3g} m deep with {who} at t={traj.t[step]:.2f} s")
-            between = self._between_steps(traj, swept_contacts(traj), "interpolated")
-            if between is not None:
-                return between
             res = MonitorResult(self.name, v, 0.0, fmt_t(traj, step), who,
                                 f"min footprint separation {v:.3g} m to {who} at t={traj.t[step]:.2f} s")
-        if self.use_crash_flag:
-            flagged = traj.crashed[0] & traj.present[0]
-            if flagged.any():
-                k = int(np.argmax(flagged))
-                if k > 0:
-                    # highway-env tests each step whether the footprints, moving on at their
-                    # velocities, would meet within the next step; if so it pushes them apart
-                    # and flags both as crashed, so no recorded step need show the overlap
-                    only = np.arange(traj.n_steps - 1) == k - 1
-                    contact = swept_contacts(traj, extrapolate=True, intervals=only)
-                    explained = self._between_steps(traj, contact, "extrapolated", flag_t=traj.t[k])
-                    if explained is not None:
-                        return explained
-                return MonitorResult(self.name, self.FLAG_RHO, 0.0, fmt_t(traj, k), None,
-                                     f"simulator reports an ego crash at t={traj.t[k]:.2f} s, "
-                                     "but no recorded agent's footprint overlaps the ego's, at the "
-                                     "recorded steps or swept between them (a static object or an "
-                                     "unrecorded vehicle)")
-        return res
+        found = [self._between_steps(traj, swept_contacts(traj, separation=sep), "interpolated")]
+        flagged = traj.crashed[0] & traj.present[0] if self.use_crash_flag else np.zeros(0, bool)
+        k = int(np.argmax(flagged)) if flagged.any() else None
+        if k:  # an onset after the first sample has a step before it to explain it
+            # highway-env tests each step whether the footprints, moving on at their velocities,
+            # would meet within the next step; if so it pushes them apart and flags both as
+            # crashed, so no recorded step need show the overlap
+            only = np.arange(traj.n_steps - 1) == k - 1
+            found.append(self._between_steps(
+                traj, swept_contacts(traj, extrapolate=True, intervals=only, separation=sep),
+                "extrapolated", flag_t=float(traj.t[k])))
+        found = [r for r in found if r is not None]
+        if found:
+            return min(found, key=lambda r: r.rho)
+        if k is None:
+            return res
+        if k:
+            box = _swept_box_separation(traj, k - 1)
+            if np.any(box <= self.CONTACT_EPS):
+                row = int(np.argmin(box))
+                who = traj.names[row + 1]
+                return MonitorResult(
+                    self.name, self.FLAG_RHO, 0.0, fmt_t(traj, k), who,
+                    f"simulator reports an ego crash with {who} at t={traj.t[k]:.2f} s: its "
+                    f"swept-box test from t={traj.t[k - 1]:.2f} s predicted a contact, though the "
+                    "footprints moving at their recorded velocities pass without overlapping "
+                    "(the test does not try the axis across their relative motion)")
+        return MonitorResult(self.name, self.FLAG_RHO, 0.0, fmt_t(traj, k), None,
+                             f"simulator reports an ego crash at t={traj.t[k]:.2f} s, but no "
+                             "recorded agent's footprint meets the ego's, at the recorded steps "
+                             "or swept between them (a static object or an unrecorded vehicle)")
 
     def _between_steps(self, traj: Trajectory, contact: tuple[np.ndarray, np.ndarray],
                        motion: str, flag_t: float | None = None) -> MonitorResult | None:
-        """The deepest between-steps contact of :func:`swept_contacts` as a result, or None."""
+        """The deepest contact of :func:`swept_contacts` as a result, or None."""
         t_contact, depth = contact
+        depth = np.where(depth > self.CONTACT_EPS, depth, np.nan)
         if not np.isfinite(depth).any():
             return None
         row, k = np.unravel_index(np.nanargmax(depth), depth.shape)
