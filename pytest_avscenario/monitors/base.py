@@ -291,4 +291,9 @@ def first_violation(monitor: "Monitor", traj: Trajectory,
             hi, found = mid, r
         else:
             lo = mid + 1
-    return float(traj.t[hi - 1]), found.agent if found.agent is not None else result.agent
+    first = float(traj.t[hi - 1])
+    # a contact found between the last two recorded steps of that prefix (a swept collision)
+    # happened at its own moment, before the step that records it
+    if found.t is not None and hi >= 2 and traj.t[hi - 2] < found.t < first:
+        first = float(found.t)
+    return first, found.agent if found.agent is not None else result.agent

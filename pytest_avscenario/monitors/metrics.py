@@ -206,7 +206,8 @@ def _swept_box_separation(traj: Trajectory, k: int) -> np.ndarray:
 #: [m] resolution of the swept-footprint search: a contact that only grazes, less than half
 #: of this deep, may go unseen; contact times are found to within this much relative travel
 SWEPT_TOL_M = 1e-3
-#: equal sub-steps of a recorded interval at which the depth of a between-steps overlap is read
+#: equal sub-steps of a recorded interval among which the deepest moment of a between-steps
+#: overlap is sought (then refined)
 DEPTH_SUBSTEPS = 32
 #: [m] footprints overlapping by less than this are touching: highway-env pushes crashed
 #: vehicles exactly into contact, which rounding reads as a 1e-16 m overlap
@@ -237,7 +238,8 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
     a probe overlaps or the stretch is too short to hide a contact deeper than half the
     tolerance. The contact time is the earliest overlapping probe (within ``SWEPT_TOL_M / L``
     of the true first contact); the depth is the largest penetration depth (minus the
-    separation) at that probe and at :data:`DEPTH_SUBSTEPS` equal sub-steps of the interval.
+    separation) over the interval: the deepest of :data:`DEPTH_SUBSTEPS` equal sub-steps,
+    refined by a ternary search around it.
     """
     A1, T = traj.n_agents - 1, traj.n_steps
     t_contact = np.full((max(A1, 0), max(T - 1, 0)), np.nan)
@@ -310,9 +312,19 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
     found = np.flatnonzero(np.isfinite(first))
     if found.size == 0:
         return t_contact, depth
-    grid = np.concatenate([np.linspace(0.0, 1.0, DEPTH_SUBSTEPS + 1)[None, :].repeat(found.size, 0),
-                           first[found, None]], axis=1)
-    deepest = sep_at(np.repeat(found, grid.shape[1]), grid.ravel()).reshape(grid.shape).min(axis=1)
+    # the deepest moment: the best of a grid, then a ternary search around it (the overlap
+    # deepens and recedes once while the footprints pass through each other)
+    grid = np.linspace(0.0, 1.0, DEPTH_SUBSTEPS + 1)
+    on_grid = sep_at(np.repeat(found, grid.size), np.tile(grid, found.size)).reshape(-1, grid.size)
+    best = grid[np.argmin(on_grid, axis=1)]
+    lo = np.maximum(best - 1.0 / DEPTH_SUBSTEPS, 0.0)
+    hi = np.minimum(best + 1.0 / DEPTH_SUBSTEPS, 1.0)
+    for _ in range(40):
+        m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+        left = sep_at(found, m1) < sep_at(found, m2)
+        hi, lo = np.where(left, m2, hi), np.where(left, lo, m1)
+    deepest = np.minimum.reduce([on_grid.min(axis=1), sep_at(found, (lo + hi) / 2),
+                                 sep_at(found, first[found])])
     r, c = rows[found], cols[found]
     t_contact[r, c] = traj.t[c] + first[found] * (traj.t[c + 1] - traj.t[c])
     depth[r, c] = -deepest
@@ -587,18 +599,22 @@ def collision(*, use_crash_flag: bool = True, name: str = "collision") -> Monito
 
     rho [m]: when the footprints overlap at a recorded step, minus the deepest penetration
     depth (separating-axis) over the steps, as it always was. Otherwise, when they overlap
-    between two recorded steps with the poses interpolated linearly (a fast or oblique pass
-    that the samples straddle; see :func:`swept_contacts`), minus the deepest penetration
-    depth of the interpolated footprints, read at the first contact and at
-    :data:`DEPTH_SUBSTEPS` sub-steps of that interval; the result's ``t`` is then the first
-    contact [s], between the steps, and ``agent`` the one met. Otherwise the smallest
-    separation over the recorded steps (positive: how far apart they stayed).
+    between two recorded steps with centres and headings interpolated linearly (a fast or
+    oblique pass that the samples straddle; see :func:`swept_contacts`), minus the deepest
+    penetration depth of the interpolated footprints; the result's ``t`` is then the moment
+    [s] that agent first meets the ego, between the steps, and ``agent`` the one met.
+    Otherwise the smallest separation at the recorded steps (positive: how far apart they
+    stayed). Overlaps shallower than 1e-9 m count as touching.
 
-    With ``use_crash_flag`` a crash the simulator recorded for the ego without any such
-    overlap also fails. When an agent, moving on from the step before the flag at its
-    recorded velocity and heading (highway-env's own contact test, after which it pushes the
-    pair apart), meets the ego within that step, it is named, with rho = minus the depth of
-    that swept overlap; when none does (a static object or an unrecorded vehicle), rho =
+    With ``use_crash_flag`` a crash the simulator recorded for the ego also fails when no
+    footprint overlap shows it. highway-env predicts each step whether two vehicles moving
+    on at their velocities meet within the next step, then pushes them apart and flags both,
+    so a side swipe at dt = 0.2 s is often recorded as a flag and two footprints centimetres
+    apart. The agent whose footprint, moving on from the step before the flag at its recorded
+    velocity and heading, meets the ego's within that step is named, with the contact time
+    and rho = minus the depth that swept overlap reaches. Failing that, an agent that
+    highway-env's coarser swept-box test (edge normals only) finds is named with rho = -0.01
+    m; when nothing explains the flag (a static object or an unrecorded vehicle), rho =
     -0.01 m and no agent."""
     return CollisionMonitor(use_crash_flag=use_crash_flag, name=name)
 
