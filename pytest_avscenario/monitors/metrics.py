@@ -185,10 +185,8 @@ def _swept_box_separation(traj: Trajectory, k: int) -> np.ndarray:
     predict a contact for two corners that pass within centimetres on a diagonal."""
     dt = float(traj.t[k + 1] - traj.t[k])
     hl, hw = traj.length / 2, traj.width / 2
-    pose = lambda a, shift: (traj.x[a, k] + shift * traj.vx[a, k] * dt,
-                             traj.y[a, k] + shift * traj.vy[a, k] * dt, traj.heading[a, k])
     ego = (traj.x[0, k], traj.y[0, k], traj.heading[0, k], hl[0], hw[0])
-    start = _sat_axes(*ego, *pose(slice(1, None), 0.0), hl[1:], hw[1:])
+    start = _sat_axes(*ego, traj.x[1:, k], traj.y[1:, k], traj.heading[1:, k], hl[1:], hw[1:])
     # the others' motion relative to the ego's: shift them by their displacement minus the ego's
     rx = traj.x[1:, k] + (traj.vx[1:, k] - traj.vx[0, k]) * dt
     ry = traj.y[1:, k] + (traj.vy[1:, k] - traj.vy[0, k]) * dt
@@ -537,7 +535,8 @@ class CollisionMonitor(Monitor):
             who = traj.names[row + 1]
             if v < 0:
                 return MonitorResult(self.name, v, 0.0, fmt_t(traj, step), who,
-                                     f"overlap {-v:.3g} m deep with {who} at t={traj.t[step]:.2f} s")
+                                     f"overlap {-v:.3g} m deep with {who} at t={traj.t[step]:.2f} s"
+                                     + self._earlier_flag(traj, sep))
             res = MonitorResult(self.name, v, 0.0, fmt_t(traj, step), who,
                                 f"min footprint separation {v:.3g} m to {who} at t={traj.t[step]:.2f} s")
         found = [self._between_steps(traj, swept_contacts(traj, separation=sep), "interpolated")]
@@ -571,6 +570,18 @@ class CollisionMonitor(Monitor):
                              f"simulator reports an ego crash at t={traj.t[k]:.2f} s, but no "
                              "recorded agent's footprint meets the ego's, at the recorded steps "
                              "or swept between them (a static object or an unrecorded vehicle)")
+
+    def _earlier_flag(self, traj: Trajectory, sep: np.ndarray) -> str:
+        """A note when the simulator flagged the ego's crash before any recorded step overlaps
+        (the overlaps that follow are what is left after highway-env pushed the pair apart)."""
+        flagged = traj.crashed[0] & traj.present[0]
+        if not (self.use_crash_flag and flagged.any()):
+            return ""
+        k, first = int(np.argmax(flagged)), int(np.argmax((sep < 0).any(axis=0)))
+        if k >= first:
+            return ""
+        return (f"; the simulator flagged the ego's crash earlier, at t={traj.t[k]:.2f} s "
+                "(first_violation names that contact)")
 
     def _between_steps(self, traj: Trajectory, contact: tuple[np.ndarray, np.ndarray],
                        motion: str, flag_t: float | None = None) -> MonitorResult | None:
