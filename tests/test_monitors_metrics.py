@@ -381,6 +381,19 @@ def test_a_highway_env_side_swipe_at_5_hz_is_seen_between_the_steps():
     assert r.rho < -0.1  # how deep the cutter would have gone had highway-env not pushed
 
 
+def test_rounding_at_contact_is_touching_not_an_overlap():
+    # highway-env pushes crashed cars exactly into contact; at x ~ 1e3 m the separation of
+    # two cars nose to tail on a heading of 0.3 rad reads as -1.8e-14 m, which the monitor
+    # must not report as an "overlap 1.8e-14 m deep"
+    x, h = 1001.3, 0.3
+    traj = Trajectory.from_arrays([0.0], {
+        "ego": {"x": [x], "y": [0.2], "heading": [h], "vx": 1.0, "vy": 0.0},
+        "other": {"x": [x + 5 * math.cos(h)], "y": [0.2 + 5 * math.sin(h)], "heading": [h],
+                  "vx": 1.0, "vy": 0.0}})
+    assert footprint_separation(traj)[0, 0] < 0
+    assert collision(use_crash_flag=False).evaluate(traj).rho == 0.0
+
+
 def test_swept_search_agrees_with_a_brute_force_sweep_on_a_fine_grid():
     # many agents crossing the ego's path at random places, speeds and turn rates: the
     # earliest contact found equals the first overlapping sub-step of 4000 per interval
