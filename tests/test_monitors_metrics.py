@@ -333,6 +333,21 @@ def test_a_crash_flag_between_steps_is_explained_by_the_swept_footprints():
     assert r.rho == pytest.approx(-0.2, abs=1e-3) and "recorded velocities" in r.detail
 
 
+def test_an_overlap_after_an_earlier_crash_flag_keeps_its_rho_and_the_first_contact():
+    # as hw_crash(-2.5), then the pushed pair settles 1 mm into each other at t = 0.4 s
+    traj = Trajectory.from_arrays([0.0, 0.2, 0.4], {
+        "ego": {"x": [0.0, 5.0, 10.0], "y": [0.0, 0.0, 0.0], "vx": 25.0, "vy": 0.0,
+                "heading": 0.0, "crashed": [False, True, True]},
+        "cutter": {"x": [1.0, 5.0, 9.0], "y": [2.3, 2.05, 1.999], "vx": 20.0, "vy": [-2.5, 0, 0],
+                   "heading": 0.0, "crashed": [False, True, True]},
+    })
+    r = collision().evaluate(traj)
+    assert r.rho == pytest.approx(-0.001) and r.t == 0.4  # the step overlap, as always
+    assert "flagged the ego's crash earlier, at t=0.20 s" in r.detail
+    t, agent = first_violation(collision(), traj, r)
+    assert agent == "cutter" and t == pytest.approx(0.12, abs=1e-3)
+
+
 def test_a_crash_flag_nobody_explains_is_a_static_object():
     r = collision().evaluate(hw_crash(+2.5))  # the car moves away: something else hit the ego
     assert r.rho == collision().FLAG_RHO and r.agent is None and "static object" in r.detail
