@@ -32,9 +32,10 @@ vehicle starts 2 s of closing before the trigger point ahead of it. Nominal: 90 
 A failure: as in test_r157_lead_deceleration (collision, off the road, footprints closer
 than 1 m, TTC below 2 s with a 3.5 m circle), without lane keeping: changing lane away
 from the cutting vehicle is a legitimate answer that the paper's mean lane offset would
-count against the ego; ``off_road`` still fails an ego that leaves the carriageway. Cut-ins closer than the C&C driver can handle are
-unavoidable by design (the Annex's "unavoidable collision" cases); ``--avs-accept
-avoidable`` counts only counterexamples the C&C driver avoids.
+count against the ego; ``off_road`` still fails an ego that leaves the carriageway.
+Cut-ins closer than the C&C driver can handle are unavoidable by design (the Annex's
+"unavoidable collision" cases); ``--avs-accept avoidable`` counts only counterexamples the
+C&C driver avoids.
 """
 
 from pytest_avscenario import Choice, Uniform, scenario

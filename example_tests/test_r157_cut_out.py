@@ -30,8 +30,9 @@ right when its front is 10-100 m from the blocking object, at a maximum lateral 
 Nominal: 90 km/h, 1.6 s behind the lead, which leaves to the left 4 s before a stopped car
 at 1.5 m/s. A failure: as in test_r157_lead_deceleration (collision, off the road,
 footprints closer than 1 m, TTC below 2 s with a 3.5 m circle), without lane keeping (as in
-the cut-in: swerving round the revealed vehicle is legitimate, leaving the road is not); ``--avs-accept avoidable`` applies the
-regulation's criterion: only counterexamples R157's C&C driver avoids count.
+the cut-in: swerving round the revealed vehicle is legitimate, leaving the road is not);
+``--avs-accept avoidable`` applies the regulation's criterion: only counterexamples R157's
+C&C driver avoids count.
 """
 
 from pytest_avscenario import Choice, Uniform, scenario

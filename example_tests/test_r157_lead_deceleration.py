@@ -30,9 +30,10 @@ A failure: a collision, the ego's centre off the carriageway at any step (``off_
 agent that leaves the road fails here whatever else it does), the footprints closer than
 1 m (``distance``), a TTC below the C&C driver's critical 2 s (``ttc``, with a 3.5 m circle
 so traffic in the next lane is not counted), or the ego off its lane centre by 0.5 m on
-average (``lane_keeping``, for the bends). Every counterexample is also judged avoidable or not by R157's C&C driver (the
-plugin's default reference driver); ``--avs-accept avoidable`` applies the regulation's
-criterion: a counterexample counts only when that driver avoids the same violation.
+average (``lane_keeping``, for the bends). Every counterexample is also judged avoidable or
+not by R157's C&C driver (the plugin's default reference driver); ``--avs-accept
+avoidable`` applies the regulation's criterion: a counterexample counts only when that
+driver avoids the same violation.
 """
 
 from pytest_avscenario import Choice, Uniform, scenario
