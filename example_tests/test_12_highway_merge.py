@@ -17,15 +17,16 @@ Parameters: ``ego_speed`` [m/s] U(20, 32); ``right_slower`` [m/s] U(0, 10); ``ri
 27 m/s, the right-lane car 3 m/s slower arriving 3 s before it, the ramp car 45 m up the
 ramp at 18 m/s.
 
-A failure: a collision, footprints closer than 1 m (``distance``), a TTC below 2 s with a
-3.5 m circle (so traffic in the next lane is not counted) or the ego off its lane centre by
-0.5 m on average (``lane_keeping``). Expected corners: a right-lane car just ahead of the
+A failure: a collision, the ego's centre off the carriageway (``off_road``), footprints
+closer than 1 m (``distance``), a TTC below 2 s with a 3.5 m circle (so traffic in the next
+lane is not counted) or the ego off its lane centre by 0.5 m on average (``lane_keeping``).
+Expected corners: a right-lane car just ahead of the
 ego and slower than it, merging in late at the lane drop; the autopilot sees the merging car
 only once its footprint overlaps the ego's path.
 """
 
 from pytest_avscenario import Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, lane_keeping, ttc
+from pytest_avscenario.monitors import collision, distance, lane_keeping, off_road, ttc
 from pytest_avscenario.sim.highway import arc, straight
 
 
@@ -37,9 +38,9 @@ from pytest_avscenario.sim.highway import arc, straight
     ramp_speed=Uniform(10.0, 25.0, nominal=18.0, unit="m/s"),
     samples=30,
     sampler=["halton", "mab"],
-    monitors=[collision(), distance(1.0, footprint=True), ttc(2.0, radius=3.5),
+    monitors=[collision(), off_road(), distance(1.0, footprint=True), ttc(2.0, radius=3.5),
               lane_keeping(0.5)],
-    priority=["collision", "distance", "ttc", "lane_keeping"],
+    priority=["collision", "off_road", "distance", "ttc", "lane_keeping"],
 )
 def test_highway_merge(case, world):
     road = world.highway(lanes=2, lane_width=3.75, speed_limit=36.1, segments=[

@@ -29,14 +29,17 @@ The ego keeps the middle lane of a three-lane motorway at its initial speed; the
 vehicle starts 2 s of closing before the trigger point ahead of it. Nominal: 90 km/h, a car
 20 km/h slower from the left at 1.5 s moving across at 1 m/s — an ordinary cut-in.
 
-A failure: as in test_r157_lead_deceleration (collision, footprints closer than 1 m, TTC
-below 2 s with a 3.5 m circle). Cut-ins closer than the C&C driver can handle are
-unavoidable by design (the Annex's "unavoidable collision" cases); ``--avs-accept
-avoidable`` counts only counterexamples the C&C driver avoids.
+A failure: as in test_r157_lead_deceleration (collision, off the road, footprints closer
+than 1 m, TTC below 2 s with a 3.5 m circle), without lane keeping: changing lane away
+from the cutting vehicle is a legitimate answer that the paper's mean lane offset would
+count against the ego; ``off_road`` still fails an ego that leaves the carriageway.
+Cut-ins closer than the C&C driver can handle are unavoidable by design (the Annex's
+"unavoidable collision" cases); ``--avs-accept avoidable`` counts only counterexamples the
+C&C driver avoids.
 """
 
 from pytest_avscenario import Choice, Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, ttc
+from pytest_avscenario.monitors import collision, distance, off_road, ttc
 from pytest_avscenario.sim import behaviors as b
 
 from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
@@ -50,8 +53,9 @@ from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
     lateral_speed=Uniform(0.5, 3.0, nominal=1.0, unit="m/s"),
     samples=30,
     sampler=["halton", "mab"],
-    monitors=[collision(), distance(1.0, footprint=True), ttc(CC.critical_ttc, radius=3.5)],
-    priority=["collision", "distance", "ttc"],
+    monitors=[collision(), off_road(), distance(1.0, footprint=True),
+              ttc(CC.critical_ttc, radius=3.5)],
+    priority=["collision", "off_road", "distance", "ttc"],
 )
 def test_r157_cut_in(case, world):
     v = case.ego_speed * KMH

@@ -28,13 +28,15 @@ right when its front is 10-100 m from the blocking object, at a maximum lateral 
   stationary obstacle.
 
 Nominal: 90 km/h, 1.6 s behind the lead, which leaves to the left 4 s before a stopped car
-at 1.5 m/s. A failure: as in test_r157_lead_deceleration (collision, footprints closer
-than 1 m, TTC below 2 s with a 3.5 m circle); ``--avs-accept avoidable`` applies the
-regulation's criterion: only counterexamples R157's C&C driver avoids count.
+at 1.5 m/s. A failure: as in test_r157_lead_deceleration (collision, off the road,
+footprints closer than 1 m, TTC below 2 s with a 3.5 m circle), without lane keeping (as in
+the cut-in: swerving round the revealed vehicle is legitimate, leaving the road is not);
+``--avs-accept avoidable`` applies the regulation's criterion: only counterexamples R157's
+C&C driver avoids count.
 """
 
 from pytest_avscenario import Choice, Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, ttc
+from pytest_avscenario.monitors import collision, distance, off_road, ttc
 from pytest_avscenario.sim import behaviors as b
 
 from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
@@ -49,8 +51,9 @@ from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
     revealed_speed=Uniform(0.0, 40.0, nominal=0.0, unit="km/h"),
     samples=30,
     sampler=["halton", "mab"],
-    monitors=[collision(), distance(1.0, footprint=True), ttc(CC.critical_ttc, radius=3.5)],
-    priority=["collision", "distance", "ttc"],
+    monitors=[collision(), off_road(), distance(1.0, footprint=True),
+              ttc(CC.critical_ttc, radius=3.5)],
+    priority=["collision", "off_road", "distance", "ttc"],
 )
 def test_r157_cut_out(case, world):
     v = case.ego_speed * KMH

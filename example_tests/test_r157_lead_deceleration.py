@@ -26,16 +26,18 @@ The lead follows a speed profile (hold, then brake linearly to a stop), the ego 
 middle lane of a three-lane motorway at its initial speed. Nominal: 100 km/h, 1.6 s, a
 3 m/s^2 stop after 2 s on a straight road — a firm but ordinary stop.
 
-A failure: a collision, the footprints closer than 1 m (``distance``), a TTC below the
-C&C driver's critical 2 s (``ttc``, with a 3.5 m circle so traffic in the next lane is not
-counted), or the ego off its lane centre by 0.5 m on average (``lane_keeping``, for the
-bends). Every counterexample is also judged avoidable or not by R157's C&C driver (the
-plugin's default reference driver); ``--avs-accept avoidable`` applies the regulation's
-criterion: a counterexample counts only when that driver avoids the same violation.
+A failure: a collision, the ego's centre off the carriageway at any step (``off_road``: an
+agent that leaves the road fails here whatever else it does), the footprints closer than
+1 m (``distance``), a TTC below the C&C driver's critical 2 s (``ttc``, with a 3.5 m circle
+so traffic in the next lane is not counted), or the ego off its lane centre by 0.5 m on
+average (``lane_keeping``, for the bends). Every counterexample is also judged avoidable or
+not by R157's C&C driver (the plugin's default reference driver); ``--avs-accept
+avoidable`` applies the regulation's criterion: a counterexample counts only when that
+driver avoids the same violation.
 """
 
 from pytest_avscenario import Choice, Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, lane_keeping, ttc
+from pytest_avscenario.monitors import collision, distance, lane_keeping, off_road, ttc
 from pytest_avscenario.sim import behaviors as b
 
 from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
@@ -49,9 +51,9 @@ from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
     curve=Choice(["straight", "left", "right"]),
     samples=30,
     sampler=["halton", "mab"],
-    monitors=[collision(), distance(1.0, footprint=True), ttc(CC.critical_ttc, radius=3.5),
-              lane_keeping(0.5)],
-    priority=["collision", "distance", "ttc", "lane_keeping"],
+    monitors=[collision(), off_road(), distance(1.0, footprint=True),
+              ttc(CC.critical_ttc, radius=3.5), lane_keeping(0.5)],
+    priority=["collision", "off_road", "distance", "ttc", "lane_keeping"],
 )
 def test_r157_lead_deceleration(case, world):
     v = case.ego_speed * KMH

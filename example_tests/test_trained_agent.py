@@ -31,9 +31,12 @@ The road is the training environment's: three 4-m lanes (0 leftmost), a 30 m/s l
   cut-in, here without its lateral-speed parametrisation). Nominal: 40 m ahead, from the
   left, at 25 m/s, after 2 s over 3 s.
 
-Monitors: ``collision``; ``clearance`` — the footprints stay 0.5 m apart (``distance`` with
-``footprint=True``: the paper's 5 m between centres is already broken by a car passing in the
-next lane at 4 m); ``time_headway(0.5)`` s to the car ahead in the ego's lane; ``progress(11)``.
+Monitors: ``collision``; ``off_road`` — the ego's centre stays on the carriageway (an agent
+that drives off the road, clear of the traffic, would pass every other check here; lane
+changes are among the agent's actions, so the paper's lane keeping is not asked);
+``clearance`` — the footprints stay 0.5 m apart (``distance`` with ``footprint=True``: the
+paper's 5 m between centres is already broken by a car passing in the next lane at 4 m);
+``time_headway(0.5)`` s to the car ahead in the ego's lane; ``progress(11)``.
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ from pathlib import Path
 import pytest
 
 from pytest_avscenario import Choice, Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, progress, time_headway
+from pytest_avscenario.monitors import collision, distance, off_road, progress, time_headway
 from pytest_avscenario.sim import behaviors as b
 
 from subscenarios import slow_down
@@ -52,9 +55,9 @@ from subscenarios import slow_down
 MODEL = Path(__file__).resolve().parent / "models" / "dqn_highway_fast.zip"
 ENV = "highway-fast-v0"
 DT = 0.2  # [s] highway-fast-v0's simulation step (simulation_frequency 5 Hz)
-MONITORS = [collision(), distance(0.5, footprint=True, name="clearance"), time_headway(0.5),
-            progress(11.0)]
-PRIORITY = ["collision", "clearance", "time_headway", "progress"]
+MONITORS = [collision(), off_road(), distance(0.5, footprint=True, name="clearance"),
+            time_headway(0.5), progress(11.0)]
+PRIORITY = ["collision", "off_road", "clearance", "time_headway", "progress"]
 
 
 @pytest.fixture(scope="module")

@@ -18,6 +18,8 @@ from pytest_avscenario.monitors import (
     time_headway,
     ttc,
 )
+from pytest_avscenario.monitors.base import first_violation
+from pytest_avscenario.monitors.metrics import footprint_separation, swept_contacts
 from pytest_avscenario.trajectory import Trajectory
 
 
@@ -244,6 +246,215 @@ def test_collision_counts_a_recorded_crash_flag():
     r = collision().evaluate(traj)
     assert r.rho < 0 and r.t == 1.0
     assert collision(use_crash_flag=False).evaluate(traj).rho == math.inf
+
+
+# -- collisions between recorded steps ---------------------------------------------------------
+
+def crossing(x_cross, dt=0.5):
+    """The ego (5 x 2 m) stands at the origin facing +x; a car crosses its path northward at
+    30 m/s at ``x_cross``, recorded 7.5 m south and 7.5 m north of it: two samples that
+    straddle the moment they meet."""
+    return Trajectory.from_arrays([0.0, dt], {
+        "ego": {"x": [0.0, 0.0], "y": [0.0, 0.0], "vx": 0.0, "vy": 0.0, "heading": 0.0},
+        "crossing": {"x": [x_cross, x_cross], "y": [-7.5, 7.5], "vx": 0.0, "vy": 30.0,
+                     "heading": math.pi / 2},
+    })
+
+
+def test_collision_between_recorded_steps_names_the_agent_and_the_moment():
+    traj = crossing(0.0)
+    ego0, car0 = traj.footprints(0)
+    ego1, car1 = traj.footprints(1)
+    assert not ego0.intersects(car0) and not ego1.intersects(car1)  # no sample shows it
+    r = collision().evaluate(traj)
+    assert r.agent == "crossing" and "between the recorded steps" in r.detail
+    # its front (2.5 m ahead of its centre) meets the ego's side (1 m off centre) after
+    # (7.5 - 3.5) m at 30 m/s
+    assert r.t == pytest.approx(4.0 / 30.0, abs=1e-3)
+    assert first_violation(collision(), traj) == (r.t, "crossing")  # what reports show
+    # halfway through the step the two are centred on each other: 3.5 m deep either way
+    assert r.rho == pytest.approx(-3.5)
+
+
+@pytest.mark.parametrize("x_cross, holds", [(3.6, True), (3.502, True), (3.498, False)])
+def test_collision_near_miss_between_steps(x_cross, holds):
+    # the ego's front is at x = 2.5, the crossing car's near side at x_cross - 1
+    r = collision().evaluate(crossing(x_cross))
+    assert r.ok == holds
+    if holds:
+        assert r.rho == pytest.approx(4.0)  # the separation at the recorded steps
+    else:
+        assert r.rho == pytest.approx(-0.002, abs=1e-6) and r.agent == "crossing"
+
+
+def test_collision_between_steps_while_both_turn():
+    # the ego turns left through 90 degrees while the other drives straight past its corner;
+    # the samples are 1.3 m and 0.5 m apart; halfway the ego's corner reaches y = 2.47 m under
+    # the other's side at 2.3 m
+    t = [0.0, 1.0]
+    traj = Trajectory.from_arrays(t, {
+        "ego": {"x": [0.0, 0.0], "y": [0.0, 0.0], "heading": [0.0, math.pi / 2],
+                "vx": 0.0, "vy": 0.0},
+        "other": {"x": [-4.0, 4.0], "y": [3.3, 3.3], "heading": [0.0, 0.0], "vx": 8.0, "vy": 0.0},
+    })
+    assert all(not a.intersects(b) for a, b in (traj.footprints(0), traj.footprints(1)))
+    r = collision().evaluate(traj)
+    assert r.rho < 0 and r.agent == "other" and 0.0 < r.t < 1.0
+    # at the reported moment the interpolated footprints do overlap (shapely)
+    u = r.t
+    at = Trajectory.from_arrays([0.0], {
+        "ego": {"x": [0.0], "y": [0.0], "heading": [u * math.pi / 2], "vx": 0.0, "vy": 0.0},
+        "other": {"x": [-4.0 + 8.0 * u], "y": [3.3], "heading": [0.0], "vx": 0.0, "vy": 0.0},
+    })
+    ego, other = at.footprints(0)
+    assert ego.intersection(other).area > 0
+
+
+def hw_crash(other_vy, pushed=True):
+    """The record highway-env leaves of a side swipe between samples: at t = 0 a car 0.3 m
+    beside the ego moves toward it at ``other_vy`` m/s; highway-env predicts the contact,
+    pushes the pair apart (so the t = 0.2 s sample shows them 0.05 m apart) and flags both."""
+    y_other = [2.3, 2.05 if pushed else 2.3 + 0.2 * other_vy]
+    return Trajectory.from_arrays([0.0, 0.2], {
+        "ego": {"x": [0.0, 5.0], "y": [0.0, 0.0], "vx": 25.0, "vy": 0.0, "heading": 0.0,
+                "crashed": [False, True]},
+        "cutter": {"x": [1.0, 5.0], "y": y_other, "vx": 20.0, "vy": other_vy, "heading": 0.0,
+                   "crashed": [False, True]},
+    })
+
+
+def test_a_crash_flag_between_steps_is_explained_by_the_swept_footprints():
+    traj = hw_crash(-2.5)
+    assert collision(use_crash_flag=False).evaluate(traj).ok  # no overlap, even interpolated
+    r = collision().evaluate(traj)
+    # at their recorded velocities the 0.3 m gap closes at 2.5 m/s: contact at 0.12 s,
+    # 0.2 m deep by the end of the step
+    assert r.agent == "cutter" and r.t == pytest.approx(0.12, abs=1e-3)
+    assert r.rho == pytest.approx(-0.2, abs=1e-3) and "recorded velocities" in r.detail
+
+
+def test_an_overlap_after_an_earlier_crash_flag_keeps_its_rho_and_the_first_contact():
+    # as hw_crash(-2.5), then the pushed pair settles 1 mm into each other at t = 0.4 s
+    traj = Trajectory.from_arrays([0.0, 0.2, 0.4], {
+        "ego": {"x": [0.0, 5.0, 10.0], "y": [0.0, 0.0, 0.0], "vx": 25.0, "vy": 0.0,
+                "heading": 0.0, "crashed": [False, True, True]},
+        "cutter": {"x": [1.0, 5.0, 9.0], "y": [2.3, 2.05, 1.999], "vx": 20.0, "vy": [-2.5, 0, 0],
+                   "heading": 0.0, "crashed": [False, True, True]},
+    })
+    r = collision().evaluate(traj)
+    assert r.rho == pytest.approx(-0.001) and r.t == 0.4  # the step overlap, as always
+    assert "flagged the ego's crash earlier, at t=0.20 s" in r.detail
+    t, agent = first_violation(collision(), traj, r)
+    assert agent == "cutter" and t == pytest.approx(0.12, abs=1e-3)
+
+
+def test_a_crash_flag_nobody_explains_is_a_static_object():
+    r = collision().evaluate(hw_crash(+2.5))  # the car moves away: something else hit the ego
+    assert r.rho == collision().FLAG_RHO and r.agent is None and "static object" in r.detail
+
+
+def test_a_crash_flag_from_highway_envs_swept_box_test_names_the_agent():
+    # the step before a flagged crash in a highway-env run at dt = 0.2 s (a car cutting in
+    # from the left, rounded): moving on at their velocities the two pass 0.14 m apart, but
+    # highway-env's test, which projects on the four edge normals only, predicts a contact
+    x, y = [[120.0, 125.1563], [115.9268, 119.2677]], [[-4.0, -4.0492], [-0.7617, -1.7219]]
+    h, vx, vy = [[0.0, 0.0], [-0.3047, -0.2702]], [25.0, 17.3617], [0.0, -5.46]
+    traj = Trajectory.from_arrays([0.8, 1.0], {
+        name: {"x": x[i], "y": y[i], "heading": h[i], "vx": vx[i], "vy": vy[i],
+               "crashed": [False, True]} for i, name in enumerate(("ego", "cutter"))})
+    from shapely import affinity
+
+    ego, cutter = traj.footprints(0)
+    passes = [affinity.translate(ego, 25.0 * 0.2 * u, 0).distance(
+        affinity.translate(cutter, vx[1] * 0.2 * u, vy[1] * 0.2 * u)) for u in np.linspace(0, 1, 501)]
+    assert min(passes) > 0.1
+    hw_utils = pytest.importorskip("highway_env.utils")
+    a, b = (np.asarray(p.exterior.coords) for p in (ego, cutter))
+    assert hw_utils.are_polygons_intersecting(a, b, np.array([5.0, 0.0]),
+                                              np.array([vx[1], vy[1]]) * 0.2)[1]
+    r = collision().evaluate(traj)
+    assert r.agent == "cutter" and r.rho == collision().FLAG_RHO and r.t == 1.0
+    assert "swept-box" in r.detail
+
+
+def test_a_highway_env_side_swipe_at_5_hz_is_seen_between_the_steps():
+    # a real run: the ego holds 25 m/s in the middle lane, a car beside it cuts in over 1.5 s;
+    # at dt = 0.2 s highway-env flags the crash while no recorded step shows an overlap
+    from pytest_avscenario.sim import World, behaviors as b
+
+    world = World(seed=0, driver=lambda obs: (0.0, 0.0))
+    road = world.straight_road(lanes=3, length=600.0, lane_width=4.0, speed_limit=30.0)
+    world.ego(road.lane(1), s=100.0, speed=25.0)
+    world.car(road.lane(0), s=100.0, speed=25.0, name="cutter",
+              behavior=b.change_lane("right", at=0.5, duration=1.5))
+    traj = world.run(seconds=2.0, dt=0.2)
+    k = int(np.argmax(traj.crashed[0]))
+    assert traj.crashed[0, k], "the scene no longer crashes"
+    assert footprint_separation(traj)[0, :k + 1].min() > 0.1, "the crash shows at a step"
+    r = collision().evaluate(traj)
+    assert r.agent == "cutter" and traj.t[k - 1] < r.t < traj.t[k]
+    assert r.rho < -0.1  # how deep the cutter would have gone had highway-env not pushed
+
+
+def test_rounding_at_contact_is_touching_not_an_overlap():
+    # highway-env pushes crashed cars exactly into contact; at x ~ 1e3 m the separation of
+    # two cars nose to tail on a heading of 0.3 rad reads as -1.8e-14 m, which the monitor
+    # must not report as an "overlap 1.8e-14 m deep"
+    x, h = 1001.3, 0.3
+    traj = Trajectory.from_arrays([0.0], {
+        "ego": {"x": [x], "y": [0.2], "heading": [h], "vx": 1.0, "vy": 0.0},
+        "other": {"x": [x + 5 * math.cos(h)], "y": [0.2 + 5 * math.sin(h)], "heading": [h],
+                  "vx": 1.0, "vy": 0.0}})
+    assert footprint_separation(traj)[0, 0] < 0
+    assert collision(use_crash_flag=False).evaluate(traj).rho == 0.0
+
+
+def test_swept_search_agrees_with_a_brute_force_sweep_on_a_fine_grid():
+    # many agents crossing the ego's path at random places, speeds and turn rates: the
+    # earliest contact found equals the first overlapping sub-step of 4000 per interval
+    rng = np.random.default_rng(3)
+    A, T, dt = 40, 4, 0.25
+    t = np.arange(T) * dt
+    agents = {"ego": {"x": 12.0 * t, "y": 0.0 * t, "vx": 12.0, "vy": 0.0,
+                      "heading": 0.2 * t}}
+    for a in range(1, A):
+        x0, y0 = rng.uniform(-5, 15), rng.uniform(-25, -8)
+        v, h0, w = rng.uniform(10, 40), rng.uniform(0.8, 2.3), rng.uniform(-1, 1)
+        h = h0 + w * t
+        agents[f"car{a}"] = {"x": x0 + v * np.cumsum(np.r_[0, np.cos(h[:-1]) * dt]),
+                             "y": y0 + v * np.cumsum(np.r_[0, np.sin(h[:-1]) * dt]),
+                             "vx": 0.0, "vy": 0.0, "heading": h}
+    traj = Trajectory.from_arrays(t, agents)
+    t_contact, depth = swept_contacts(traj)
+    u = np.linspace(0.0, 1.0, 4001)
+    checked = 0
+    for a in range(1, A):
+        for k in range(T - 1):
+            sub = interpolate(traj, k, u, [0, a])
+            sep = footprint_separation(sub)[0]
+            overlapping = np.flatnonzero(sep < -1e-3)  # deeper than the search's tolerance
+            if overlapping.size == 0:
+                assert not depth[a - 1, k] > 1e-3
+                continue
+            checked += 1
+            first = traj.t[k] + u[overlapping[0]] * dt
+            assert t_contact[a - 1, k] <= first + 1e-9
+            assert t_contact[a - 1, k] >= first - dt / 4000 - 1e-3  # within 1 mm of travel
+            assert depth[a - 1, k] == pytest.approx(-sep.min(), abs=1e-3)  # the deepest moment
+    assert checked >= 5
+
+
+def interpolate(traj, k, u, rows):
+    """Sub-steps ``u`` (fractions) of recorded interval k of agents ``rows``, poses linear."""
+    out = {}
+    for a in rows:
+        dh = (traj.heading[a, k + 1] - traj.heading[a, k] + math.pi) % (2 * math.pi) - math.pi
+        out[traj.names[a]] = {
+            "x": traj.x[a, k] + u * (traj.x[a, k + 1] - traj.x[a, k]),
+            "y": traj.y[a, k] + u * (traj.y[a, k + 1] - traj.y[a, k]),
+            "heading": traj.heading[a, k] + u * dh, "vx": 0.0, "vy": 0.0,
+            "length": traj.length[a], "width": traj.width[a]}
+    return Trajectory.from_arrays(traj.t[k] + u * (traj.t[k + 1] - traj.t[k]), out)
 
 
 def test_time_headway_to_the_vehicle_ahead_in_the_lane():

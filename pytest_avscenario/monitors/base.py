@@ -272,8 +272,10 @@ def first_violation(monitor: "Monitor", traj: Trajectory,
 
     For an invariant (a monitor with ``invariant = True``: the requirement must hold at every
     step, so ρ of a prefix never rises as the prefix grows) this is exact: the shortest prefix
-    whose ρ is below zero, found by bisection (about log2(steps) evaluations). For any other
-    monitor it is the result's own deciding moment. None when the requirement holds."""
+    whose ρ is below zero, found by bisection (about log2(steps) evaluations), at its last
+    step's time, or at the moment the monitor names between that step and the one before
+    (a collision found between recorded steps). For any other monitor it is the result's own
+    deciding moment. None when the requirement holds."""
     result = result if result is not None else monitor.evaluate(traj)
     if not result.rho < 0:
         return None
@@ -291,4 +293,9 @@ def first_violation(monitor: "Monitor", traj: Trajectory,
             hi, found = mid, r
         else:
             lo = mid + 1
-    return float(traj.t[hi - 1]), found.agent if found.agent is not None else result.agent
+    first = float(traj.t[hi - 1])
+    # a contact found between the last two recorded steps of that prefix (a swept collision)
+    # happened at its own moment, before the step that records it
+    if found.t is not None and hi >= 2 and traj.t[hi - 2] < found.t < first:
+        first = float(found.t)
+    return first, found.agent if found.agent is not None else result.agent
