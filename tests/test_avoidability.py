@@ -270,6 +270,27 @@ def test_a_collision_is_judged_with_a_margin_and_an_impact_speed():
     assert judge_conflict(collision(), touch, "lead", 1.0).avoided is None
 
 
+def test_a_reference_contact_between_two_samples_is_a_hit_too():
+    # at 0.5 s steps a car crossing the ego's path at 20 m/s is on one side at one sample and
+    # past it at the next: no recorded overlap, no crash flag, but the footprints met
+    from pytest_avscenario.monitors import collision
+    from pytest_avscenario.monitors.conflict import judge_conflict
+    from pytest_avscenario.trajectory import Trajectory
+
+    t = np.arange(0.0, 4.0, 0.5)
+    cross_y = 20.0 * (t - 1.25)  # at y = 0 (the ego's line) at t = 1.25 s, between samples
+    ref = Trajectory.from_arrays(t, agents={
+        "ego": {"x": 10.0 * t, "y": np.zeros_like(t), "heading": 0.0},
+        "crossing": {"x": np.full_like(t, 12.5), "y": cross_y, "heading": np.pi / 2},
+    })
+    assert (ref.crashed == 0).all()
+    verdict = judge_conflict(collision(), ref, "crossing", 1.0)
+    assert verdict.avoided is False and "hits crossing too" in verdict.why, verdict
+    # much later than the SUT's violation it is a later conflict, never "avoids it"
+    later = judge_conflict(collision(), ref, "crossing", -3.0)
+    assert later.avoided is None and "crashes into it" in later.why, later
+
+
 def test_the_same_conflict_is_the_same_agent_around_the_same_time():
     from pytest_avscenario.monitors import collision, distance
     from pytest_avscenario.monitors.conflict import CONFLICT_WINDOW_S, judge_conflict

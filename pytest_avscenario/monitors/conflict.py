@@ -38,7 +38,7 @@ import numpy as np
 
 from ..trajectory import Trajectory
 from .base import Monitor
-from .metrics import CollisionMonitor, footprint_separation
+from .metrics import CollisionMonitor, footprint_separation, swept_contacts
 
 __all__ = ["ConflictVerdict", "conflict_view", "crash_partner", "judge_conflict", "CONFLICT_WINDOW_S",
            "COLLISION_MARGIN_M", "IMPACT_SPEED_MPS"]
@@ -173,11 +173,17 @@ def judge_conflict(monitor: Monitor, reference: Trajectory, agent: str | None, t
 
 def _judge_collision(name: str, view: Trajectory, agent: str, t: float | None, until: float | None,
                      n: int, margin: float, crashed_at: float | None) -> ConflictVerdict:
-    sep = footprint_separation(view)[0]  # (T,) metres from that agent, +inf where absent
+    full = footprint_separation(view)
+    sep = full[0]  # (T,) metres from that agent, +inf where absent
+    # a contact between two recorded steps (the footprints pass through each other, or
+    # highway-env pushes the pair apart before the next sample) counts at the step after it
+    swept = np.zeros(view.n_steps, dtype=bool)
+    if view.n_steps > 1:
+        swept[1:] = np.isfinite(swept_contacts(view, separation=full)[0][0])
     window = sep[:n]
     nearest = float(window.min()) if window.size else math.inf
     upto = "" if until is None else f" up to t = {until:.1f} s"
-    touching = window <= 0.0
+    touching = (window <= 0.0) | swept[:n]
     if crashed_at is not None:  # the simulator's crash with this agent, overlap seen or not
         touching = touching | (view.t[:n] >= crashed_at - 1e-9)
     contact = np.flatnonzero(touching)
@@ -193,7 +199,7 @@ def _judge_collision(name: str, view: Trajectory, agent: str, t: float | None, u
                                f"touches {agent} at t = {view.t[k]:.1f} s at {impact:.2f} m/s only "
                                f"(an impact is >= {IMPACT_SPEED_MPS:g} m/s)")
     overall = float(sep.min()) if sep.size else math.inf
-    if crashed_at is not None:  # crashed into it, but after the window
+    if crashed_at is not None or swept.any():  # crashed into it, but after the window
         overall = min(overall, 0.0)
     if overall >= margin:
         return ConflictVerdict(name, agent, t, until, True, nearest,
@@ -202,8 +208,11 @@ def _judge_collision(name: str, view: Trajectory, agent: str, t: float | None, u
     if nearest < margin:
         return ConflictVerdict(name, agent, t, until, None, nearest,
                                f"comes within {nearest:.2f} m of {agent}{upto} (margin {margin:g} m)")
-    later = crashed_at if crashed_at is not None else float(view.t[int(np.argmin(sep))])
-    what = "crashes into it" if crashed_at is not None else f"comes within {overall:.2f} m"
+    if crashed_at is not None or swept.any():
+        later = crashed_at if crashed_at is not None else float(view.t[int(np.argmax(swept))])
+        what = "crashes into it"
+    else:
+        later, what = float(view.t[int(np.argmin(sep))]), f"comes within {overall:.2f} m"
     return ConflictVerdict(name, agent, t, until, None, nearest,
                            f"keeps clear of {agent}{upto} but {what} at t = {later:.1f} s: "
                            "a later conflict, maybe another one")
