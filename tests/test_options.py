@@ -97,3 +97,87 @@ def test_pytest_help_lists_every_option(pytester):
     text = result.stdout.str()
     assert all(f"--avs-{o.name}" in text for o in OPTIONS)
     assert "1%@95%" in text
+
+
+STACK_MODULE = """
+class MyStack:
+    def act(self, observation):
+        return (0.0, 0.0)
+
+class Parts:
+    pass
+
+class NeedsModel:
+    def __init__(self, model):
+        self.model = model
+
+    def act(self, observation):
+        return (0.0, 0.0)
+
+speed_limit = 30
+
+def broken():
+    pass
+"""
+
+FOLLOW = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(30, 60), samples=2)
+def test_follow(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=20.0, speed=15.0)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0)
+    world.run(seconds=1)
+"""
+
+
+@pytest.mark.parametrize("ini, args, message", [
+    ("", ["--avs-driver=mystack:MyStak"],
+     "--avs-driver: driver 'mystack:MyStak': 'mystack' has no attribute 'MyStak' (did you mean 'MyStack'?)"),
+    ("avs_driver = mystak:MyStack", [],
+     "ini avs_driver: driver 'mystak:MyStack': no module named 'mystak' (did you mean 'mystack'?); "
+     "the module must be importable when pytest starts*"),
+    ("", ["--avs-driver=mystack:Parts"],
+     "--avs-driver: driver 'mystack:Parts': class Parts has no act(observation) or predict(observation) "
+     "method and its objects are not callable, so it cannot drive"),
+    ("", ["--avs-driver=mystack:NeedsModel"],
+     "--avs-driver: driver 'mystack:NeedsModel': class NeedsModel is made without arguments, but its "
+     "constructor needs some*"),
+    ("", ["--avs-driver=mystack:speed_limit"],
+     "--avs-driver: driver 'mystack:speed_limit': 'speed_limit' is of type int, not a driver*"),
+    ("", ["--avs-driver=mystack:MyStack.act.nope"],
+     "--avs-driver: driver 'mystack:MyStack.act.nope': 'mystack:MyStack.act' has no attribute 'nope'"),
+])
+def test_an_import_path_driver_is_imported_and_checked_at_start_up(pytester, ini, args, message):
+    # a typo in --avs-driver used to error every case with a long traceback each
+    pytester.makepyfile(mystack=STACK_MODULE, test_follow=FOLLOW)
+    pytester.makeini(f"[pytest]\npythonpath = .\n{ini}\n")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", "-p", "no:xdist", *args)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([f"ERROR: {message}"])
+    assert len(result.stderr.str().strip().splitlines()) == 1  # one line, no traceback
+    assert "test_follow" not in result.stdout.str()  # no case ran
+
+
+def test_a_module_that_raises_on_import_is_one_line_naming_the_error(pytester):
+    pytester.makepyfile(mystack="import numpy\nraise RuntimeError('no GPU found')\n", test_follow=FOLLOW)
+    pytester.makeini("[pytest]\npythonpath = .\n")
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", "--avs-driver=mystack:Stack")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["ERROR: --avs-driver: driver 'mystack:Stack': importing module 'mystack' "
+                                 "failed: RuntimeError: no GPU found"])
+
+
+@pytest.mark.parametrize("xdist", [[], ["-n", "2"]])
+def test_an_import_path_driver_checked_at_start_up_still_drives_under_xdist(pytester, xdist):
+    pytester.makepyfile(mystack=STACK_MODULE, test_follow=FOLLOW)
+    pytester.makeini("[pytest]\npythonpath = .\n")
+    result = pytester.runpytest_subprocess("--avs-db=none", "--avs-report=none", "--avs-driver=mystack:MyStack",
+                                           *(xdist or ["-p", "no:xdist"]))
+    result.assert_outcomes(passed=2)
+    bad = pytester.runpytest_subprocess("--avs-db=none", "--avs-report=none", "--avs-driver=mystack:MyStak",
+                                        *(xdist or ["-p", "no:xdist"]))
+    assert bad.ret == pytest.ExitCode.USAGE_ERROR
+    bad.stderr.fnmatch_lines(["ERROR: --avs-driver: driver 'mystack:MyStak': *did you mean 'MyStack'?)"])
+    assert "Traceback" not in bad.stdout.str() + bad.stderr.str()

@@ -154,6 +154,20 @@ def _sb3_driver(found: Found, config: pytest.Config) -> str:
         raise pytest.UsageError(f"{found.source}: {exc}") from None
 
 
+def _imported_driver(found: Found | None) -> None:
+    """``--avs-driver package.module:Name`` imported and checked now: a typo is one usage
+    error before the run, not a traceback in every case. xdist workers import it too (they
+    read the same options), which they would on their first case anyway."""
+    from ..sim.drivers import import_driver, is_import_path
+
+    if found is None or not is_import_path(found.value):
+        return
+    try:
+        import_driver(found.value)
+    except ValueError as exc:
+        raise pytest.UsageError(f"{found.source}: {exc}") from None
+
+
 def _margins(raw: Any) -> dict[str, float]:
     """``{metric: margin}`` from a marker's mapping or ``"collision=0.3,distance=1"``: the
     band around zero within which the reference's value decides no avoidability judgement,
@@ -565,6 +579,7 @@ def read_settings(config: pytest.Config) -> Settings:
     driver = value("driver", "autopilot")
     if driver.startswith("sb3:"):
         driver = _sb3_driver(found["driver"], config)
+    _imported_driver(found.get("driver"))
     return Settings(
         seed=_session_seed(config),
         driver=driver,

@@ -40,15 +40,18 @@ observation keeps the world to call ``world.view()`` (every lane and every agent
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import inspect
 import math
+import pkgutil
+import re
 from typing import Any, Callable
 
 from ..errors import SimError
 from .reference import CarefulDriver, CarefulDriverOptions, closing_distance, stopping_distance
 
-__all__ = ["resolve", "declared_step", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
+__all__ = ["resolve", "import_driver", "is_import_path", "SCHEMES", "declared_step", "action_pair", "IDMDriver", "PolicyDriver", "AUTOPILOT", "CAREFUL", "BUILTIN",
            "CarefulDriver", "CarefulDriverOptions", "stopping_distance", "closing_distance",
            "highway_env_agent"]
 
@@ -169,15 +172,13 @@ def resolve(driver: Any) -> Any:
             raise SimError(
                 f"unknown driver {driver!r}: use 'autopilot', 'idm', 'careful', "
                 "'package.module:Name', 'sb3:PATH@ENV', or pass a policy object")
-        mod_name, _, attr = name.partition(":")
         try:
-            obj = getattr(importlib.import_module(mod_name), attr)
-        except (ImportError, AttributeError) as exc:
-            raise SimError(f"driver {driver!r} cannot be imported ({exc}); "
-                           "use driver='idm' or pass a policy object") from exc
+            obj = import_driver(name, shown=driver)
+        except ValueError as exc:
+            raise SimError(str(exc)) from None
         if inspect.isclass(obj):
             obj = obj()
-        return resolve(obj) if not isinstance(obj, str) else resolve(obj)
+        return resolve(obj)
     if isinstance(driver, (IDMDriver, PolicyDriver)) or callable(getattr(driver, "make_ego", None)):
         return driver
     if callable(getattr(driver, "act", None)):
@@ -189,6 +190,97 @@ def resolve(driver: Any) -> Any:
     raise SimError(
         f"cannot drive with {driver!r} ({type(driver).__name__}): a driver is 'autopilot', "
         "'idm', 'careful', a callable policy(observation), or an object with act() or predict()")
+
+
+#: driver strings with a scheme of their own, not ``package.module:Name`` import paths
+SCHEMES = ("sb3:", "osi:", "osi+spawn:")
+_IMPORT_PATH = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*")
+
+
+def is_import_path(text: str) -> bool:
+    """``text`` names a driver as ``package.module:Name`` (not a built-in, not a scheme)."""
+    text = text.strip()
+    return not text.startswith(SCHEMES) and _IMPORT_PATH.fullmatch(text) is not None
+
+
+def import_driver(text: str, shown: Any = None) -> Any:
+    """The object ``package.module:Name`` names, checked to be able to drive (not called).
+
+    ValueError says in one line what was wrong: the module not found (with close module
+    names), importing it raised, the name missing (with close names), or the object is no
+    driver (neither callable nor with ``act``/``predict``; a class that needs arguments).
+    Configuration calls it for ``--avs-driver``, so a typo stops the run before any case.
+    """
+    shown = text.strip() if shown is None else shown
+    text = text.strip()
+    if _IMPORT_PATH.fullmatch(text) is None:
+        raise ValueError(f"driver {shown!r} is not an import path: write 'package.module:Name' "
+                         "(a module Python can import, then a class or object in it)")
+    mod_name, _, attr = text.partition(":")
+    try:
+        module = importlib.import_module(mod_name)
+    except ModuleNotFoundError as exc:
+        missing = exc.name or mod_name
+        if not (mod_name == missing or mod_name.startswith(missing + ".")):
+            # the module exists but imports something that does not: its own error
+            raise ValueError(f"driver {shown!r}: importing module {mod_name!r} failed: "
+                             f"{type(exc).__name__}: {exc}") from None
+        raise ValueError(f"driver {shown!r}: no module named {missing!r}"
+                         f"{_suggest(missing, _module_names(missing))}; the module must be "
+                         "importable when pytest starts (installed, or on sys.path: e.g. "
+                         "`pythonpath = .` in the ini file)") from None
+    except Exception as exc:  # the user's module raised while it was imported
+        raise ValueError(f"driver {shown!r}: importing module {mod_name!r} failed: "
+                         f"{type(exc).__name__}: {exc}") from None
+    obj: Any = module
+    for i, part in enumerate(attr.split(".")):
+        if not hasattr(obj, part):
+            where = mod_name if i == 0 else f"{mod_name}:{'.'.join(attr.split('.')[:i])}"
+            names = [n for n in dir(obj) if not n.startswith("_")]
+            raise ValueError(f"driver {shown!r}: {where!r} has no attribute {part!r}"
+                             f"{_suggest(part, names)}") from None
+        obj = getattr(obj, part)
+    if isinstance(obj, str):
+        if obj.strip() not in BUILTIN and not obj.strip().startswith(SCHEMES) and not is_import_path(obj):
+            raise ValueError(f"driver {shown!r} names the text {obj!r}, which is no driver name")
+        return obj
+    if inspect.isclass(obj):
+        # a class is always callable (it makes objects): what drives is what its objects have
+        has = [m for m in ("act", "predict", "make_ego") if callable(getattr(obj, m, None))]
+        if not has and not any("__call__" in vars(k) for k in obj.__mro__[:-1]):
+            raise ValueError(f"driver {shown!r}: class {obj.__qualname__} has no act(observation) "
+                             "or predict(observation) method and its objects are not callable, "
+                             "so it cannot drive")
+        try:
+            inspect.signature(obj).bind()
+        except TypeError as exc:
+            raise ValueError(f"driver {shown!r}: class {obj.__qualname__} is made without "
+                             f"arguments, but its constructor needs some ({exc}); name an "
+                             "object made with them, or use an avs_driver fixture") from None
+        except ValueError:
+            pass  # no signature to read (a C type): trust it
+        return obj
+    if not (callable(obj) or any(callable(getattr(obj, m, None)) for m in ("act", "predict", "make_ego"))):
+        raise ValueError(f"driver {shown!r}: {attr!r} is of type {type(obj).__name__}, not a driver: "
+                         "give a class, a callable policy(observation), or an object with "
+                         "act(observation) or predict(observation)")
+    return obj
+
+
+def _suggest(name: str, candidates: Any) -> str:
+    close = difflib.get_close_matches(name, list(candidates), n=3, cutoff=0.8)
+    return f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
+
+
+def _module_names(missing: str) -> list[str]:
+    """Modules beside ``missing``: the top-level ones, or those of its parent package."""
+    parent, _, _ = missing.rpartition(".")
+    try:
+        path = None if not parent else importlib.import_module(parent).__path__
+        prefix = f"{parent}." if parent else ""
+        return [prefix + m.name for m in pkgutil.iter_modules(path)]
+    except Exception:  # a parent that is no package, an unreadable folder: no suggestion
+        return []
 
 
 def declared_step(driver: Any) -> Any:
