@@ -223,6 +223,8 @@ class Baseline:
     campaigns: Mapping[tuple[str, str], tuple[int, Mapping[str, int]]]
     alpha: float = 0.05
     modes: Mapping[tuple[str, str], tuple[Mapping[str, Any], ...]] = field(default_factory=dict)
+    #: the driver that run tested (its summary's "driver"), None when it recorded none
+    driver: Mapping[str, Any] | None = None
 
 
 def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
@@ -241,7 +243,8 @@ def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
         raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
         raise ValueError(f"{path} is not a pytest-avscenario summary.json ({type(exc).__name__}: {exc})") from None
-    return Baseline(str(path), campaigns, alpha, modes)
+    driver = data.get("driver") if isinstance(data.get("driver"), dict) else None
+    return Baseline(str(path), campaigns, alpha, modes, driver)
 
 
 def _mode_json(data: Mapping[str, Any]) -> dict[str, Any]:

@@ -183,6 +183,9 @@ class CaseRow:
     #: what the run drew from ``case.rng``: {"count": N, "draws": [{"n", "call", "value",
     #: "t"}, ...]} (the first draws in full); None when it drew nothing
     drawn: Mapping[str, Any] | None = None
+    #: the driver under test that drove the ego ({"name", "kind", "file", "sha256", "from",
+    #: ...}: :mod:`pytest_avscenario.sim.drivers.identity`); None for a test without one
+    driver: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -223,6 +226,8 @@ class CaseRow:
             out["violations"] = {k: jsonable(dict(v)) for k, v in self.violations.items()}
         if self.drawn is not None:
             out["drawn"] = jsonable(dict(self.drawn))
+        if self.driver is not None:
+            out["driver"] = jsonable(dict(self.driver))
         return out
 
     @classmethod
@@ -256,6 +261,7 @@ class CaseRow:
             minimized_conflicts=_violations(data.get("minimized_conflicts")),
             violations=_violations(data.get("violations")),
             drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
+            driver=dict(data["driver"]) if isinstance(data.get("driver"), Mapping) else None,
         )
 
     @property

@@ -28,6 +28,7 @@ from ..outcome import CaseOutcome, CaseRow, all_unavoidable, violations_of
 from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
 from .failure import failure_message, fmt_rho
+from .identity import driver_identity
 from .stopping import stuck_case_handler
 from .stash import (
     campaigns_key,
@@ -896,4 +897,5 @@ def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
         minimized=minimized, shrink_sims=shrink_sims, flaky=flaky, avoidable=avoidable,
         unsafe_first=unsafe_first, violations=violations_of(outcome.results, outcome.first), drawn=outcome.drawn,
         conflicts=conflicts, minimized_violations=minimized_violations,
-        minimized_avoidable=minimized_avoidable, minimized_conflicts=minimized_conflicts)
+        minimized_avoidable=minimized_avoidable, minimized_conflicts=minimized_conflicts,
+        driver=driver_identity(item))

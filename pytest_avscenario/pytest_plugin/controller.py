@@ -166,17 +166,25 @@ class RunState:
 
             def report() -> list[Any]:
                 from ..report.build import finish_report
+                from .identity import session_driver
 
                 return finish_report(self.folder.path, infos, rows=self.rows, folder=self.folder,
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
                                      case_files=self.case_files, verdicts=verdicts,
                                      rerun=self.rerun_command, partial=self.partial,
-                                     baseline=settings.baseline)
+                                     baseline=settings.baseline, driver=session_driver(self.config))
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
             self.summary_rows = self.guarded("the summary", None, lambda: self.summary(verdicts, infos)) or []
         self.guarded("the JUnit suite properties", None, self.add_suite_properties)
+
+    def drivers(self) -> tuple[Any, dict[str, Any]]:
+        """(the run's driver under test, {test: its driver}) from the rows (:mod:`..report.drivers`)."""
+        from ..report.drivers import drivers_of
+        from .identity import session_driver
+
+        return drivers_of(self.rows, session_driver(self.config))
 
     def rerun_command(self, row: CaseRow) -> str:
         """The command that re-runs the case of ``row`` (for its card)."""
@@ -188,11 +196,13 @@ class RunState:
     def add_suite_properties(self) -> None:
         from _pytest.junitxml import xml_key
 
+        from ..report.drivers import driver_properties
         from ..report.junit import add_suite_properties_to_logxml, case_suite_properties
         from ..report.summary import suite_properties
 
         settings = self.config.stash[settings_key]
         props = suite_properties(self.summary_rows or [], seed=settings.seed, versions=versions())
+        props.update(driver_properties(*self.drivers()))
         if settings.junit == "strict":
             for row in self.rows:
                 if row.origin != "shrink":
@@ -218,9 +228,19 @@ class RunState:
 
         self.guarded("the terminal table", None, table)
         baseline = self.config.stash[settings_key].baseline
+        run_driver = (self.guarded("the driver under test", None, self.drivers) or (None, {}))[0]
+        if run_driver is not None:
+            from ..sim.drivers.identity import identity_text
+
+            terminalreporter.write_line(f"driver under test: {identity_text(run_driver)}")
         if baseline is not None and summary and not self.partial:  # a few cases have no rates
             def comparison() -> None:
                 from ..report.compare import compare, format_comparison
+                from ..report.drivers import baseline_driver_warning
+
+                warning = baseline_driver_warning(run_driver, baseline)
+                if warning is not None:
+                    terminalreporter.write_line(f"WARNING: {warning}", yellow=True, bold=True)
 
                 for line in format_comparison(compare(summary, baseline)):
                     terminalreporter.write_line(line)

@@ -136,9 +136,16 @@ class _XdistHooks:
             node.workerinput["avs_db"] = self.snapshot
 
 
-def pytest_report_header(config: pytest.Config) -> str:
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    from .identity import session_driver
+    from ..sim.drivers.identity import identity_text
+
     seed = config.stash[settings_key].seed
-    return f"avscenario: seed={seed} (replay with --avs-seed={seed})"
+    # the driver the options name; a test whose avs_driver fixture is overridden records its
+    # own (the report's "driver under test"), which conftests not loaded yet cannot tell here
+    driver = session_driver(config)
+    return [f"avscenario: seed={seed} (replay with --avs-seed={seed})",
+            f"avscenario: driver={identity_text(driver)} (an avs_driver fixture overrides it)"]
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:

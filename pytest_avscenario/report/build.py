@@ -50,6 +50,7 @@ def finish_report(
     rerun: Callable[[CaseRow], str | None] | None = None,
     partial: str | None = None,
     baseline: Any = None,
+    driver: Mapping[str, Any] | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -69,7 +70,9 @@ def finish_report(
     ``baseline``: an earlier run's summary (:func:`~pytest_avscenario.acceptance.load_baseline`,
     the file of ``--avs-baseline``): the index opens with the comparison (:mod:`.compare`) and
     ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). Every counterexample gets a card page under
-    ``cases/``. Returns the summary rows.
+    ``cases/``. ``driver``: the identity of the options' driver, the run's when no row
+    names one; ``summary.json`` holds the run's driver as ``"driver"`` and each campaign's as
+    its ``"driver"``, the index names it (see :mod:`.drivers`). Returns the summary rows.
     """
     from .folder import ReportFolder
 
@@ -99,8 +102,16 @@ def finish_report(
 
         comparison = part("the comparison with the baseline", None, lambda: compare(summary, baseline))
 
+    from .drivers import baseline_driver_warning, drivers_of
+
+    run_driver, test_drivers = drivers_of(main, driver)
+    driver_warning = None if comparison is None else baseline_driver_warning(run_driver, baseline)
+
     def write_summary() -> None:
-        data = {"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)}
+        tests_json = summary_to_json(summary)
+        for entry in tests_json:
+            entry["driver"] = test_drivers.get(entry["test"])
+        data = {"seed": seed, "driver": run_driver, "versions": dict(versions or {}), "tests": tests_json}
         if comparison is not None:
             data["comparison"] = comparison.to_json()
         text = json.dumps(data, indent=2, allow_nan=False, default=str) + "\n"
@@ -135,7 +146,11 @@ def finish_report(
         from .cards import e, href
         from .html import INDEX, write_index
 
+        from ..sim.drivers.identity import identity_text
+
         meta = {}
+        if run_driver is not None:
+            meta["driver under test"] = identity_text(run_driver)
         if seed is not None:
             meta["seed"] = seed
         meta.update({k: v for k, v in (versions or {}).items()})
@@ -147,6 +162,8 @@ def finish_report(
             banner = (f"The latest re-run of single cases has a report of its own: "
                       f"<a href='{href(root, root / 'rerun' / INDEX)}'>rerun/index.html</a>.")
         preamble = []
+        if driver_warning is not None:
+            preamble.append(f"<p class='banner'>Warning: {e(driver_warning)}.</p>")
         if comparison is not None:
             from .compare import comparison_html
             from .html import mode_anchor

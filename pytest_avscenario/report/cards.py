@@ -334,6 +334,10 @@ def render_card(
         what += f", first at t = {t:.2f} s" + (f" with {agent}" if agent else "")
     facts = [f"{row.sampler} case {row.index}", f"origin {row.origin}", f"seed {row.seed}",
              f"simulated in {row.sim_time_s:.2f} s"]
+    if row.driver:
+        from ..sim.drivers.identity import identity_text
+
+        facts.append(f"driver {identity_text(row.driver)}")
     if mode:
         facts.append(f"failure mode {mode}")
     if row.flaky:

@@ -104,6 +104,16 @@ class HighwayEnvAgent:
         name = getattr(self.model, "__name__", None) or type(self.model).__name__
         return f"highway_env_agent({name}, env={self.env_id!r})"
 
+    def describe(self) -> dict:
+        """Who drives (:mod:`.identity`): the agent, its environment, and what its model says
+        of itself (an ``sb3:`` model: its file and the file's hash)."""
+        out = {"name": repr(self), "kind": "highway_env_agent", "env": self.env_id,
+               "model": type(self.model).__qualname__}
+        own = getattr(self.model, "describe", None)
+        if callable(own):
+            out.update({k: v for k, v in own().items() if k not in ("name", "kind")})
+        return out
+
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state["_env"] = None

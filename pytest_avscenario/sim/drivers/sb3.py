@@ -22,6 +22,7 @@ pickled — and one agent is kept per process and file (loading costs torch's im
 from __future__ import annotations
 
 import functools
+import hashlib
 import importlib
 import importlib.util
 import json
@@ -273,6 +274,13 @@ class SB3Model:
         self.__name__ = f"{PREFIX}{os.path.basename(path)}"
         self._model: Any = None
 
+    def describe(self) -> dict:
+        """The model file and its content hash (:mod:`.identity`), without loading it."""
+        out = {"name": self.__name__, "kind": "sb3", "file": self.path, "sha256": file_sha256(self.path)}
+        if self.algorithm:
+            out["algorithm"] = self.algorithm
+        return out
+
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         state["_model"] = None
@@ -299,6 +307,31 @@ class SB3Model:
 
     def predict(self, observation: Any, deterministic: bool = True) -> Any:
         return self.load().predict(observation, deterministic=deterministic)
+
+
+SHA_DIGITS = 12  # hex digits of the SHA-256 kept: enough to tell two model files apart
+
+
+def file_sha256(path: str | os.PathLike) -> str | None:
+    """The first :data:`SHA_DIGITS` hex digits of the SHA-256 of the file, None if unreadable."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return _sha(os.path.abspath(path), st.st_mtime_ns, st.st_size)
+
+
+@functools.lru_cache(maxsize=32)
+def _sha(path: str, mtime_ns: int, size: int) -> str | None:
+    # keyed by mtime and size too: a model rewritten during a session is hashed again
+    digest = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                digest.update(block)
+    except OSError:
+        return None
+    return digest.hexdigest()[:SHA_DIGITS]
 
 
 @functools.lru_cache(maxsize=8)
