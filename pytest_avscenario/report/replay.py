@@ -48,7 +48,7 @@ function avsReplay(id) {
   var play = root.querySelector(".play"), box = root.querySelector("pre");
   var W = canvas.width, H = canvas.height, S = D.view.scale, PI2 = 2 * Math.PI;
   var GREY = "rgb(240,240,240)", HOT = "rgb(255,150,0)", DARK = "rgb(35,35,40)", RED = "rgb(255,40,40)";
-  var COLOURS = {ego: "rgb(60,200,80)", car: "rgb(90,150,230)", bus: "rgb(250,190,20)",
+  var COLOURS = {ego: "rgb(60,200,80)", car: "rgb(90,150,230)", truck: "rgb(200,110,60)", bus: "rgb(250,190,20)",
                  parked: "rgb(150,150,160)", pedestrian: "rgb(230,60,200)"};
   function undelta(s, scale) {  // first value + differences; [item, count] is a run of items
     var o = [], acc = 0;

@@ -49,7 +49,7 @@ __all__ = [
     "Trigger", "gap_below", "time_gap_below", "condition", "cut_in", "cut_out", "speed_profile",
 ]
 
-VEHICLES = ("ego", "car", "bus", "parked")
+VEHICLES = ("ego", "car", "truck", "bus", "parked")
 PEDESTRIANS = ("pedestrian",)
 
 

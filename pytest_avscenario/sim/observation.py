@@ -32,7 +32,7 @@ class AgentState:
     """One agent's state at the current step (world frame)."""
 
     name: str
-    kind: str  # "ego", "car", "bus", "pedestrian", "parked"
+    kind: str  # "ego", "car", "truck", "bus", "pedestrian", "parked"
     x: float  # [m]
     y: float  # [m]
     vx: float  # [m/s]

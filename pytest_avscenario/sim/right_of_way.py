@@ -83,7 +83,7 @@ class AllWayStop:
     ``turn`` that acts.
     """
 
-    VEHICLES = ("ego", "car", "bus")  # parked cars and pedestrians never queue at a stop
+    VEHICLES = ("ego", "car", "truck", "bus")  # parked cars and pedestrians never queue at a stop
 
     def __init__(self, world: Any) -> None:
         self.world = world

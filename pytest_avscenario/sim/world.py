@@ -526,6 +526,61 @@ class World:
                              behavior if behavior is not None else keep_lane(), name, r, route,
                              appear, disappear)
 
+    #: the kinds :meth:`vehicle` makes and their default size [m] (length, width): a car as
+    #: :meth:`car`; a truck as the EU's largest rigid lorry (Directive 96/53/EC: 12 m, 2.55 m)
+    VEHICLE_SIZES = {"car": (5.0, 2.0), "truck": (12.0, 2.55)}
+    MAX_VEHICLE_LENGTH = 30.0  # [m] beyond a road train: a typo (millimetres), not a vehicle
+    MAX_VEHICLE_WIDTH = 5.0  # [m] beyond any road vehicle's width
+
+    def vehicle(self, lane: Any, s: float = 0.0, speed: float = 0.0, behavior: Any = None, *,
+                kind: str = "car", length: float | None = None, width: float | None = None,
+                name: str | None = None, r: float = 0.0, route: Any = None, appear: Any = None,
+                disappear: Any = None) -> Any:
+        """A vehicle of its own size: ``kind`` ``"car"`` (5 x 2 m) or ``"truck"`` (12 x 2.55 m),
+        ``length`` and ``width`` [m] overriding the kind's size (a 16.5-m articulated lorry:
+        ``world.vehicle(lane, kind="truck", length=16.5)``).
+
+        A highway-env ``Vehicle`` with ``LENGTH``/``WIDTH`` of its own: its collisions, the
+        gaps behaviours keep to it, the recording (and so every monitor's footprint), the
+        pictures and the replay use that size; ``s`` is its centre, as for every vehicle. Its
+        name is ``truck1``, ``truck2``… for trucks, and its ``kind`` in observations is
+        ``kind``. Other arguments as :meth:`car`.
+        """
+        from .behaviors import keep_lane
+        from .engine import Actor
+
+        self._need_road("world.vehicle()")
+        if kind not in self.VEHICLE_SIZES:
+            raise SimError(f"vehicle kind={kind!r}: use one of {', '.join(map(repr, self.VEHICLE_SIZES))} "
+                           "(world.bus() for a school bus, world.pedestrian() for a pedestrian)",
+                           test=self.name, agent=name)
+        default_length, default_width = self.VEHICLE_SIZES[kind]
+        size = {"length": (length, default_length, self.MAX_VEHICLE_LENGTH),
+                "width": (width, default_width, self.MAX_VEHICLE_WIDTH)}
+        checked = {}
+        for what, (given, default, most) in size.items():
+            value = default if given is None else given
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                number = math.nan
+            if isinstance(value, bool) or not (math.isfinite(number) and 0.0 < number <= most):
+                raise SimError(f"vehicle {what}={value!r}: must be a number of metres, "
+                               f"0 < {what} <= {most:g}", test=self.name, agent=name)
+            checked[what] = number
+
+        def sized(position: Any, heading: float, speed_mps: float) -> Any:
+            agent = Actor(position, heading, speed_mps)
+            # instance constants shadow the class's: highway-env reads self.LENGTH / WIDTH for
+            # the outline, the collision test and (through diagonal) its broad phase
+            agent.LENGTH, agent.WIDTH = checked["length"], checked["width"]
+            agent.diagonal = math.hypot(agent.LENGTH, agent.WIDTH)
+            return agent
+
+        return self._vehicle(sized, kind, lane, s, speed,
+                             behavior if behavior is not None else keep_lane(), name, r, route,
+                             appear, disappear)
+
     def parked_car(self, lane: Any, s: float = 0.0, behavior: Any = None, *,
                    name: str | None = None, appear: Any = None, disappear: Any = None) -> Any:
         """A standing 5 x 2 m car, usually on ``road.parking_lane``; ``b.pull_out`` moves it."""
