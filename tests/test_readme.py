@@ -25,3 +25,33 @@ def test_ci_runs_exactly_the_readme_test_command():
     # the README's command first, exactly; then only the marked slow set
     assert pytest_lines[0] == test_cmd
     assert all(l == f"{test_cmd} -m slow" for l in pytest_lines[1:])
+
+
+def _snippet(after: str) -> str:
+    """The first ```python block after the line containing ``after``, dedented."""
+    import textwrap
+
+    text = (ROOT / "README.md").read_text()
+    start = text.index("```python", text.index(after)) + len("```python")
+    return textwrap.dedent(text[start:text.index("```", start)])
+
+
+def test_the_pedestrian_at_a_crosswalk_snippet_runs(pytester):
+    # the README's example of a pedestrian crossing must stay runnable as written
+    header = ("from pytest_avscenario import Uniform, scenario\n"
+              "from pytest_avscenario.monitors import collision, distance\n"
+              "from pytest_avscenario.sim import behaviors as b\n")
+    pytester.makepyfile(test_snippet=header + _snippet("A pedestrian at a crosswalk"))
+    result = pytester.runpytest("--avs-samples=2", "--avs-db=none", "--avs-report=none",
+                                "--avs-shrink-budget=0", "-p", "no:xdist")
+    outcomes = result.parseoutcomes()
+    assert outcomes.get("errors", 0) == 0, result.stdout.str()
+    assert outcomes.get("passed", 0) + outcomes.get("failed", 0) == 2
+
+
+def test_the_options_table_lists_every_option():
+    from pytest_avscenario.pytest_plugin.options import OPTIONS
+
+    table = (ROOT / "README.md").read_text().split("## Options", 1)[1].split("\n## ", 1)[0]
+    missing = [o.name for o in OPTIONS if f"`--avs-{o.name}" not in table]
+    assert missing == []
