@@ -238,9 +238,9 @@ class OSIStack:
 
     # -- the driver protocol ------------------------------------------------------------------
     def make_ego(self, world: Any, position: Any, heading: float, speed: float, **_: Any) -> Any:
-        from .vehicle import StackEgo
+        from .vehicle import make_stack_ego
 
-        return StackEgo(position, heading, speed)
+        return make_stack_ego(world, position, heading, speed)
 
     def reset(self, world: Any) -> None:
         """The handshake of one case: ``Reset`` out, ``Ready`` back (see docs/osi-protocol.md)."""
@@ -405,8 +405,12 @@ class OSIStack:
         try:
             answer = ch.request(frames, timeout, alive)
         except _Timeout:
-            self._fail(f"no answer to {what} within {timeout:g} s (--avs-stack-timeout); the "
-                       "socket was closed and reopened for the next case", ego)
+            again = "the socket was closed and reopened for the next case"
+            if self.spawn is not None:
+                # a stack that missed its deadline is presumed hung: a fresh one takes the next case
+                _SPAWNED[self.spawn].stop()
+                again = "the stack process was stopped and is started again for the next case"
+            self._fail(f"no answer to {what} within {timeout:g} s (--avs-stack-timeout); {again}", ego)
         except _Gone as exc:
             self._fail(f"{exc} while it was answering {what}; it is started again for the "
                        "next case", ego)
