@@ -161,10 +161,10 @@ def _sb3_driver(found: Found, config: pytest.Config) -> str:
 
 def _osi_installed(found: Found) -> None:
     """``--avs-driver osi:...`` needs pyzmq and osi3: a usage error naming the extra if not."""
+    import importlib.util
+
     for module, package in (("zmq", "pyzmq"), ("osi3", "osi-python")):
-        try:
-            __import__(module)
-        except ImportError:
+        if importlib.util.find_spec(module) is None:  # looked up, not imported: start-up stays fast
             raise pytest.UsageError(
                 f"{found.source}: {found.value!r} needs {package} (pip install "
                 "'pytest-avscenario[osi]')") from None
