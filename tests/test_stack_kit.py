@@ -102,3 +102,22 @@ def test_a_campaign_gives_the_same_verdicts_served_as_in_process(pytester):
             assert b["rho"][metric] == pytest.approx(value, abs=1e-9), (a["item"], metric)
     # four different situations, not one repeated: the closest approaches differ
     assert len({round(r["rho"]["distance"], 3) for r in rows["here"]}) == 4
+
+
+@pytest.mark.slow
+def test_under_xdist_each_worker_spawns_its_own_stack_and_the_verdicts_stay(pytester):
+    pytester.makepyfile(subscenarios=(EXAMPLES / "subscenarios.py").read_text())
+    pytester.makepyfile(test_following=(EXAMPLES / "test_02_vehicle_following.py").read_text())
+    common = ["--avs-seed=5", "--avs-samples=6", "--avs-sampler=halton", "--avs-db=none",
+              "--avs-shrink-budget=0", "--avs-reference-driver=none", "--avs-gifs=0",
+              "--avs-case-pictures=0", "-p", "no:cacheprovider"]
+    tables = {}
+    for name, driver, more in (("here", "autopilot", []),
+                               ("served", f"osi+spawn:{sys.executable} -m pytest_avscenario.stack.autopilot",
+                                ["-n", "2"])):
+        result = pytester.runpytest_subprocess(f"--avs-driver={driver}", f"--avs-report={name}",
+                                               *common, *more)
+        assert result.ret in (0, 1), result.stdout.str()[-2000:]
+        rows = [json.loads(line) for line in (pytester.path / name / "errors.jsonl").read_text().splitlines()]
+        tables[name] = {r["item"]: (r["verdict"], r["rho"]) for r in rows}
+    assert len(tables["here"]) == 6 and tables["here"] == tables["served"]

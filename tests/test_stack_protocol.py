@@ -157,3 +157,29 @@ def test_a_desired_state_without_orientation_is_refused():
     mr.desired_state.velocity.x = 3.0
     with pytest.raises(ValueError, match="no orientation"):
         frame.motion_to_action(mr.desired_state, 0, 0.0, 1.0, 5.0, 0.1)
+
+
+def test_the_stack_is_named_in_the_ini_file_or_by_the_test_itself(pytester):
+    pytester.makeini(f"""
+        [pytest]
+        avs_driver = {raw_stack("--answer", "traffic")}
+        avs_stack_timeout = 10
+    """)
+    pytester.makepyfile(test_raw="import numpy as np\n" + SCENARIO.replace("samples=3", "samples=2"))
+    pytester.makepyfile(test_own=f"""
+        import sys
+        from pytest_avscenario import scenario, Uniform
+        from pytest_avscenario.stack import OSIStack
+
+        STACK = OSIStack(spawn={raw_stack()[len("osi+spawn:"):]!r}, timeout_s=10)
+
+        @scenario(gap=Uniform(30, 50), samples=2, monitors=[])
+        def test_own(case, world):
+            road = world.straight_road(lanes=1, length=300)
+            world.ego(road.lane(0), s=10.0, speed=8.0, driver=STACK)
+            world.run(seconds=1)
+            assert world.trajectory.agent("ego").speed[-1] > 8.5
+    """)
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", "--avs-shrink-budget=0",
+                                "-p", "no:xdist", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=4)
