@@ -43,6 +43,7 @@ def _stop_stacks():
     ("hang", "motion", "*step 3 (t=0.30 s): no answer to the SensorView within 0.5 s (--avs-stack-timeout)*"),
     ("crash", "motion", "*step 3 (t=0.30 s): the stack process exited with code 3 while it was answering the SensorView*"),
     ("timestamp", "motion", "*step 3 (t=0.30 s): MotionRequest carries the wrong timestamp: 400000000 ns (0.400 s), the request's is 300000000 ns*"),
+    ("error", "motion", "*step 3 (t=0.30 s): the stack answered Error: planner failed: no trajectory found*"),
     ("garbage", "motion", "*step 3 (t=0.30 s): its answer: MotionRequest: unparseable bytes*"),
     ("type", "traffic", "*step 3 (t=0.30 s): answer to the SensorView: wrong message type b'SensorView'*"),
     ("teleport", "traffic", "*step 3 (t=0.30 s): TrafficUpdate is physically impossible: it moved 2*a teleport*"),

@@ -102,11 +102,16 @@ class _Channel:
     def request(self, frames: list[bytes], timeout_s: float, alive: Any = None) -> list[bytes]:
         import zmq
 
+        if self.sock is not None:
+            try:
+                self.sock.send_multipart(frames)  # copied: zero-copy costs more than it saves below ~64 kB
+            except zmq.ZMQError:  # a REQ left waiting (an interrupted wait): start afresh
+                self.drop()
         if self.sock is None:
             self.sock = zmq.Context.instance().socket(zmq.REQ)
             self.sock.setsockopt(zmq.LINGER, 0)
             self.sock.connect(self.address)
-        self.sock.send_multipart(frames)  # copied: zero-copy costs more than it saves below ~64 kB
+            self.sock.send_multipart(frames)
         deadline = time.monotonic() + timeout_s
         while True:
             left = deadline - time.monotonic()

@@ -7,7 +7,7 @@ It drives the host vehicle straight along its heading towards the speed V [m/s]:
 ``motion`` it sends MotionRequests (desired state one step ahead), with ``traffic`` it moves
 the vehicle itself and sends TrafficUpdates. ``--fault`` misbehaves on purpose in the case
 whose name ends with SUFFIX, at step N: ``hang`` (never answers), ``crash`` (exits with code
-3), ``timestamp`` (answers one step late), ``garbage`` (unparseable bytes), ``type`` (a
+3), ``timestamp`` (answers one step late), ``error`` (an Error answer), ``garbage`` (unparseable bytes), ``type`` (a
 wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position).
 """
 
@@ -60,6 +60,9 @@ def main() -> None:
             time.sleep(3600)
         if faulty and args.fault == "crash":
             os._exit(3)
+        if faulty and args.fault == "error":
+            sock.send_multipart([PROTOCOL, b"Error", b"planner failed: no trajectory found"])
+            continue
         if faulty and args.fault == "garbage":
             sock.send_multipart([PROTOCOL, b"MotionRequest" if args.answer == "motion"
                                  else b"TrafficUpdate", b"\xff\xff\xff\xff"])
