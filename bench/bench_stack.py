@@ -105,7 +105,7 @@ def bench_step(steps: int) -> None:
         auto.act(w.observe(ego))
     here = (time.perf_counter() - t0) / steps * 1e6
     print(f"   in process: observe + autopilot: {here:6.1f} µs per step")
-    w._osi_ids = {a: i + 1 for i, a in enumerate(w.agents)}
+    ids = {a: i + 1 for i, a in enumerate(w.agents)}
     static = frame.lane_ground_truth(w.view())
     import json
 
@@ -124,7 +124,7 @@ def bench_step(steps: int) -> None:
             times = {"build": 0.0, "round trip": 0.0, "decode": 0.0}
             for i in range(steps + 100):
                 a = time.perf_counter()
-                msg = frame.sensor_view(w, wire.ns(w.t), static)
+                msg = frame.sensor_view(w, wire.ns(w.t), static, ids)
                 b = time.perf_counter()
                 sock.send_multipart(wire.pack(wire.SENSOR_VIEW, msg))
                 kind_, body = wire.unpack(sock.recv_multipart(), wire.ANSWERS)

@@ -86,10 +86,10 @@ def test_the_sensor_view_holds_the_host_every_agent_and_the_lanes_of_world_view(
 
     w = _world()
     w.run(seconds=0.1)  # a run sets up the agents' order; the view is of its end
-    w._osi_ids = {a: i + 1 for i, a in enumerate(w.agents)}
+    ids = {a: i + 1 for i, a in enumerate(w.agents)}
     view = w.view()
     sv = osi_sensorview_pb2.SensorView()
-    sv.ParseFromString(frame.sensor_view(w, wire.ns(1.25), frame.lane_ground_truth(view)))
+    sv.ParseFromString(frame.sensor_view(w, wire.ns(1.25), frame.lane_ground_truth(view), ids))
     gt = sv.global_ground_truth
     assert sv.host_vehicle_id.value == gt.host_vehicle_id.value == 1
     assert wire.timestamp_ns(sv.timestamp) == 1_250_000_000 == wire.timestamp_ns(gt.timestamp)

@@ -236,7 +236,7 @@ class OSIStack:
         self.limits = limits
         self._world: Any = None
         self._static = b""
-        self._fresh = False
+        self._ids: dict = {}
 
     def __repr__(self) -> str:
         return f"OSIStack({self.address!r})" if self.spawn is None else f"OSIStack(spawn={self.spawn!r})"
@@ -254,7 +254,7 @@ class OSIStack:
         if len(agents) > frame.MAX_AGENTS:
             raise SimError(f"{len(agents)} agents: the OSI ids of agents stop at {frame.MAX_AGENTS}",
                            test=world.name)
-        world._osi_ids = {a: i + 1 for i, a in enumerate(agents)}
+        self._ids = {a: i + 1 for i, a in enumerate(agents)}  # stable for the case (frame doc)
         view = world.view()
         self._static = frame.lane_ground_truth(view)
         ego = agents[0]
@@ -311,7 +311,7 @@ class OSIStack:
             raise SimError(f"{self!r} was not reset before its first step (the world calls "
                            "reset(world) before the run)", agent=getattr(ego, "name", ""))
         t_ns = wire.ns(w.t)
-        msg = frame.sensor_view(w, t_ns, self._static)
+        msg = frame.sensor_view(w, t_ns, self._static, self._ids)
         kind, body = self._ask(wire.pack(wire.SENSOR_VIEW, msg), wire.ANSWERS,
                                "the SensorView", ego)
         if kind == wire.ERROR:

@@ -51,9 +51,21 @@ def wrap_yaw(h: float) -> float:
     return math.atan2(math.sin(h), math.cos(h))
 
 
-def _classify(mo: Any, kind: str) -> None:
-    from osi3 import osi_object_pb2 as o
+_OSI: dict[str, Any] = {}
 
+
+def _osi() -> dict[str, Any]:
+    """osi3's generated modules, imported on first use (every step needs them: no import
+    statement per call)."""
+    if not _OSI:
+        from osi3 import osi_object_pb2, osi_sensorview_pb2
+
+        _OSI.update(object=osi_object_pb2, sensorview=osi_sensorview_pb2)
+    return _OSI
+
+
+def _classify(mo: Any, kind: str) -> None:
+    o = _osi()["object"]
     if kind == "pedestrian":
         mo.type = o.MovingObject.TYPE_PEDESTRIAN
         return
@@ -176,12 +188,11 @@ def lane_ground_truth(view: Any) -> bytes:
     return sv.SerializeToString()
 
 
-def sensor_view(world: Any, t_ns: int, static: bytes) -> bytes:
+def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
     """The serialized ``osi3.SensorView`` of ``world`` now: header, host vehicle id (1),
-    every agent on the road, and the case's lanes ``static`` (:func:`lane_ground_truth`)."""
-    from osi3 import osi_sensorview_pb2 as S
-
-    sv = S.SensorView()
+    every agent on the road (``ids``: agent -> OSI id), and the case's lanes ``static``
+    (:func:`lane_ground_truth`)."""
+    sv = _osi()["sensorview"].SensorView()
     wire.set_version(sv.version)
     wire.set_timestamp(sv.timestamp, t_ns)
     sv.host_vehicle_id.value = 1
@@ -189,7 +200,6 @@ def sensor_view(world: Any, t_ns: int, static: bytes) -> bytes:
     wire.set_version(gt.version)
     wire.set_timestamp(gt.timestamp, t_ns)
     gt.host_vehicle_id.value = 1
-    ids = world._osi_ids  # agent -> id, made by the client at reset
     index = world.lane_index
     lanes = index.lanes
     code = index.code
