@@ -47,6 +47,7 @@ def _stop_stacks():
     ("garbage", "motion", "*step 3 (t=0.30 s): its answer: MotionRequest: unparseable bytes*"),
     ("type", "traffic", "*step 3 (t=0.30 s): answer to the SensorView: wrong message type b'SensorView'*"),
     ("teleport", "traffic", "*step 3 (t=0.30 s): TrafficUpdate is physically impossible: it moved 2*a teleport*"),
+    ("handshake", "motion", "*step 0 (t=0.00 s): handshake failed: it speaks 'avs-osi/1' revision 2, the plugin 'avs-osi/1' revision 1; it runs at dt=0.05 s, the world steps at 0.1 s*"),
     ("nan", "traffic", "*step 3 (t=0.30 s): TrafficUpdate has a non-finite state*"),
 ])
 def test_a_faulty_answer_is_an_error_of_its_case_and_the_others_still_run(pytester, fault, answer, says):

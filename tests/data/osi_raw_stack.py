@@ -8,7 +8,7 @@ It drives the host vehicle straight along its heading towards the speed V [m/s]:
 the vehicle itself and sends TrafficUpdates. ``--fault`` misbehaves on purpose in the case
 whose name ends with SUFFIX, at step N: ``hang`` (never answers), ``crash`` (exits with code
 3), ``timestamp`` (answers one step late), ``error`` (an Error answer), ``garbage`` (unparseable bytes), ``type`` (a
-wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position).
+wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position); ``handshake`` answers that case's Reset with revision 2 at dt 0.05.
 """
 
 import argparse
@@ -47,9 +47,10 @@ def main() -> None:
         if kind == b"Reset":
             hello = json.loads(body)
             case, dt, host, step = hello["case"], hello["dt"], hello["host_vehicle_id"], 0
+            wrong = args.fault == "handshake" and case.endswith(args.case_suffix)
             sock.send_multipart([PROTOCOL, b"Ready", json.dumps({
-                "protocol": "avs-osi/1", "revision": 1, "osi_version": version(), "dt": dt,
-                "host_vehicle_id": host}).encode()])
+                "protocol": "avs-osi/1", "revision": 2 if wrong else 1, "osi_version": version(),
+                "dt": 0.05 if wrong else dt, "host_vehicle_id": host}).encode()])
             continue
         sv = osi_sensorview_pb2.SensorView()
         sv.ParseFromString(body)
