@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import os
 import traceback
 from typing import Any
 
@@ -267,8 +268,15 @@ def serve(policy: Any, address: str, *, requests: int | None = None) -> None:
     sock.bind(address)
     session = None
     n = 0
+    # a stack the plugin spawned (it hands the address in AVS_OSI_ADDRESS) ends with the
+    # process that started it, even when that one was killed and could not stop it
+    parent = os.getppid() if os.environ.get("AVS_OSI_ADDRESS") == address else None
     try:
         while requests is None or n < requests:
+            if parent is not None:
+                while not sock.poll(1000):
+                    if os.getppid() != parent:
+                        return
             frames = sock.recv_multipart()
             reply, session = handle(frames, session, policy)
             sock.send_multipart(reply)
