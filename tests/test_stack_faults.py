@@ -8,6 +8,7 @@ wrong. Each run is a few seconds at most: the per-step timeout is 0.5 s.
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from pathlib import Path
@@ -56,8 +57,8 @@ def test_a_faulty_answer_is_an_error_of_its_case_and_the_others_still_run(pytest
               "--case-suffix=-001] --at-step 3")
     start = time.monotonic()
     result = pytester.runpytest("--avs-driver", driver, "--avs-stack-timeout=0.5", "--avs-db=none",
-                                "--avs-report=none", "--avs-shrink-budget=0", "-p", "no:xdist",
-                                "-p", "no:cacheprovider", "-rA")
+                                "--avs-report=rep", "--avs-gifs=0", "--avs-shrink-budget=0",
+                                "-p", "no:xdist", "-p", "no:cacheprovider", "-rA")
     assert time.monotonic() - start < 20
     outcomes = result.parseoutcomes()
     assert outcomes.get("passed") == 2, result.stdout.str()[-3000:]
@@ -67,6 +68,11 @@ def test_a_faulty_answer_is_an_error_of_its_case_and_the_others_still_run(pytest
     result.stdout.fnmatch_lines(["ERROR test_faulty.py::test_drive?halton-001?*"])
     for ok in ("000", "002"):
         result.stdout.fnmatch_lines([f"PASSED*test_drive?halton-{ok}?*"])
+    # no row is lost: the error table has all three cases, the faulty one with its error
+    rows = [json.loads(line) for line in (pytester.path / "rep" / "errors.jsonl").read_text().splitlines()]
+    assert sorted(r["item"][-4:-1] for r in rows) == ["000", "001", "002"]
+    (bad,) = [r for r in rows if r["item"].endswith("-001]")]
+    assert bad["verdict"] == "error" and "OSI stack" in bad["error"], bad
 
 
 def test_a_stack_that_is_not_there_is_a_timeout_naming_the_address(pytester):

@@ -121,3 +121,40 @@ def test_under_xdist_each_worker_spawns_its_own_stack_and_the_verdicts_stay(pyte
         rows = [json.loads(line) for line in (pytester.path / name / "errors.jsonl").read_text().splitlines()]
         tables[name] = {r["item"]: (r["verdict"], r["rho"]) for r in rows}
     assert len(tables["here"]) == 6 and tables["here"] == tables["served"]
+
+
+def test_a_spawned_kit_ends_with_the_process_that_started_it(tmp_path):
+    # the plugin stops its stacks at exit; a plugin killed outright cannot, so the kit
+    # notices it lost its parent (within about a second) and ends
+    address = f"ipc://{tmp_path}/orphan.sock"
+    parent_code = (
+        "import os, subprocess, sys, time\n"
+        f"p = subprocess.Popen([sys.executable, '-m', 'pytest_avscenario.stack', {address!r}],"
+        f" env=dict(os.environ, AVS_OSI_ADDRESS={address!r}, PYTHONPATH={str(ROOT)!r}),"
+        " start_new_session=True)\n"
+        "print(p.pid, flush=True)\n"
+        "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", parent_code], stdout=subprocess.PIPE, text=True)
+    kit_pid = int(parent.stdout.readline())
+    try:
+        deadline = time.monotonic() + 20
+        while not (tmp_path / "orphan.sock").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)  # bound: serving
+        assert (tmp_path / "orphan.sock").exists()
+        parent.kill()
+        parent.wait(timeout=10)
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline:
+            try:
+                __import__("os").kill(kit_pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+        else:
+            pytest.fail("the kit outlived the process that spawned it by 5 s")
+    finally:
+        parent.kill()
+        try:
+            __import__("os").kill(kit_pid, 9)
+        except ProcessLookupError:
+            pass
