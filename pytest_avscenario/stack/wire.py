@@ -15,6 +15,7 @@ Timestamps are integers of nanoseconds on the wire (OSI's ``Timestamp``: ``secon
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 __all__ = ["PROTOCOL", "REVISION", "ProtocolError", "ns", "timestamp_ns", "set_timestamp",
@@ -70,10 +71,22 @@ def set_version(msg_version: Any) -> None:
 def pack(kind: bytes, body: Any) -> list[bytes]:
     """The three frames of one message; ``body`` is bytes, a dict (JSON) or text."""
     if isinstance(body, dict):
-        body = json.dumps(body, sort_keys=True, default=str).encode()
+        body = json.dumps(_plain(body), sort_keys=True, default=str, allow_nan=False).encode()
     elif isinstance(body, str):
         body = body.encode()
     return [PROTOCOL, kind, body]
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with every non-finite float made ``null``: strict JSON parsers (a C++ or
+    Rust stack's) refuse ``NaN`` and ``Infinity``."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
 
 
 def unpack(frames: list[bytes], expected: tuple[bytes, ...]) -> tuple[bytes, bytes]:
