@@ -113,6 +113,11 @@ class Polyline:
         return self.width
 
 
+def _number(value: Any) -> float:
+    """A JSON number as a float; ``null`` (sent for what is not finite) as NaN."""
+    return math.nan if value is None else float(value)
+
+
 class Session:
     """One case on the stack's side: the Reset's facts, the route, the driver."""
 
@@ -148,8 +153,9 @@ class Session:
         for lid in self.route_ids:
             pts = [(p.x, p.y) for p in by_id[lid].classification.centerline]
             info = self.lanes[lid]
-            cls = StraightLine(pts[0], pts[1], info["width"], info["speed_limit"]) if len(pts) == 2 \
-                else Polyline(pts, info["width"], info["speed_limit"])
+            limit = _number(info.get("speed_limit"))
+            cls = StraightLine(pts[0], pts[1], info["width"], limit) if len(pts) == 2 \
+                else Polyline(pts, info["width"], limit)
             route.append(cls)
         self.route = tuple(route)
 
@@ -210,7 +216,7 @@ class Session:
             "t": t, "dt": self.dt, "ego": state(self.host, ego_mo, "ego"), "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
             "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
-            "speed_limit": float(self.lanes[self.route_ids[ri]]["speed_limit"]),
+            "speed_limit": _number(self.lanes[self.route_ids[ri]].get("speed_limit")),
             "target_speed": self.target_speed, "goal": self.goal,
             "sensor_range": self.sensor_range})
 
