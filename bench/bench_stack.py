@@ -107,7 +107,6 @@ def bench_step(steps: int) -> None:
     print(f"   in process: observe + autopilot: {here:6.1f} µs per step")
     ids = {a: i + 1 for i, a in enumerate(w.agents)}
     static = frame.lane_ground_truth(w.view())
-    import json
 
     for kind, address in _addresses("kit").items():
         proc = _start(["-m", "pytest_avscenario.stack", address])
