@@ -183,3 +183,12 @@ def test_the_stack_is_named_in_the_ini_file_or_by_the_test_itself(pytester):
     result = pytester.runpytest("--avs-db=none", "--avs-report=none", "--avs-shrink-budget=0",
                                 "-p", "no:xdist", "-p", "no:cacheprovider")
     result.assert_outcomes(passed=4)
+
+
+def test_one_stack_at_an_address_is_refused_for_several_processes(pytester):
+    pytester.makepyfile(test_raw=SCENARIO)
+    result = pytester.runpytest("--avs-driver", "osi:tcp://127.0.0.1:5555", "-n", "2")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--avs-driver: 'osi:tcp://127.0.0.1:5555' is one stack for one "
+                                 "process, but pytest-xdist (-n) runs cases in several: use "
+                                 "'osi+spawn:COMMAND'*"])

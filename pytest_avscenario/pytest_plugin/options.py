@@ -590,6 +590,14 @@ def read_settings(config: pytest.Config) -> Settings:
         driver = _sb3_driver(found["driver"], config)
     if driver.startswith(("osi:", "osi+spawn:")):
         _osi_installed(found["driver"])
+    if driver.startswith("osi:") and (executor == "dask" or (
+            getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"))):
+        # one REP socket answers one case at a time: two processes' cases would interleave
+        # in the stack's state, and it could not tell them apart
+        raise pytest.UsageError(
+            f"{found['driver'].source}: {driver!r} is one stack for one process, but "
+            f"{'--avs-executor=dask' if executor == 'dask' else 'pytest-xdist (-n)'} runs cases "
+            "in several: use 'osi+spawn:COMMAND' (a stack per process) or run them in one")
     if "stack_timeout" in found:
         from ..stack.client import configure
 
