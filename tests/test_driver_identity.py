@@ -150,3 +150,13 @@ def test_objects_are_named_by_their_class_or_what_describe_says():
     broken = describe(Broken())
     assert broken["name"].endswith("Broken") and "no version file" in broken["describe_error"]
     assert describe("careful") == {"name": "careful", "kind": "builtin"}
+
+
+def test_a_stack_out_of_process_is_named_alike_from_the_option_and_the_object():
+    from pytest_avscenario.stack import OSIStack
+
+    assert describe("osi:tcp://127.0.0.1:5555") == {"name": "osi:tcp://127.0.0.1:5555", "kind": "osi"}
+    assert describe("osi+spawn:python -m mystack {address}")["kind"] == "osi"
+    ident = describe(OSIStack("tcp://127.0.0.1:5555"))
+    assert (ident["name"], ident["kind"]) == ("osi:tcp://127.0.0.1:5555", "osi")
+    assert same_driver(ident, describe("osi:tcp://127.0.0.1:5555"))

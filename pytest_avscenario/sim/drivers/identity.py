@@ -53,7 +53,8 @@ def describe(driver: Any) -> dict[str, Any]:
             return _sb3(text)
         if is_import_path(text):
             return {"name": text, "kind": "import"}
-        scheme = text.partition(":")[0] if ":" in text else "name"
+        # a scheme of its own (osi:ADDRESS, osi+spawn:COMMAND): the kind is the scheme's family
+        scheme = text.partition(":")[0].partition("+")[0] if ":" in text else "name"
         return {"name": text, "kind": scheme}
     if isinstance(driver, IDMDriver):
         return {"name": "idm", "kind": "builtin"}
