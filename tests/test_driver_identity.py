@@ -160,3 +160,15 @@ def test_a_stack_out_of_process_is_named_alike_from_the_option_and_the_object():
     ident = describe(OSIStack("tcp://127.0.0.1:5555"))
     assert (ident["name"], ident["kind"]) == ("osi:tcp://127.0.0.1:5555", "osi")
     assert same_driver(ident, describe("osi:tcp://127.0.0.1:5555"))
+
+
+def test_a_highway_env_agent_names_its_saved_model_file(tmp_path):
+    from pytest_avscenario.sim.drivers import highway_env_agent
+    from pytest_avscenario.sim.drivers.sb3 import SB3Model
+
+    model = tmp_path / "ppo.zip"
+    model.write_bytes(b"weights")
+    ident = describe(highway_env_agent(SB3Model(str(model), "PPO"), env="highway-v0"))
+    assert ident["kind"] == "highway_env_agent" and ident["env"] == "highway-v0"
+    assert (ident["file"], ident["sha256"], ident["algorithm"]) == (
+        str(model), hashlib.sha256(b"weights").hexdigest()[:12], "PPO")
