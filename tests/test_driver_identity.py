@@ -50,7 +50,7 @@ def test_an_import_path_driver_shows_in_header_terminal_summary_junit_index_and_
     result = pytester.runpytest("--avs-driver=mystack:MyStack", "-p", "no:xdist", *ARGS)
     result.assert_outcomes(failed=2)
     result.stdout.fnmatch_lines([
-        "avscenario: driver=mystack:MyStack (from --avs-driver) (an avs_driver fixture overrides it)",
+        "avscenario: driver=mystack:MyStack (from --avs-driver; an avs_driver fixture overrides it)",
         "*",
         "driver under test: mystack:MyStack (from --avs-driver)",
     ])
@@ -72,7 +72,7 @@ def test_an_import_path_driver_shows_in_header_terminal_summary_junit_index_and_
 def test_the_default_driver_is_named_autopilot_from_the_default(pytester):
     _project(pytester, test_crash=CRASH.format(name="crash"))
     result = pytester.runpytest("-p", "no:xdist", *ARGS)
-    result.stdout.fnmatch_lines(["avscenario: driver=autopilot (from default)*"])
+    result.stdout.fnmatch_lines(["avscenario: driver=autopilot (from default; an avs_driver fixture overrides it)"])
     summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
     assert summary["driver"] == {"name": "autopilot", "kind": "builtin", "from": "default"}
 

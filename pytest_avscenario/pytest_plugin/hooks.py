@@ -145,7 +145,7 @@ def pytest_report_header(config: pytest.Config) -> list[str]:
     # own (the report's "driver under test"), which conftests not loaded yet cannot tell here
     driver = session_driver(config)
     return [f"avscenario: seed={seed} (replay with --avs-seed={seed})",
-            f"avscenario: driver={identity_text(driver)} (an avs_driver fixture overrides it)"]
+            f"avscenario: driver={identity_text(driver, 'an avs_driver fixture overrides it')}"]
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:

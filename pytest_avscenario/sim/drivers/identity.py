@@ -120,8 +120,9 @@ def _sb3(text: str) -> dict[str, Any]:
     return out
 
 
-def identity_text(identity: Mapping[str, Any] | None) -> str:
-    """One line for people: ``sb3:dqn.zip@highway-fast-v0 (sha256 3f2a9c1b7d04)``."""
+def identity_text(identity: Mapping[str, Any] | None, note: str = "") -> str:
+    """One line for people: ``sb3:dqn.zip@highway-fast-v0 (sha256 3f2a9c1b7d04, from
+    --avs-driver)``; ``note`` goes last in the parentheses."""
     if not identity:
         return "unknown"
     extra = [f"sha256 {identity['sha256']}"] if identity.get("sha256") else []
@@ -129,7 +130,8 @@ def identity_text(identity: Mapping[str, Any] | None) -> str:
         return "several: " + "; ".join(identity_text(d) for d in identity.get("drivers", ()))
     if identity.get("from"):
         extra.append(f"from {identity['from']}")
-    return str(identity.get("name")) + (f" ({', '.join(extra)})" if extra else "")
+    inside = ", ".join(extra) + ("; " if extra and note else "") + note
+    return str(identity.get("name")) + (f" ({inside})" if inside else "")
 
 
 def same_driver(a: Mapping[str, Any] | None, b: Mapping[str, Any] | None) -> bool:
