@@ -115,10 +115,25 @@ class _XdistHooks:
         if row is not None:
             state.add(row, state.tests.get(row.test) or unknown_test_info(row.sampler))
 
-    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        if getattr(report, "avs_row", None) is not None and not hasattr(self.config, "workerinput"):
-            # the controller runs no item itself: its scenario work starts with the first row
-            self.config.stash[guard_key].install()
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> Any:
+        result = yield
+        guard = self.config.stash[guard_key]
+        if getattr(report, "avs_row", None) is not None and not hasattr(self.config, "workerinput") \
+                and not guard.installed:
+            # the controller runs no item itself: its scenario work starts with the first row,
+            # once every plugin has handled that row's report
+            guard.install()
+        return result
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtestloop(self, session: pytest.Session) -> Any:
+        if hasattr(self.config, "workerinput") or not self.config.pluginmanager.hasplugin("dsession"):
+            return (yield)
+        from .stopping import whole_xdist_events
+
+        with whole_xdist_events(self.config):
+            return (yield)
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
         if not hasattr(self.config, "workerinput"):
