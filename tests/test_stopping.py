@@ -308,6 +308,7 @@ def test_x(case):
 #   error table's (a signal lands between two plugins' handling of one report), while gw0,
 #   having sent that setup report, waits before its call report for the SIGTERM the stopped
 #   controller sends it (the worker is ended between its two reports);
+# * in-process: as between-plugins, in a run without xdist;
 # * between-events: the controller is stopped just after it took the setup report from its
 #   queue, before any plugin has it, once the item's call report is queued behind it (that
 #   call report alone would give JUnit a test case without a row).
@@ -332,7 +333,7 @@ def stop_here(nodeid):
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item, call):
     report = yield
-    if getattr(item.config, "workerinput", {}).get("workerid") == "gw0" and call.when == "setup":
+    if getattr(item.config, "workerinput", {}).get("workerid", "gw0") == "gw0" and call.when == "setup":
         seen.append(item.nodeid)
         report.avs_stop_here = len(seen) == 3  # travels to the controller with the report
     return report
@@ -362,7 +363,7 @@ class HoldWorker:
 
 
 def pytest_configure(config):
-    if WHERE == "between-plugins":
+    if WHERE in ("between-plugins", "in-process"):
         worker = hasattr(config, "workerinput")
         config.pluginmanager.register(HoldWorker(config) if worker else StopController())
 
@@ -419,6 +420,29 @@ def test_many(case):
     # each failure is stored as found (no shrinking); at most the one case each of the two
     # workers was finishing when the controller stopped listening is stored but not reported
     assert failing <= stored <= failing + 2, (failing, stored)
+    assert "PluggyTeardownRaisedWarning" not in out
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_stopping_a_run_while_a_report_is_handled_keeps_that_items_row(pytester, sig):
+    pytester.makeconftest(STOP_AT_A_REPORT)
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=10, sampler="halton")
+def test_few(case):
+    assert case.x < 0.3
+""")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "--avs-db=none",
+         "--junitxml=out.xml"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": "in-process"})
+    out = proc.communicate(timeout=120)[0].decode()
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    stopped_at = (pytester.path / "stopped_at").read_text()
+    rows = rows_of(pytester.path)
+    assert [r["item"] for r in rows][-1] == stopped_at and len(rows) == 3, out
+    assert junit_cases(pytester.path / "out.xml") == 3, out
     assert "PluggyTeardownRaisedWarning" not in out
 
 
