@@ -253,18 +253,19 @@ class TermGuard:
 def signals_held(guard: TermGuard | None) -> Iterator[None]:
     """What runs inside happens whole: a SIGTERM (while the guard reads it as Ctrl-C) or a
     Ctrl-C arriving meanwhile is raised as KeyboardInterrupt when it has ended. Only while
-    scenario work runs and in the main thread; inside an outer hold it is the outer one's.
+    scenario work runs and in the main thread (where signal handlers run: another thread's
+    work, a watchdog's report, is not cut by them); inside an outer hold, the outer one's.
 
     Raised anywhere, the interrupt can cut one report's handling between two plugins (pytest's
     JUnit writer has the report, the error table not), or drop an xdist controller's event it
     took from its queue and had not handled yet."""
-    hold = guard is not None and guard.installed and not guard.deferred
+    hold = (guard is not None and guard.installed and not guard.deferred
+            and threading.current_thread() is threading.main_thread())
     if hold:
         guard.deferred = True
     # Ctrl-C likewise: pytest's own SIGINT handling (KeyboardInterrupt) resumes afterwards
     interrupted: list[int] = []
-    hold_int = (hold and threading.current_thread() is threading.main_thread()
-                and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    hold_int = hold and signal.getsignal(signal.SIGINT) is signal.default_int_handler
     if hold_int:
         signal.signal(signal.SIGINT, lambda signum, frame: interrupted.append(signum))
     try:
