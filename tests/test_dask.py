@@ -166,7 +166,7 @@ def test_a_worker_killed_mid_case_is_resubmitted_and_every_case_reports(pytester
 def test_stopping_a_dask_run_while_a_report_is_handled_keeps_that_items_row(pytester, cluster_address, sig):
     # the item's case came back from the cluster; the run is stopped by a hook implementation
     # that handles its setup report before the error table does (issue #34's moment)
-    from test_stopping import STOP_AT_A_REPORT
+    from test_stopping import STOP_AT_A_REPORT, ctrl_c_as_at_a_terminal
 
     pytester.makeconftest(STOP_AT_A_REPORT)
     pytester.makepyfile("""
@@ -180,7 +180,8 @@ def test_few(case):
         [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "--avs-db=none",
          "--avs-executor=dask", f"--avs-dask-address={cluster_address}", "--junitxml=out.xml"],
         cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": "in-process"})
+        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": "in-process"},
+        preexec_fn=ctrl_c_as_at_a_terminal)
     out = proc.communicate(timeout=120)[0].decode()
     assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
     stopped_at = (pytester.path / "stopped_at").read_text()

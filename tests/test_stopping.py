@@ -42,6 +42,13 @@ def junit_cases(path: Path) -> int:
     return path.read_text().count("<testcase ")
 
 
+def ctrl_c_as_at_a_terminal() -> None:
+    """A child's SIGINT as a terminal's Ctrl-C finds it: a shell starts background jobs with
+    SIGINT ignored, and a Python started so never raises KeyboardInterrupt (the test would
+    stop nothing and fail in a CI job that runs its tests in the background)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 # -- pytest's own exits in a body or a driver ---------------------------------------------
 
 EXITS = """
@@ -405,7 +412,8 @@ def test_many(case):
     proc = subprocess.Popen(
         [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "2", "--avs-shrink-budget=0",
          "--junitxml=out.xml"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": where})
+        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": where},
+        preexec_fn=ctrl_c_as_at_a_terminal)
     out = proc.communicate(timeout=120)[0].decode()
     assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
     stopped_at = (pytester.path / "stopped_at").read_text()
@@ -436,7 +444,8 @@ def test_few(case):
     proc = subprocess.Popen(
         [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "--avs-db=none",
          "--junitxml=out.xml"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": "in-process"})
+        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": "in-process"},
+        preexec_fn=ctrl_c_as_at_a_terminal)
     out = proc.communicate(timeout=120)[0].decode()
     assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
     stopped_at = (pytester.path / "stopped_at").read_text()
