@@ -6,7 +6,7 @@ per (test, counterexample) in ``.avscenario/`` at the rootdir, holding the param
 rho values, the case seed, the feature space it was found in (description and
 fingerprint, so a changed scenario is noticed instead of replayed blindly), the versions
 that found it and whether it was minimized. Files are written atomically (a temporary
-file in the same directory, then ``os.replace``), so concurrent pytest-xdist workers and a
+file in the same directory, then ``os.replace``: :mod:`pytest_avscenario.files`), so concurrent pytest-xdist workers and a
 CI cache merged from several jobs never show a half-written entry. File names are a hash
 of (test, parameters) — never user text — and file contents are only ever parsed as
 strict JSON: nothing read is executed, and no path is taken from a file's content.
@@ -28,7 +28,6 @@ import os
 import re
 import stat
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +36,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from .codec import rho_from_json, rho_to_json
+from .files import atomic_write_bytes
 from .space import FeatureSpace
 
 __all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "replay_params", "space_changes"]
@@ -241,30 +241,15 @@ class ReplayDB:
 
     def _write_atomically(self, path: Path, data: bytes) -> None:
         self._check_directory()
-        tmp = None
         try:
-            self.directory.mkdir(parents=True, exist_ok=True)
-            # Same directory, so os.replace is an atomic rename on one file system; the
-            # ".tmp" name does not match the entry pattern, so readers never see it.
-            fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".part", dir=self.directory)
-            with os.fdopen(fd, "wb") as f:
-                f.write(data)
-                f.flush()
-                os.fsync(f.fileno())
-            os.chmod(tmp, 0o644)  # mkstemp's 0600 would hide entries from a shared CI cache
-            os.replace(tmp, path)
-            tmp = None
+            # the package's one atomic writer: a hidden temporary name no entry pattern
+            # matches, fsynced, replaced, readable by a shared CI cache (not mkstemp's 0600)
+            atomic_write_bytes(path, data, durable=True)
         except OSError as exc:
             raise DatabaseError(
                 f"cannot write the replay database {self.directory}: {exc.strerror or exc}; "
                 "make it a writable directory, pass another --avs-db, or --avs-db=none"
             ) from exc
-        finally:
-            if tmp is not None:
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
 
     def delete(self, entry: Entry) -> None:
         """Remove a stored counterexample (already gone is fine: another worker did it)."""

@@ -596,7 +596,7 @@ def _save_atomic(image: Any, path: str | os.PathLike) -> None:
     report's many per-case files)."""
     import io
 
-    from ..report.folder import atomic_write_bytes
+    from ..files import atomic_write_bytes
 
     buf = io.BytesIO()
     image.save(buf, format="PNG", optimize=True)
