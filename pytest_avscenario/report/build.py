@@ -184,13 +184,13 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     def slider(data: Mapping[str, Any], row: CaseRow) -> str:
         # the data knows its own first violation and critical agent: those of the case it
         # recorded (the minimized one, when there is one), not necessarily the row's
-        from .replay import player_file, replay_html
+        from .player import player_file, player_html
 
         if not player:
             name, text = player_file()
             atomic_write_text(folder.add(cases / name), text, durable=False)
             player.append(name)
-        return replay_html(data, element_id="replay", player=player[0])
+        return player_html(data, element_id="replay", player=player[0])
 
     labels = mode_labels(campaigns)
     described = {item: f"{labels[item]} ({m.what}: {m.rule})"
@@ -200,9 +200,9 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
         files = CaseFiles(dict(case_files.get(row.item) or {}))
         page = render_card(cases, row, metrics=metrics, space=space, mode=described.get(row.item),
                            files=files, rerun=rerun(row) if rerun is not None else None,
-                           index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
+                           index_href=f"../index.html#t-{file_slug(test)}", player=slider)
         atomic_write_text(cases / card_name(row), page, durable=False)  # one of many
-        recording = files.get("replay")
+        recording = files.get("recording")
         if recording is not None and "id='replay-data'" in page and folder.owns(recording):
             # the card holds the recording now (its replay-data script): one copy per report,
             # so ~700 counterexamples cost ~15 KB each, not ~19
