@@ -19,6 +19,7 @@ for _mod in ("numpy.fft", "scipy.stats", "scipy.spatial", "scipy.optimize", "sha
              "pytest_avscenario.sim.engine", "pytest_avscenario.sim.render",
              "pytest_avscenario.sim.drivers.autopilot", "pytest_avscenario.monitors",
              "pytest_avscenario.report.build", "pytest_avscenario.report.plots",
+             "pytest_avscenario.report.recording", "pytest_avscenario.report.player",
              "pytest_avscenario.shrink", "pytest_avscenario.db"):
     try:
         importlib.import_module(_mod)

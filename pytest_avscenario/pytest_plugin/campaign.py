@@ -65,6 +65,7 @@ class Campaign:
     """The running state of one scenario test's campaign (all its samplers)."""
 
     plan: ScenarioPlan
+    config: Any = None  # the pytest config, whose hooks may make the samplers
     active: dict[str, ActiveRun] = field(default_factory=dict)  # active sampler name -> its run
     shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
     gifs: int = 0  # GIFs rendered so far for this test
@@ -80,7 +81,7 @@ class Campaign:
     def run_of(self, name: str) -> ActiveRun:
         """The run of active sampler ``name``, made on first use."""
         if name not in self.active:
-            self.active[name] = ActiveRun(self.plan.make_sampler(name))
+            self.active[name] = ActiveRun(self.plan.make_sampler(name, self.config))
         return self.active[name]
 
     def cache_key(self, name: str) -> str:
@@ -108,7 +109,7 @@ def campaign_of(item: pytest.Item) -> Campaign:
     campaigns = item.config.stash[campaigns_key]
     test = function_id(item)
     if test not in campaigns:
-        campaigns[test] = Campaign(plan_of(item))
+        campaigns[test] = Campaign(plan_of(item), config=item.config)
     return campaigns[test]
 
 

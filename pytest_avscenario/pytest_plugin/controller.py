@@ -171,12 +171,17 @@ class RunState:
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
                                      case_files=self.case_files, verdicts=verdicts,
                                      rerun=self.rerun_command, partial=self.partial,
-                                     baseline=settings.baseline)
+                                     baseline=settings.baseline, card_sections=self.card_sections)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
             self.summary_rows = self.guarded("the summary", None, lambda: self.summary(verdicts, infos)) or []
         self.guarded("the JUnit suite properties", None, self.add_suite_properties)
+
+    def card_sections(self, row: CaseRow) -> list[tuple[str, str]]:
+        """The ``(title, html)`` sections conftest.py files add to ``row``'s card (newhooks)."""
+        found = self.config.hook.pytest_avscenario_card_sections(config=self.config, row=row)
+        return [(str(title), str(body)) for sections in found for title, body in (sections or ())]
 
     def rerun_command(self, row: CaseRow) -> str:
         """The command that re-runs the case of ``row`` (for its card)."""
@@ -238,6 +243,12 @@ class RunState:
             # worker's row knows nothing of its declaration)
             self.tests[row.test] = info
         self.rows.append(row)
+        try:
+            self.config.hook.pytest_avscenario_case_finished(config=self.config, row=row)
+        except Exception as exc:
+            # a team's row sink (newhooks) that raises costs a warning, not the run's rows
+            self.warn(f"avscenario: a pytest_avscenario_case_finished hook raised for {row.item} "
+                      f"({type(exc).__name__}: {exc}); the case's row is kept")
         folder = self.claim()
         if folder is None:
             return
@@ -375,8 +386,12 @@ class RunState:
                 why = case_verdict(criteria, r, [m for m, v in r.rho.items() if v is not None and v < 0])
                 if why is not None:
                     rejected.append((r.item, why))
-            reasons = campaign_verdict(criteria, rows, rejected, baseline, test, sampler,
-                                       info["metrics"])
+            reasons = list(campaign_verdict(criteria, rows, rejected, baseline, test, sampler,
+                                            info["metrics"]) or [])
+            # a team's own criteria (newhooks): every implementation's reasons count
+            for extra in self.config.hook.pytest_avscenario_campaign_verdict(
+                    config=self.config, test=test, sampler=sampler, rows=list(rows)):
+                reasons += [str(r) for r in extra or ()]
             if reasons:
                 out[(test, sampler)] = reasons
         return out

@@ -49,6 +49,14 @@ from .stash import (
 )
 
 
+def pytest_addhooks(pluginmanager: pytest.PytestPluginManager) -> None:
+    """The plugin's own hooks (:mod:`.newhooks`): a conftest.py adds a sampler, a row sink, a
+    card section or an acceptance criterion without private imports."""
+    from . import newhooks
+
+    pluginmanager.add_hookspecs(newhooks)
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     add_options(parser)
 

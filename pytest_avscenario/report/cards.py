@@ -298,10 +298,12 @@ def render_card(
     index_href: str = "../index.html",
     mode: str | None = None,
     player: Callable[[Mapping[str, Any], CaseRow], str] | None = None,
+    sections: Sequence[tuple[str, str]] = (),
 ) -> str:
     """The HTML text of ``row``'s card page, written in ``directory`` (the report's
     ``cases/``). ``files``: the case's pictures and recording; ``rerun``: the command that
-    re-runs it; ``player(data, row)``: the player's HTML for the recording's JSON data."""
+    re-runs it; ``player(data, row)``: the player's HTML for the recording's JSON data;
+    ``sections``: ``(title, html)`` a team adds at the end (the title escaped, the HTML as given)."""
     files = files or CaseFiles()
     violated = [m for m, v in row.rho.items() if v is not None and v < 0]
     t, agent = _first(row)
@@ -371,5 +373,8 @@ def render_card(
             caption = f"{FILE_CAPTIONS[kind]} ({which})"
             parts.append(f"<figure><a href='{link}'><img src='{link}' alt='{e(caption)}: {e(row.item)}'></a>"
                          f"<figcaption>{e(caption)}</figcaption></figure>")
+    for title, body in sections:
+        parts.append(f"<h2>{e(title)}</h2>")
+        parts.append(f"<div class='team-section'>{body}</div>")
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
