@@ -27,7 +27,7 @@ from .metrics import (
     pairwise_ttc,
 )
 
-__all__ = ["Evidence", "case_evidence", "critical_hint", "ttc_radius", "threshold_lines",
+__all__ = ["Evidence", "case_evidence", "critical_hint", "ttc_radius", "threshold_lines", "TTC_RADIUS_M",
            "reads_crash_flags", "critical_agent"]
 
 
