@@ -31,13 +31,13 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from .codec import rho_from_json, rho_to_json
 from .files import atomic_write_bytes
-from .space import FeatureSpace
+
+if TYPE_CHECKING:
+    from .space import FeatureSpace
 
 __all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "replay_params", "space_changes"]
 
@@ -505,6 +505,8 @@ def _declared_value(name: str, dist: Any, value: Any) -> Any:
 def _same_value(declared: Any, stored: Any) -> bool:
     """Whether a stored JSON value is a declared one: numbers by value (1 is 1.0, but True is
     not 1), anything else by its JSON form (a tuple option is stored as a list)."""
+    import numpy as np  # here, not at import: loading the plugin must not load numpy
+
     def number(v: Any) -> bool:
         return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
@@ -528,6 +530,8 @@ def _shown_test(test: str) -> str:
 def _plain(value: Any) -> Any:
     """JSON-ready copy: numpy scalars to Python, tuples to lists; non-finite floats and
     non-JSON values are refused (a case's parameters are always plain and finite)."""
+    import numpy as np  # here, not at import: loading the plugin must not load numpy
+
     if isinstance(value, Mapping):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -554,6 +558,8 @@ def _canon(value: Any) -> str:
 
 
 def _as_int(value: Any, what: str) -> int:
+    import numpy as np  # here, not at import: loading the plugin must not load numpy
+
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{what} must be an int, got {value!r}")
     return int(value)

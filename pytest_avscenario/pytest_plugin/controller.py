@@ -22,13 +22,14 @@ import sys
 import tempfile
 import threading
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import pytest
 
-from ..outcome import CaseRow
-from ..space import FeatureSpace
 from .stash import settings_key
+
+if TYPE_CHECKING:  # loaded with the first row: a run without scenario tests never needs it
+    from ..outcome import CaseRow
 
 #: where a run that re-runs some cases (``-k``, ``--lf``, a case id) writes its report, inside
 #: the report folder, so the campaign's report stays as it was
@@ -137,6 +138,8 @@ class RunState:
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
         if data is not None and not self.is_worker:
+            from ..outcome import CaseRow
+
             if getattr(report, "avs_partial", None) and not self.partial:
                 self.partial = report.avs_partial  # an xdist worker's selection
             for shrink_row in getattr(report, "avs_shrink_rows", ()):
@@ -353,7 +356,7 @@ class RunState:
         for test in ordered:
             info = self.tests[test]
             space = self.guarded("the ε-coverage (rebuilding the parameter space)", test,
-                                 lambda: FeatureSpace.from_description(info["space"]))
+                                 lambda: _space_of(info["space"]))
             infos[test] = TestInfo(metrics=tuple(info["metrics"]), space=space,
                                    priority=tuple(info.get("priority") or ()),
                                    samplers=tuple(info["samplers"]))
@@ -395,6 +398,12 @@ class RunState:
             if reasons:
                 out[(test, sampler)] = reasons
         return out
+
+
+def _space_of(description: Any) -> Any:
+    from ..space import FeatureSpace  # numpy: only once there are scenario rows
+
+    return FeatureSpace.from_description(description)
 
 
 def versions() -> dict[str, str]:
