@@ -14,6 +14,7 @@ writes the error table and the report. Settings come from :mod:`.options`, once 
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -76,9 +77,11 @@ def _open_db(config: pytest.Config, path: Any) -> Any:
     """The replay database, or None. Workers get the controller's snapshot (same items)."""
     if path is None:
         return None
+    workerinput = getattr(config, "workerinput", None)
+    if (workerinput is None or "avs_db" not in workerinput) and not os.path.lexists(path):
+        return _DeferredDB(path)  # nothing stored yet: nothing to read or check now
     from ..db import DatabaseError, ReplayDB
 
-    workerinput = getattr(config, "workerinput", None)
     try:
         if workerinput is not None and "avs_db" in workerinput:
             return ReplayDB.from_snapshot(path, workerinput["avs_db"])
@@ -89,6 +92,22 @@ def _open_db(config: pytest.Config, path: Any) -> Any:
     for message in db.warnings:
         config.issue_config_time_warning(pytest.PytestWarning(f"avscenario replay database: {message}"), 2)
     return db
+
+
+class _DeferredDB:
+    """The replay database of a directory that does not exist yet, made on first use: a
+    repository without scenario tests (or with no stored failure) never loads ``db``."""
+
+    def __init__(self, path: Any):
+        self._path = path
+        self._db: Any = None
+
+    def __getattr__(self, name: str) -> Any:
+        if self._db is None:
+            from ..db import ReplayDB
+
+            self._db = ReplayDB(self._path)
+        return getattr(self._db, name)
 
 
 class _XdistHooks:
