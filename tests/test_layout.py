@@ -215,7 +215,7 @@ def test_the_cycle_check_sees_a_cycle(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("module", ["space", "samplers", "monitors", "sim", "report", "executors",
-                                    "outcome", "trajectory", "shrink", "db", "runner"])
+                                    "outcome", "trajectory", "shrink", "db", "runner", "files"])
 def test_importing_the_library_loads_no_pytest(module):
     # a real process: this one has pytest loaded already
     code = (f"import sys, {NAME}.{module}\n"
