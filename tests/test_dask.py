@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -158,6 +160,35 @@ def test_a_worker_killed_mid_case_is_resubmitted_and_every_case_reports(pytester
     # case 2 ran again (its whole chunk of 16 // (4 x 2 workers) = 2 cases did), in another
     # process, exactly once more
     assert len(second) == 1, runs
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_stopping_a_dask_run_while_a_report_is_handled_keeps_that_items_row(pytester, cluster_address, sig):
+    # the item's case came back from the cluster; the run is stopped by a hook implementation
+    # that handles its setup report before the error table does (issue #34's moment)
+    from test_stopping import STOP_AT_A_REPORT, ctrl_c_as_at_a_terminal
+
+    pytester.makeconftest(STOP_AT_A_REPORT)
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=10, sampler="halton")
+def test_few(case):
+    assert case.x < 0.3
+""")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "no:xdist", "--avs-db=none",
+         "--avs-executor=dask", f"--avs-dask-address={cluster_address}", "--junitxml=out.xml"],
+        cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        env={**os.environ, "AVS_TEST_SIGNAL": sig.name, "AVS_TEST_WHERE": "in-process"},
+        preexec_fn=ctrl_c_as_at_a_terminal)
+    out = proc.communicate(timeout=120)[0].decode()
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    stopped_at = (pytester.path / "stopped_at").read_text()
+    table = pytester.path / "avs-report" / "errors.jsonl"
+    rows = [json.loads(line) for line in table.read_text().splitlines()]
+    assert [r["item"] for r in rows][-1] == stopped_at and len(rows) == 3, out
+    assert (pytester.path / "out.xml").read_text().count("<testcase ") == 3, out
 
 
 def test_a_conftest_driver_drives_on_the_workers(pytester, cluster_address):

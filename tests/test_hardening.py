@@ -228,6 +228,7 @@ def test_interrupted_campaign_keeps_finished_rows_and_a_partial_summary(pytester
     proc = subprocess.Popen(
         [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--avs-shrink-budget=2",
          "test_slow.py"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # Ctrl-C as at a terminal
     )
     table = pytester.path / "avs-report" / "errors.jsonl"
     deadline = time.monotonic() + 60

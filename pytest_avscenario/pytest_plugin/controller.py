@@ -17,10 +17,8 @@ run's exit status.
 from __future__ import annotations
 
 import shutil
-import signal
 import sys
 import tempfile
-import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping
 
@@ -104,36 +102,6 @@ class RunState:
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.note_order(item.nodeid for item in session.items)
-
-    @pytest.hookimpl(hookwrapper=True, specname="pytest_runtest_logreport")
-    def hold_signals_per_report(self, report: pytest.TestReport) -> Any:
-        """Every plugin's handling of one report (ours, JUnit's, the terminal's) happens whole:
-        a SIGTERM arriving meanwhile waits until they all have it, so the error table and the
-        JUnit file hold the same cases."""
-        from .stash import guard_key
-
-        guard = self.config.stash.get(guard_key, None)
-        hold = guard is not None and getattr(guard, "installed", False) and not guard.deferred
-        if hold:
-            guard.deferred = True
-        # Ctrl-C likewise: pytest's own SIGINT handling (KeyboardInterrupt) resumes after
-        interrupted: list[int] = []
-        hold_int = (hold and threading.current_thread() is threading.main_thread()
-                    and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
-        if hold_int:
-            signal.signal(signal.SIGINT, lambda signum, frame: interrupted.append(signum))
-        try:
-            yield
-        finally:
-            if hold_int:
-                signal.signal(signal.SIGINT, signal.default_int_handler)
-            if hold:
-                guard.deferred = False
-                if guard.pending:
-                    guard.pending = False
-                    guard._handle(signal.SIGTERM, None)
-                if interrupted:
-                    raise KeyboardInterrupt
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)

@@ -4,6 +4,7 @@ and how to re-run just that case or pin it as a regression."""
 from __future__ import annotations
 
 import json
+import shlex
 from typing import Any, Mapping
 
 import pytest
@@ -113,5 +114,6 @@ def rerun_text(settings: Any, nodeid: str, params: Mapping[str, Any], names: Any
         cmd += f" --avs-params '{pinned}'"
     for name in ("samples", "sampler", "driver"):  # they change which case an id names
         if name in settings.command_line:
-            cmd += f" --avs-{name}={settings.command_line[name]}"
+            # quoted: a driver such as osi+spawn:COMMAND holds spaces and braces
+            cmd += " " + shlex.quote(f"--avs-{name}={settings.command_line[name]}")
     return cmd

@@ -134,10 +134,25 @@ class _XdistHooks:
         if row is not None:
             state.add(row, state.tests.get(row.test) or unknown_test_info(row.sampler))
 
-    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        if getattr(report, "avs_row", None) is not None and not hasattr(self.config, "workerinput"):
-            # the controller runs no item itself: its scenario work starts with the first row
-            self.config.stash[guard_key].install()
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> Any:
+        result = yield
+        guard = self.config.stash[guard_key]
+        if getattr(report, "avs_row", None) is not None and not hasattr(self.config, "workerinput") \
+                and not guard.installed:
+            # the controller runs no item itself: its scenario work starts with the first row,
+            # once every plugin has handled that row's report
+            guard.install()
+        return result
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtestloop(self, session: pytest.Session) -> Any:
+        if hasattr(self.config, "workerinput") or not self.config.pluginmanager.hasplugin("dsession"):
+            return (yield)
+        from .stopping import whole_xdist_events
+
+        with whole_xdist_events(self.config):
+            return (yield)
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
         if not hasattr(self.config, "workerinput"):
@@ -315,22 +330,29 @@ def _raise_for(item: pytest.Item, result: Any, when: str) -> None:
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
     report = yield
-    if row_key in item.stash and not item.stash.get(sent_key, False):
-        # the first report after the case ran carries its row (the setup's, when the case was
-        # an error and no call follows); extra attributes travel to the xdist controller too
-        if call.when == "setup" and report.passed:
-            return report
+    if row_key not in item.stash:
+        return report  # not a scenario case: nothing of the campaign is loaded for it
+    from .campaign import attach_to_html_report
+    from .collect import plan_of
+
+    if not item.stash.get(sent_key, False):
+        # The row leaves with the first report after the case ran: the setup's, since the case
+        # runs as the last step of the setup. pytest's JUnit writer counts an item from its
+        # first report on (the setup's duration opens its <testcase>), so a run stopped between
+        # an item's setup and call reports (a SIGTERM to an xdist worker lands there) still has
+        # the item's row, as it has its JUnit test case (issue #34). Extra attributes travel to
+        # the xdist controller too.
         item.stash[sent_key] = True
         report.avs_row = item.stash[row_key].to_json()
         report.avs_shrink_rows = [r.to_json() for r in item.stash.get(shrink_rows_key, [])]
         report.avs_pictures = item.stash.get(pictures_key, {})
-        from .campaign import attach_to_html_report
-        from .collect import plan_of
-
-        if report.avs_pictures and item.config.pluginmanager.hasplugin("html"):
-            attach_to_html_report(report, report.avs_pictures)
         report.avs_test = plan_of(item).info()
         report.avs_partial = item.config.stash[controller_key].partial
+    pictures = item.stash.get(pictures_key, None)
+    shown = call.when == "call" or (call.when == "setup" and not report.passed)
+    if pictures and shown and item.config.pluginmanager.hasplugin("html"):
+        # pytest-html shows the report that decides the outcome, and a passed setup's not at all
+        attach_to_html_report(report, pictures)
     return report
 
 

@@ -134,10 +134,15 @@ def _driver(raw: Any) -> str:
 
         sb3.parse(value)  # the syntax here; the file and the environment in read_settings
         return value
+    if value.startswith(("osi:", "osi+spawn:")):
+        from ..stack.client import parse_spec
+
+        parse_spec(value)  # the syntax here; whether pyzmq and osi3 are installed in read_settings
+        return value
     if value not in BUILTIN_DRIVERS and ":" not in value:
         names = ", ".join(repr(n) for n in BUILTIN_DRIVERS)
-        raise ValueError(f"unknown driver {value!r}; use {names}, 'package.module:Name' or "
-                         "'sb3:PATH@ENV'")
+        raise ValueError(f"unknown driver {value!r}; use {names}, 'package.module:Name', "
+                         "'sb3:PATH@ENV', 'osi:ADDRESS' or 'osi+spawn:COMMAND'")
     return value
 
 
@@ -152,6 +157,17 @@ def _sb3_driver(found: Found, config: pytest.Config) -> str:
         return sb3.check(found.value, base)
     except ValueError as exc:
         raise pytest.UsageError(f"{found.source}: {exc}") from None
+
+
+def _osi_installed(found: Found) -> None:
+    """``--avs-driver osi:...`` needs pyzmq and osi3: a usage error naming the extra if not."""
+    import importlib.util
+
+    for module, package in (("zmq", "pyzmq"), ("osi3", "osi-python")):
+        if importlib.util.find_spec(module) is None:  # looked up, not imported: start-up stays fast
+            raise pytest.UsageError(
+                f"{found.source}: {found.value!r} needs {package} (pip install "
+                "'pytest-avscenario[osi]')") from None
 
 
 def _margins(raw: Any) -> dict[str, float]:
@@ -281,10 +297,17 @@ OPTIONS = (
            "driver of the ego: 'autopilot' (default), 'idm', 'careful' (UN R157's careful and "
            "competent driver), 'package.module:Name', or 'sb3:PATH@ENV' (a stable-baselines3 "
            "model trained on the highway-env environment ENV, default highway-fast-v0; needs "
-           "pytest-avscenario[sb3]); a conftest `avs_driver` fixture overrides this",
-           "driver of the ego (autopilot, idm, careful, package.module:Name or sb3:PATH@ENV) "
-           "when avs_driver is not overridden",
+           "pytest-avscenario[sb3]), 'osi:ADDRESS' (a stack out of process at tcp://… or "
+           "ipc://…) or 'osi+spawn:COMMAND' (started by the plugin; see docs/osi-protocol.md); "
+           "a conftest `avs_driver` fixture overrides this",
+           "driver of the ego (autopilot, idm, careful, package.module:Name, sb3:PATH@ENV, "
+           "osi:ADDRESS or osi+spawn:COMMAND) when avs_driver is not overridden",
            _driver),
+    Option("stack-timeout", "SECONDS",
+           "seconds a stack out of process (--avs-driver osi:…) may take to answer one "
+           "step before the case is an error (default 5)",
+           "seconds an OSI stack may take to answer one step (default 5)",
+           _positive_seconds),
     Option("dt", "SECONDS|auto",
            "simulation step of world.run() calls that give no dt=: 'auto' (default) is the "
            "step the ego's driver declares (a highway-env agent or sb3:PATH@ENV: its "
@@ -565,6 +588,20 @@ def read_settings(config: pytest.Config) -> Settings:
     driver = value("driver", "autopilot")
     if driver.startswith("sb3:"):
         driver = _sb3_driver(found["driver"], config)
+    if driver.startswith(("osi:", "osi+spawn:")):
+        _osi_installed(found["driver"])
+    if driver.startswith("osi:") and (executor == "dask" or (
+            getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"))):
+        # one REP socket answers one case at a time: two processes' cases would interleave
+        # in the stack's state, and it could not tell them apart
+        raise pytest.UsageError(
+            f"{found['driver'].source}: {driver!r} is one stack for one process, but "
+            f"{'--avs-executor=dask' if executor == 'dask' else 'pytest-xdist (-n)'} runs cases "
+            "in several: use 'osi+spawn:COMMAND' (a stack per process) or run them in one")
+    if "stack_timeout" in found:
+        from ..stack.client import configure
+
+        configure(timeout_s=value("stack_timeout"))
     return Settings(
         seed=_session_seed(config),
         driver=driver,

@@ -13,17 +13,23 @@
   SIGTERM at once, even while the main thread is stuck in C where no Python handler can run:
   a second SIGTERM, or the first one unanswered for :data:`TERM_GRACE_S`, ends the process
   as the default action would.
+* :func:`signals_held` — one piece of work (one report's handling by every plugin, one event
+  of an xdist controller) happens whole: a SIGTERM or Ctrl-C arriving meanwhile is raised when
+  it ends, so the error table and the JUnit file never hold different parts of a run.
+* :func:`end_workers` — an interrupted xdist controller ends its workers and reports what they
+  sent until they ended.
 * :func:`crash_row` — the row of an item whose xdist worker died while running it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
 import sys
 import threading
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import pytest
 
@@ -135,6 +141,15 @@ class TermGuard:
                 self.uninstall()  # plain tests next: SIGTERM is theirs again
 
     @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> Any:
+        """Every plugin's handling of one report (the error table's, JUnit's, the terminal's)
+        happens whole: a SIGTERM or Ctrl-C arriving meanwhile waits until they all have it, so
+        the error table and the JUnit file hold the same cases. (tryfirst: the outermost
+        wrapper, so a conftest's wrapper is inside too.)"""
+        with signals_held(self):
+            return (yield)
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> Any:
         # the report is written whole: a SIGTERM meanwhile waits for it, then the run ends
         # as interrupted (a second SIGTERM still ends the process at once)
@@ -152,6 +167,13 @@ class TermGuard:
         if self.terminal_fd is not None:
             os.close(self.terminal_fd)
             self.terminal_fd = None
+
+    def release(self) -> None:
+        """End a deferral: a SIGTERM that arrived meanwhile is answered now (raises)."""
+        self.deferred = False
+        if self.pending:
+            self.pending = False
+            self._handle(signal.SIGTERM, None)
 
     def _handle(self, signum: int, frame: Any) -> None:
         self.answered.set()
@@ -228,6 +250,65 @@ class TermGuard:
             _die_by_sigterm()
 
 
+@contextlib.contextmanager
+def signals_held(guard: TermGuard | None) -> Iterator[None]:
+    """What runs inside happens whole: a SIGTERM (while the guard reads it as Ctrl-C) or a
+    Ctrl-C arriving meanwhile is raised as KeyboardInterrupt when it has ended. Only while
+    scenario work runs and in the main thread (where signal handlers run: another thread's
+    work, a watchdog's report, is not cut by them); inside an outer hold, the outer one's.
+
+    Raised anywhere, the interrupt can cut one report's handling between two plugins (pytest's
+    JUnit writer has the report, the error table not), or drop an xdist controller's event it
+    took from its queue and had not handled yet."""
+    hold = (guard is not None and guard.installed and not guard.deferred
+            and threading.current_thread() is threading.main_thread())
+    if hold:
+        guard.deferred = True
+    # Ctrl-C likewise: pytest's own SIGINT handling (KeyboardInterrupt) resumes afterwards
+    interrupted: list[int] = []
+    hold_int = hold and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    if hold_int:
+        signal.signal(signal.SIGINT, lambda signum, frame: interrupted.append(signum))
+    try:
+        yield
+    finally:
+        if hold_int:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if hold:
+            guard.release()
+            if interrupted:
+                raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def whole_xdist_events(config: pytest.Config) -> Iterator[None]:
+    """An xdist controller's run loop, where a stop lands only while it waits for an event,
+    never between taking one from its queue and handling it (that event would be lost: an
+    item's setup report, say, whose call report then reaches JUnit without its row)."""
+    from .stash import guard_key
+
+    guard = config.stash.get(guard_key, None)
+    dsession = config.pluginmanager.getplugin("dsession")
+    events = getattr(dsession, "queue", None)
+    loop_once = getattr(dsession, "loop_once", None)
+    if loop_once is None or not hasattr(events, "not_empty") or not hasattr(dsession, "_active_nodes"):
+        yield  # an xdist this was not written for: its own loop, unguarded
+        return
+
+    def loop_once_whole() -> None:
+        with events.not_empty:  # waiting (interruptible): nothing is in hand yet
+            while not len(events.queue) and dsession._active_nodes:
+                events.not_empty.wait(2.0)
+        with signals_held(guard):
+            loop_once()  # takes the queued event at once and handles it
+
+    dsession.loop_once = loop_once_whole
+    try:
+        yield
+    finally:
+        del dsession.loop_once  # the class's own again
+
+
 def _die_by_sigterm() -> None:
     """End the process as SIGTERM's default action would (status 143 to a shell); every
     finished row is on disk already (the error table is flushed per row)."""
@@ -242,33 +323,40 @@ def _die_by_sigterm() -> None:
 def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
     """An interrupted xdist controller ends its workers at once — SIGTERM reaches each as it
     reaches a run of its own, so none goes on running, and storing counterexamples for, cases
-    this run will not report — and then reports what they had sent and it had not read yet."""
+    this run will not report — and then reports what they sent until they ended.
+
+    A worker's end is its last event ("workerfinished", or "errordown" when its connection
+    closed), queued after everything it sent: reading until then, not until its process
+    exits, is what makes sure no report is still in the connection's reading thread. (An
+    xdist worker does not exit by itself: it waits for the controller to close it.)"""
     import queue
     import time
 
     dsession = config.pluginmanager.getplugin("dsession")
-    group = getattr(getattr(dsession, "nodemanager", None), "group", None)
-    popens = [getattr(getattr(gw, "_io", None), "popen", None) for gw in getattr(group, "_gateways", ()) or ()]
-    popens = [p for p in popens if p is not None and p.poll() is None]
-    for popen in popens:
-        try:
-            popen.send_signal(signal.SIGTERM)
-        except OSError:
-            pass
-    deadline = time.monotonic() + wait_s
-    for popen in popens:
-        try:
-            popen.wait(max(0.0, deadline - time.monotonic()))
-        except Exception:  # noqa: BLE001 - still running: xdist's teardown kills it
-            pass
+    # the workers whose end the controller has not handled yet
+    nodes = list(getattr(dsession, "_active_nodes", ()) or ())
+    for node in nodes:
+        popen = getattr(getattr(getattr(node, "gateway", None), "_io", None), "popen", None)
+        if popen is not None and popen.poll() is None:
+            try:
+                popen.send_signal(signal.SIGTERM)
+            except OSError:
+                pass
     events = getattr(dsession, "queue", None)
     report = getattr(dsession, "worker_testreport", None)
-    while events is not None and report is not None:
-        try:
-            name, kwargs = events.get_nowait()
+    if events is None or report is None:
+        return
+    running = set(nodes)
+    deadline = time.monotonic() + wait_s
+    while True:
+        left = deadline - time.monotonic()
+        try:  # once all have ended (or the time is up), what is queued, then no more
+            name, kwargs = events.get(timeout=left) if running and left > 0 else events.get_nowait()
         except queue.Empty:
             break
-        if name == "testreport":
+        if name in ("workerfinished", "errordown"):
+            running.discard(kwargs.get("node"))
+        elif name == "testreport":
             try:
                 report(**kwargs)
             except Exception:  # noqa: BLE001 - one report we cannot read: the others still count

@@ -13,6 +13,8 @@
 * ``"sb3:PATH@ENV"`` — a stable-baselines3 model saved at ``PATH``, trained on the highway-env
   environment ``ENV`` (default ``highway-fast-v0``), driven by :func:`highway_env_agent`
   (:mod:`.sb3`; needs the ``[sb3]`` extra);
+* ``"osi:ADDRESS"`` / ``"osi+spawn:COMMAND"`` — a stack out of process speaking ASAM OSI over
+  ZeroMQ (:class:`pytest_avscenario.stack.OSIStack`; needs the ``[osi]`` extra);
 * a user object: anything with ``act(observation)``, an object with
   ``predict(observation)`` returning ``(action, state)``, or a plain callable
   ``policy(observation)``. Each gets the plugin's
@@ -164,11 +166,19 @@ def resolve(driver: Any) -> Any:
             from .sb3 import driver as sb3_driver
 
             return sb3_driver(name)
+        if name.startswith(("osi:", "osi+spawn:")):
+            from ...stack.client import OSIStack, parse_spec
+
+            try:
+                address, command = parse_spec(name)
+            except ValueError as exc:
+                raise SimError(str(exc)) from None
+            return OSIStack(address, spawn=command)
         name = _PATHS.get(name, name)
         if ":" not in name:
             raise SimError(
                 f"unknown driver {driver!r}: use 'autopilot', 'idm', 'careful', "
-                "'package.module:Name', 'sb3:PATH@ENV', or pass a policy object")
+                "'package.module:Name', 'sb3:PATH@ENV', 'osi:ADDRESS', or pass a policy object")
         mod_name, _, attr = name.partition(":")
         try:
             obj = getattr(importlib.import_module(mod_name), attr)

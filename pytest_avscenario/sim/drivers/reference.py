@@ -35,7 +35,7 @@ brakes at ``d`` to a stop the two motions must be compared over time:
 :func:`braking_lead_min_gap` is the smallest gap, from exact piecewise kinematics (the
 lead's constant deceleration; the ego's held acceleration through the delay, the linear
 build-up, the held maximum), negative where the careful driver collides — e.g. from 20 m/s
-at a 1 s time gap behind a 6 m/s^2 stop (-1.9 m), not behind a 4 m/s^2 one (+1.2 m).
+at a 1 s time gap behind a 6 m/s^2 stop (-1.9 m), not behind a 5.5 m/s^2 one (+1.1 m).
 
 How the driver follows the model, step by step:
 

@@ -1,0 +1,30 @@
+"""``python -m pytest_avscenario.stack [ADDRESS] [--driver NAME]``: serve a driver over avs-osi/1.
+
+ADDRESS defaults to ``$AVS_OSI_ADDRESS`` (what ``--avs-driver osi+spawn:COMMAND`` sets);
+NAME to the built-in autopilot (any driver name the plugin accepts: ``careful``,
+``package.module:Name``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+
+def main(argv: list[str] | None = None, default_driver: str = "autopilot") -> int:
+    from .kit import serve
+
+    p = argparse.ArgumentParser(prog="python -m pytest_avscenario.stack", description=__doc__.split("\n")[0])
+    p.add_argument("address", nargs="?", default=os.environ.get("AVS_OSI_ADDRESS"),
+                   help="tcp://HOST:PORT or ipc://PATH to bind (default $AVS_OSI_ADDRESS)")
+    p.add_argument("--driver", default=default_driver, help=f"driver to serve (default {default_driver})")
+    args = p.parse_args(argv)
+    if not args.address:
+        p.error("give an ADDRESS or set AVS_OSI_ADDRESS")
+    serve(args.driver, args.address)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,291 @@
+"""The stack's side of ``avs-osi/1`` for Python stacks: serve a driver in a few lines.
+
+::
+
+    from pytest_avscenario.stack import serve
+
+    def policy(obs):                      # the Observation an in-process driver gets
+        return 1.0, 0.0                   # (acceleration [m/s^2], steering [rad])
+
+    serve(policy, "tcp://127.0.0.1:5555")
+
+:func:`serve` binds a REP socket and answers the plugin: a ``Reset`` starts a case (a
+driver given by name — ``"autopilot"``, ``"careful"``, ``"package.module:Name"`` — is made
+afresh; an object's ``reset()`` hook is called), each ``SensorView`` is turned into the
+:class:`~pytest_avscenario.sim.observation.Observation` the world would have built (the
+ego's route from the Reset, its progress along it tracked here as the world tracks it, the
+agents within sensor range nearest first), and the driver's (acceleration, steering) goes
+back as a ``MotionRequest`` whose desired state is where that command takes the ego in one
+step (:func:`~.frame.action_to_motion`). A driver that raises is answered with ``Error``
+and its traceback, which the plugin shows as the case's error.
+
+Lanes are rebuilt from the OSI centre lines: a straight lane exactly (two points), a curved
+one as a polyline of its one-metre samples (a driver on a curve sees it to within
+millimetres, not bit for bit).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import os
+import traceback
+from typing import Any
+
+import numpy as np
+
+from . import frame, wire
+
+__all__ = ["serve", "Session", "StraightLine", "Polyline"]
+
+
+class StraightLine:
+    """A straight lane from two centre-line points, with the lanes' small vocabulary
+    (``position``, ``heading_at``, ``local_coordinates``, ``length``, ``width_at``) computed
+    as the simulator's straight lanes compute it."""
+
+    def __init__(self, start: Any, end: Any, width: float, speed_limit: float) -> None:
+        self.start = np.array(start[:2], dtype=float)
+        self.end = np.array(end[:2], dtype=float)
+        self.length = float(np.linalg.norm(self.end - self.start))
+        self.direction = (self.end - self.start) / self.length
+        self._sx, self._sy = float(self.start[0]), float(self.start[1])
+        self._dx, self._dy = float(self.direction[0]), float(self.direction[1])
+        self.heading = float(np.arctan2(self.direction[1], self.direction[0]))
+        self.width = float(width)
+        self.speed_limit = float(speed_limit)
+        self.radius = math.inf
+
+    def position(self, longitudinal: float, lateral: float) -> np.ndarray:
+        return np.array([self._sx + longitudinal * self._dx - lateral * self._dy,
+                         self._sy + longitudinal * self._dy + lateral * self._dx])
+
+    def local_coordinates(self, position: Any) -> tuple[float, float]:
+        ex = position[0] - self._sx
+        ey = position[1] - self._sy
+        return float(ex * self._dx + ey * self._dy), float(ey * self._dx - ex * self._dy)
+
+    def heading_at(self, longitudinal: float) -> float:
+        return self.heading
+
+    def width_at(self, longitudinal: float) -> float:
+        return self.width
+
+
+class Polyline:
+    """A curved lane as the polyline of its centre-line samples (same vocabulary)."""
+
+    def __init__(self, points: Any, width: float, speed_limit: float) -> None:
+        p = np.asarray(points, dtype=float)[:, :2]
+        seg = np.diff(p, axis=0)
+        seglen = np.hypot(seg[:, 0], seg[:, 1])
+        keep = seglen > 1e-9
+        self._p0, self._seg, self._len = p[:-1][keep], seg[keep], seglen[keep]
+        self._cum = np.concatenate([[0.0], np.cumsum(self._len)])
+        self._dir = self._seg / self._len[:, None]
+        self._head = np.arctan2(self._dir[:, 1], self._dir[:, 0])
+        self.length = float(self._cum[-1])
+        self.width = float(width)
+        self.speed_limit = float(speed_limit)
+
+    def _segment(self, s: float) -> int:
+        return min(max(bisect.bisect_right(self._cum, s) - 1, 0), len(self._len) - 1)
+
+    def position(self, longitudinal: float, lateral: float) -> np.ndarray:
+        i = self._segment(longitudinal)
+        dx, dy = self._dir[i]
+        u = longitudinal - self._cum[i]
+        return np.array([self._p0[i, 0] + u * dx - lateral * dy, self._p0[i, 1] + u * dy + lateral * dx])
+
+    def heading_at(self, longitudinal: float) -> float:
+        return float(self._head[self._segment(longitudinal)])
+
+    def local_coordinates(self, position: Any) -> tuple[float, float]:
+        e = np.asarray(position[:2], dtype=float) - self._p0
+        u = np.clip(np.einsum("ij,ij->i", e, self._dir), 0.0, self._len)
+        near = self._p0 + u[:, None] * self._dir
+        i = int(np.argmin(np.hypot(*(np.asarray(position[:2]) - near).T)))
+        ex, ey = e[i]
+        dx, dy = self._dir[i]
+        return float(self._cum[i] + ex * dx + ey * dy), float(ey * dx - ex * dy)
+
+    def width_at(self, longitudinal: float) -> float:
+        return self.width
+
+
+def _number(value: Any) -> float:
+    """A JSON number as a float; ``null`` (sent for what is not finite) as NaN."""
+    return math.nan if value is None else float(value)
+
+
+class Session:
+    """One case on the stack's side: the Reset's facts, the route, the driver."""
+
+    def __init__(self, hello: dict, policy: Any) -> None:
+        from ..sim.drivers import resolve
+
+        self.hello = hello
+        self.dt = float(hello["dt"])
+        self.dt_ns = wire.ns(self.dt)
+        self.host = int(hello["host_vehicle_id"])
+        self.agents = {int(a["id"]): a for a in hello["agents"]}
+        self.lanes = {int(l["id"]): l for l in hello["lanes"]}
+        ego = hello["ego"]
+        self.route_ids = [int(i) for i in ego["route"]]
+        self.route_index = int(ego["route_index"])
+        self.target_speed = ego.get("target_speed")
+        self.goal = ego.get("goal")
+        self.sensor_range = float(ego.get("sensor_range", 80.0))
+        self.route: tuple = ()
+        self.stop_lines: dict[int, tuple] = {}
+        # a name is made afresh for each case, as the world makes it; an object is reused and
+        # its per-case hook called (with no world: the stack has only what the wire carries)
+        self.driver = resolve(policy)
+        if not callable(getattr(self.driver, "act", None)) or callable(getattr(self.driver, "make_ego", None)):
+            raise ValueError(f"cannot serve {policy!r}: serve a driver that answers act(observation)")
+        hook = getattr(self.driver, "reset", None)
+        if callable(hook):
+            hook(None)
+
+    def _build_route(self, gt: Any) -> None:
+        by_id = {lane.id.value: lane for lane in gt.lane}
+        route = []
+        for lid in self.route_ids:
+            pts = [(p.x, p.y) for p in by_id[lid].classification.centerline]
+            info = self.lanes[lid]
+            limit = _number(info.get("speed_limit"))
+            cls = StraightLine(pts[0], pts[1], info["width"], limit) if len(pts) == 2 \
+                else Polyline(pts, info["width"], limit)
+            route.append(cls)
+        self.route = tuple(route)
+
+    def observation(self, sv: Any) -> Any:
+        """The Observation the world would have handed an in-process driver."""
+        from ..sim.observation import AgentState, Observation, StopLine
+        from ..sim.world import _frozen
+
+        gt = sv.global_ground_truth
+        if not self.route:
+            self._build_route(gt)
+        t_ns = wire.timestamp_ns(sv.timestamp)
+        t = int(round(t_ns / self.dt_ns)) * self.dt  # the world's k * dt, bit for bit
+        states = {}
+        for mo in gt.moving_object:
+            states[mo.id.value] = mo
+        ego_mo = states.get(self.host)
+        if ego_mo is None:
+            raise ValueError(f"the SensorView has no host vehicle (id {self.host})")
+        e = frame.object_state(ego_mo)
+        x, y = e["x"], e["y"]
+        # route progress, as the world's lane tracker advances it
+        ri = self.route_index
+        g = self.route[ri]
+        s, r = g.local_coordinates((x, y))
+        while s > g.length and ri + 1 < len(self.route):
+            ri += 1
+            g = self.route[ri]
+            s, r = g.local_coordinates((x, y))
+        self.route_index = ri
+        near = []
+        rng2 = self.sensor_range ** 2
+        for oid, mo in states.items():
+            if oid == self.host:
+                continue
+            dx, dy = mo.base.position.x - x, mo.base.position.y - y
+            d2 = dx * dx + dy * dy
+            if d2 <= rng2:
+                near.append((d2, oid, mo))
+        near.sort(key=lambda q: (q[0], q[1]))
+
+        def state(oid: int, mo: Any, kind: str | None = None) -> Any:
+            st = frame.object_state(mo)
+            info = self.agents.get(oid, {})
+            k = kind or info.get("kind", "car")
+            flags = frame.object_flags(mo) if k == "bus" else {}
+            return _frozen(AgentState, {
+                "name": info.get("name", str(oid)), "kind": k, "x": st["x"], "y": st["y"],
+                "vx": st["vx"], "vy": st["vy"], "speed": st["speed"], "heading": st["heading"],
+                "length": st["length"], "width": st["width"], "flags": flags})
+
+        stops = self.stop_lines.get(ri)
+        if stops is None:
+            stops = tuple(StopLine(j, float(sm), kind) for j in range(ri, len(self.route))
+                          for sm, kind in self.lanes[self.route_ids[j]].get("stop_marks", ()))
+            self.stop_lines[ri] = stops
+        return _frozen(Observation, {
+            "t": t, "dt": self.dt, "ego": state(self.host, ego_mo, "ego"), "route": self.route,
+            "route_index": ri, "s": float(s), "r": float(r),
+            "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
+            "speed_limit": _number(self.lanes[self.route_ids[ri]].get("speed_limit")),
+            "target_speed": self.target_speed, "goal": self.goal,
+            "sensor_range": self.sensor_range})
+
+    def answer(self, sv: Any) -> bytes:
+        """The serialized MotionRequest answering one SensorView."""
+        from osi3 import osi_motionrequest_pb2 as M
+
+        from ..sim.drivers import action_pair
+
+        obs = self.observation(sv)
+        a, d = action_pair(self.driver.act(obs))
+        ego = obs.ego
+        mr = M.MotionRequest()
+        wire.set_version(mr.version)
+        t_ns = wire.timestamp_ns(sv.timestamp)
+        wire.set_timestamp(mr.timestamp, t_ns)
+        frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
+                               self.dt, a, d)
+        return mr.SerializeToString()
+
+
+def handle(frames: list[bytes], session: Session | None, policy: Any) -> tuple[list[bytes], Session | None]:
+    """The answer to one request and the session after it (a step of :func:`serve`)."""
+    from osi3 import osi_sensorview_pb2 as S
+
+    try:
+        kind, body = wire.unpack(frames, (wire.RESET, wire.SENSOR_VIEW))
+        if kind == wire.RESET:
+            hello = wire.json_body(body, "Reset")
+            if hello.get("revision") != wire.REVISION:
+                return wire.pack(wire.ERROR, f"this kit speaks revision {wire.REVISION}, "
+                                             f"not {hello.get('revision')!r}"), None
+            session = Session(hello, policy)
+            return wire.pack(wire.READY, {
+                "protocol": wire.PROTOCOL.decode(), "revision": wire.REVISION,
+                "osi_version": ".".join(map(str, wire.osi_version())), "dt": hello["dt"],
+                "host_vehicle_id": hello["host_vehicle_id"], "answer": "MotionRequest"}), session
+        if session is None:
+            return wire.pack(wire.ERROR, "SensorView before any Reset"), None
+        sv = wire.parse(S.SensorView, body, "SensorView")
+        return wire.pack(wire.MOTION_REQUEST, session.answer(sv)), session
+    except Exception as exc:  # the driver is user code: its error goes back to the plugin
+        return wire.pack(wire.ERROR, f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"), session
+
+
+def serve(policy: Any, address: str, *, requests: int | None = None) -> None:
+    """Answer the plugin at ``address`` (``tcp://…`` or ``ipc://…``, bound here) with
+    ``policy``: anything ``world.ego(driver=...)`` accepts that answers ``act(observation)``
+    (a name such as ``"autopilot"``, an object with ``act``, a callable). Runs until the
+    process is stopped (or after ``requests`` requests, for tests)."""
+    import zmq
+
+    sock = zmq.Context.instance().socket(zmq.REP)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.bind(address)
+    session = None
+    n = 0
+    # a stack the plugin spawned (it hands the address in AVS_OSI_ADDRESS) ends with the
+    # process that started it, even when that one was killed and could not stop it
+    parent = os.getppid() if os.environ.get("AVS_OSI_ADDRESS") == address else None
+    try:
+        while requests is None or n < requests:
+            if parent is not None:
+                while not sock.poll(1000):
+                    if os.getppid() != parent:
+                        return
+            frames = sock.recv_multipart()
+            reply, session = handle(frames, session, policy)
+            sock.send_multipart(reply)
+            n += 1
+    finally:
+        sock.close(linger=0)

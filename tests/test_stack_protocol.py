@@ -1,0 +1,194 @@
+"""avs-osi/1: a stack out of process drives the ego over ZeroMQ with ASAM OSI messages.
+
+The stack in these tests is tests/data/osi_raw_stack.py, written with nothing but pyzmq and
+osi3 from docs/osi-protocol.md (it imports nothing of this project), run as a subprocess
+the plugin spawns (``--avs-driver osi+spawn:COMMAND``). Also here: what the SensorView holds,
+and the one frame conversion and its round trip.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+zmq = pytest.importorskip("zmq")
+pytest.importorskip("osi3")
+
+# imported before any pytester run, which forgets what a run imported (see conftest.py);
+# protobuf's descriptor pool aborts the process when osi3's modules are imported twice
+from osi3 import (osi_lane_pb2, osi_motionrequest_pb2, osi_object_pb2,  # noqa: E402,F401
+                  osi_sensorview_pb2, osi_trafficupdate_pb2, osi_version_pb2)
+import google.protobuf.message  # noqa: E402,F401
+from pytest_avscenario.stack import client, frame, kit, vehicle, wire  # noqa: E402,F401
+from pytest_avscenario.sim.world import World  # noqa: E402
+
+RAW = Path(__file__).resolve().parent / "data" / "osi_raw_stack.py"
+
+
+def raw_stack(*args: str) -> str:
+    return f"osi+spawn:{sys.executable} {RAW} {{address}} " + " ".join(args)
+
+
+@pytest.fixture(autouse=True)
+def _stop_stacks():
+    """Every stack process a test started is stopped when it ends (not at interpreter exit)."""
+    yield
+    client.stop_all()
+
+
+SCENARIO = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(30, 50), samples=3, monitors=[])
+def test_drive(case, world):
+    road = world.straight_road(lanes=2, length=300)
+    world.ego(road.lane(0), s=10.0, speed=8.0)
+    world.car(road.lane(1), s=10.0 + case.gap, speed=5.0)
+    world.run(seconds=2)
+    ego = world.trajectory.agent("ego")
+    # the raw stack drives along its heading, closing its speed error to 10 m/s in about 1 s
+    assert 9.5 < ego.speed[-1] < 10.0 and np.all(np.diff(ego.speed) > 0), ego.speed
+    assert np.allclose(ego.y, ego.y[0]) and np.all(np.diff(ego.x) > 0)
+"""
+
+
+@pytest.mark.parametrize("answer", ["motion", "traffic"])
+def test_a_stack_written_from_the_protocol_alone_drives_a_campaign(pytester, answer):
+    pytester.makepyfile(test_raw="import numpy as np\n" + SCENARIO)
+    result = pytester.runpytest("--avs-driver", raw_stack("--answer", answer), "--avs-db=none",
+                                "--avs-report=none", "--avs-shrink-budget=0", "-p", "no:xdist",
+                                "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=3)
+
+
+def test_the_driver_spec_is_checked_at_start_up(pytester):
+    pytester.makepyfile(test_raw=SCENARIO)
+    result = pytester.runpytest("--avs-driver", "osi:udp://127.0.0.1:5", "-p", "no:xdist")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--avs-driver*use tcp://HOST:PORT or ipc://PATH*"])
+
+
+def _world() -> World:
+    w = World(seed=1, name="t::frames")
+    road = w.straight_road(lanes=2, length=200)
+    w.ego(road.lane(1), s=20.0, speed=7.0, driver="autopilot")
+    w.car(road.lane(0), s=40.0, speed=5.0)
+    w.bus(road.lane(1), s=80.0, speed=3.0)
+    return w
+
+
+def test_the_sensor_view_holds_the_host_every_agent_and_the_lanes_of_world_view():
+    from osi3 import osi_object_pb2, osi_sensorview_pb2
+
+    w = _world()
+    w.run(seconds=0.1)  # a run sets up the agents' order; the view is of its end
+    ids = {a: i + 1 for i, a in enumerate(w.agents)}
+    view = w.view()
+    sv = osi_sensorview_pb2.SensorView()
+    sv.ParseFromString(frame.sensor_view(w, wire.ns(1.25), frame.lane_ground_truth(view), ids))
+    gt = sv.global_ground_truth
+    assert sv.host_vehicle_id.value == gt.host_vehicle_id.value == 1
+    assert wire.timestamp_ns(sv.timestamp) == 1_250_000_000 == wire.timestamp_ns(gt.timestamp)
+    assert (sv.version.version_major, gt.version.version_major) == (3, 3)
+    assert [mo.id.value for mo in gt.moving_object] == [1, 2, 3]
+    lane_names = {lane.id.value: lane.source_reference[0].identifier[0] for lane in gt.lane}
+    assert list(lane_names.values()) == [lane.id for lane in view.lanes]
+    for mo, a in zip(gt.moving_object, view.agents):
+        st = frame.object_state(mo)
+        assert (st["x"], st["y"], st["heading"], st["speed"]) == pytest.approx(
+            (a.x, a.y, a.heading, a.speed), abs=1e-12)
+        assert mo.source_reference[0].identifier[0] == a.name
+        assert lane_names[mo.assigned_lane_id[0].value] == view.agent_lanes[a.name]
+        assert mo.base.position.z == pytest.approx(mo.base.dimension.height / 2)
+    bus = gt.moving_object[2]
+    assert bus.vehicle_classification.type == osi_object_pb2.MovingObject.VehicleClassification.TYPE_BUS
+    assert frame.object_flags(bus) == {"stop_arm": False}
+    # lanes: centre lines as in world.view(), a boundary each side, neighbours by number
+    for lane, lv in zip(gt.lane, view.lanes):
+        pts = [(p.x, p.y) for p in lane.classification.centerline]
+        assert np.allclose(pts, lv.centre_line)
+    left, right = gt.lane[0].classification, gt.lane[1].classification
+    assert right.left_adjacent_lane_id[0].value == gt.lane[0].id.value
+    assert left.right_adjacent_lane_id[0].value == gt.lane[1].id.value
+    boundaries = {b.id.value: b for b in gt.lane_boundary}
+    rb = boundaries[right.right_lane_boundary_id[0].value]
+    assert rb.boundary_line[0].position.y == pytest.approx(view.lanes[1].position(0, -view.lanes[1].width / 2)[1])
+
+
+@pytest.mark.parametrize("heading", [0.3, -2.9, 3.5, -7.0])
+@pytest.mark.parametrize("speed", [0.0, 12.5, -1.5])
+def test_an_agent_survives_the_round_trip_through_osi(heading, speed):
+    from osi3 import osi_object_pb2
+
+    mo = osi_object_pb2.MovingObject()
+    frame.set_object(mo, 7, "car1", "car", 12.5, -3.5, heading, speed, 5.0, 2.0, acceleration=-2.0)
+    st = frame.object_state(mo)
+    assert -math.pi <= mo.base.orientation.yaw <= math.pi
+    assert st["x"] == 12.5 and st["y"] == -3.5
+    assert math.isclose(math.cos(st["heading"]), math.cos(heading), abs_tol=1e-12)
+    assert math.isclose(math.sin(st["heading"]), math.sin(heading), abs_tol=1e-12)
+    assert st["speed"] == pytest.approx(speed, abs=1e-12)
+    assert mo.base.acceleration.x == pytest.approx(-2.0 * math.cos(heading))
+    if -math.pi <= heading <= math.pi:
+        assert st["heading"] == heading  # inside OSI's range the yaw is the world's heading, bit for bit
+
+
+@pytest.mark.parametrize("speed", [0.0, 1e-4, 0.5, 14.0, -2.0])
+@pytest.mark.parametrize("acceleration, steering", [(0.0, 0.0), (-6.0, 0.4), (2.0, -1.04), (1e-9, 1e-7)])
+def test_a_command_survives_the_round_trip_through_a_motion_request(speed, acceleration, steering):
+    from osi3 import osi_motionrequest_pb2
+
+    mr = osi_motionrequest_pb2.MotionRequest()
+    t_ns = wire.ns(3.2)
+    frame.action_to_motion(mr, t_ns, 10.0, -3.5, 0.2, speed, 5.0, 0.1, acceleration, steering)
+    a, d = frame.motion_to_action(mr.desired_state, t_ns, 0.2, speed, 5.0, 0.1)
+    assert a == pytest.approx(acceleration, abs=1e-12)
+    assert d == pytest.approx(steering, abs=1e-9)
+
+
+def test_a_desired_state_without_orientation_is_refused():
+    from osi3 import osi_motionrequest_pb2
+
+    mr = osi_motionrequest_pb2.MotionRequest()
+    mr.desired_state.velocity.x = 3.0
+    with pytest.raises(ValueError, match="no orientation"):
+        frame.motion_to_action(mr.desired_state, 0, 0.0, 1.0, 5.0, 0.1)
+
+
+def test_the_stack_is_named_in_the_ini_file_or_by_the_test_itself(pytester):
+    pytester.makeini(f"""
+        [pytest]
+        avs_driver = {raw_stack("--answer", "traffic")}
+        avs_stack_timeout = 10
+    """)
+    pytester.makepyfile(test_raw="import numpy as np\n" + SCENARIO.replace("samples=3", "samples=2"))
+    pytester.makepyfile(test_own=f"""
+        import sys
+        from pytest_avscenario import scenario, Uniform
+        from pytest_avscenario.stack import OSIStack
+
+        STACK = OSIStack(spawn={raw_stack()[len("osi+spawn:"):]!r}, timeout_s=10)
+
+        @scenario(gap=Uniform(30, 50), samples=2, monitors=[])
+        def test_own(case, world):
+            road = world.straight_road(lanes=1, length=300)
+            world.ego(road.lane(0), s=10.0, speed=8.0, driver=STACK)
+            world.run(seconds=1)
+            assert world.trajectory.agent("ego").speed[-1] > 8.5
+    """)
+    result = pytester.runpytest("--avs-db=none", "--avs-report=none", "--avs-shrink-budget=0",
+                                "-p", "no:xdist", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=4)
+
+
+def test_one_stack_at_an_address_is_refused_for_several_processes(pytester):
+    pytester.makepyfile(test_raw=SCENARIO)
+    result = pytester.runpytest("--avs-driver", "osi:tcp://127.0.0.1:5555", "-n", "2")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--avs-driver: 'osi:tcp://127.0.0.1:5555' is one stack for one "
+                                 "process, but pytest-xdist (-n) runs cases in several: use "
+                                 "'osi+spawn:COMMAND'*"])
