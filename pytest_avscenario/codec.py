@@ -14,7 +14,8 @@ import math
 import numbers
 from typing import Any, Mapping
 
-__all__ = ["rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str", "jsonable"]
+__all__ = ["rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str", "jsonable", "fmt_rho",
+           "fmt_value"]
 
 _POS = ("inf", "+inf", "infinity", "+infinity")
 _NEG = ("-inf", "-infinity")
@@ -83,3 +84,24 @@ def jsonable(value: Any) -> Any:
         seq = value.tolist() if hasattr(value, "tolist") else value
         return [jsonable(v) for v in seq]
     return repr(value)
+
+
+# -- for people: the terminal's failure text and the card pages share these two ---------------
+
+def fmt_rho(v: float | None) -> str:
+    """A robustness value for people: always signed, since the sign is the verdict (``+0.500``,
+    ``-1.234``, ``+inf``, ``-inf``; ``nan``); ``—`` for none."""
+    if v is None:
+        return "—"
+    if not math.isfinite(v):
+        return ("+" if v > 0 else "") + rho_to_str(v)
+    return f"{v:+.3f}"
+
+
+def fmt_value(v: Any) -> str:
+    """A parameter (or drawn) value for people, as the Python literal one pastes into
+    ``@example(...)``: floats to 6 significant digits, strings quoted (``'left'``: a string,
+    not a name), anything else its ``repr``."""
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return repr(v)

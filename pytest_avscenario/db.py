@@ -6,7 +6,7 @@ per (test, counterexample) in ``.avscenario/`` at the rootdir, holding the param
 rho values, the case seed, the feature space it was found in (description and
 fingerprint, so a changed scenario is noticed instead of replayed blindly), the versions
 that found it and whether it was minimized. Files are written atomically (a temporary
-file in the same directory, then ``os.replace``), so concurrent pytest-xdist workers and a
+file in the same directory, then ``os.replace``: :mod:`pytest_avscenario.files`), so concurrent pytest-xdist workers and a
 CI cache merged from several jobs never show a half-written entry. File names are a hash
 of (test, parameters) — never user text — and file contents are only ever parsed as
 strict JSON: nothing read is executed, and no path is taken from a file's content.
@@ -28,16 +28,16 @@ import os
 import re
 import stat
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
-
-import numpy as np
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from .codec import rho_from_json, rho_to_json
-from .space import FeatureSpace
+from .files import atomic_write_bytes
+
+if TYPE_CHECKING:
+    from .space import FeatureSpace
 
 __all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "replay_params", "space_changes"]
 
@@ -241,30 +241,15 @@ class ReplayDB:
 
     def _write_atomically(self, path: Path, data: bytes) -> None:
         self._check_directory()
-        tmp = None
         try:
-            self.directory.mkdir(parents=True, exist_ok=True)
-            # Same directory, so os.replace is an atomic rename on one file system; the
-            # ".tmp" name does not match the entry pattern, so readers never see it.
-            fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".part", dir=self.directory)
-            with os.fdopen(fd, "wb") as f:
-                f.write(data)
-                f.flush()
-                os.fsync(f.fileno())
-            os.chmod(tmp, 0o644)  # mkstemp's 0600 would hide entries from a shared CI cache
-            os.replace(tmp, path)
-            tmp = None
+            # the package's one atomic writer: a hidden temporary name no entry pattern
+            # matches, fsynced, replaced, readable by a shared CI cache (not mkstemp's 0600)
+            atomic_write_bytes(path, data, durable=True)
         except OSError as exc:
             raise DatabaseError(
                 f"cannot write the replay database {self.directory}: {exc.strerror or exc}; "
                 "make it a writable directory, pass another --avs-db, or --avs-db=none"
             ) from exc
-        finally:
-            if tmp is not None:
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
 
     def delete(self, entry: Entry) -> None:
         """Remove a stored counterexample (already gone is fine: another worker did it)."""
@@ -520,6 +505,8 @@ def _declared_value(name: str, dist: Any, value: Any) -> Any:
 def _same_value(declared: Any, stored: Any) -> bool:
     """Whether a stored JSON value is a declared one: numbers by value (1 is 1.0, but True is
     not 1), anything else by its JSON form (a tuple option is stored as a list)."""
+    import numpy as np  # here, not at import: loading the plugin must not load numpy
+
     def number(v: Any) -> bool:
         return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
@@ -543,6 +530,8 @@ def _shown_test(test: str) -> str:
 def _plain(value: Any) -> Any:
     """JSON-ready copy: numpy scalars to Python, tuples to lists; non-finite floats and
     non-JSON values are refused (a case's parameters are always plain and finite)."""
+    import numpy as np  # here, not at import: loading the plugin must not load numpy
+
     if isinstance(value, Mapping):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -569,6 +558,8 @@ def _canon(value: Any) -> str:
 
 
 def _as_int(value: Any, what: str) -> int:
+    import numpy as np  # here, not at import: loading the plugin must not load numpy
+
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{what} must be an int, got {value!r}")
     return int(value)

@@ -200,10 +200,9 @@ class Trajectory:
         arrays = self._arrays()
         arrays["meta"] = np.asarray(json.dumps(dict(self.meta), default=str))
         np.savez_compressed(buf, **arrays)
-        tmp = f"{path}.tmp{os.getpid()}"
-        with open(tmp, "wb") as f:
-            f.write(buf.getvalue())
-        os.replace(tmp, path)
+        from .files import atomic_write_bytes
+
+        atomic_write_bytes(path, buf.getvalue(), durable=False)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> "Trajectory":

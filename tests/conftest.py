@@ -19,6 +19,7 @@ for _mod in ("numpy.fft", "scipy.stats", "scipy.spatial", "scipy.optimize", "sha
              "pytest_avscenario.sim.engine", "pytest_avscenario.sim.render",
              "pytest_avscenario.sim.drivers.autopilot", "pytest_avscenario.monitors",
              "pytest_avscenario.report.build", "pytest_avscenario.report.plots",
+             "pytest_avscenario.report.recording", "pytest_avscenario.report.player",
              # stacks out of process: protobuf aborts the process when osi3's generated
              # modules are imported a second time
              "zmq", "osi3.osi_sensorview_pb2", "osi3.osi_motionrequest_pb2",

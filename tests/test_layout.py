@@ -1,5 +1,7 @@
 """The package's layering: only the pytest side imports pytest, monitors know trajectories and
-not the simulator, and no module imports itself back through others."""
+not the simulator, the simulator knows neither the monitors nor the report, nothing outside
+the monitors asks which concrete monitor it holds, and no module imports itself back through
+others."""
 
 import ast
 import subprocess
@@ -83,6 +85,80 @@ def test_monitors_know_trajectories_not_the_simulator():
     assert reach == set()
 
 
+def _upward(package: str, forbidden: tuple[str, ...]) -> set[tuple[str, str]]:
+    """(module, import) pairs where a module of ``package`` imports one of ``forbidden``."""
+    inside = [m for m in MODULES if m == f"{NAME}.{package}" or m.startswith(f"{NAME}.{package}.")]
+    return {(m, i) for m in inside for i in _imports(m)
+            if any(i == f"{NAME}.{f}" or i.startswith(f"{NAME}.{f}.") for f in forbidden)}
+
+
+def test_the_simulator_imports_neither_monitors_nor_report():
+    # the simulator records and draws; judging (monitors) and reporting sit above it, so a
+    # second simulator or a stack out of process never drags them in
+    assert _upward("sim", ("monitors", "report")) == set()
+
+
+def test_the_simulator_rule_sees_an_upward_import(tmp_path, monkeypatch):
+    # negative control: a sim module importing the report (as render.py once did for its
+    # atomic writer) or the monitors (as the clip once did for TTC) is caught, even inside a
+    # function
+    probe = f"{NAME}.sim._probe_up"
+    (tmp_path / "up.py").write_text("def f():\n    from ..report.folder import atomic_write_bytes\n"
+                                    "    from ..monitors.metrics import pairwise_ttc\n")
+    monkeypatch.setitem(MODULES, probe, tmp_path / "up.py")
+    assert _upward("sim", ("monitors", "report")) == {
+        (probe, f"{NAME}.report.folder"), (probe, f"{NAME}.monitors.metrics")}
+    with pytest.raises(AssertionError):
+        test_the_simulator_imports_neither_monitors_nor_report()
+
+
+def _concrete_monitor_classes() -> set[str]:
+    """Names of the classes the monitors package defines (Monitor itself excepted: asking
+    whether something is a monitor at all is fine)."""
+    names = set()
+    for m in MODULES:
+        if m.startswith(f"{NAME}.monitors"):
+            tree = ast.parse(MODULES[m].read_text())
+            names |= {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)}
+    return names - {"Monitor", "MonitorError", "MonitorResult", "Verdict"}
+
+
+def _switches_on(module: str, classes: set[str]) -> set[str]:
+    """Concrete monitor classes ``module`` tests with isinstance/issubclass or a ``type(x) is``."""
+    tree = ast.parse(MODULES[module].read_text())
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                and node.func.id in ("isinstance", "issubclass") and len(node.args) == 2:
+            found |= {n.id if isinstance(n, ast.Name) else n.attr for n in ast.walk(node.args[1])
+                      if isinstance(n, (ast.Name, ast.Attribute))}
+        elif isinstance(node, ast.Compare) and "type(" in ast.unparse(node.left):
+            found |= {n.id if isinstance(n, ast.Name) else n.attr for c in node.comparators
+                      for n in ast.walk(c) if isinstance(n, (ast.Name, ast.Attribute))}
+    return found & classes
+
+
+def test_nothing_outside_the_monitors_switches_on_a_concrete_monitor():
+    # the monitors give their own evidence (Monitor.series, monitors.evidence): pictures,
+    # recordings and the pytest side hold monitors without asking which one they hold
+    classes = _concrete_monitor_classes()
+    outside = [m for m in MODULES if not m.startswith(f"{NAME}.monitors")]
+    assert {m: _switches_on(m, classes) for m in outside if _switches_on(m, classes)} == {}
+
+
+def test_the_monitor_switch_rule_sees_a_switch(tmp_path, monkeypatch):
+    # negative control: the picture code's old ``isinstance(m, TTCMonitor)`` is caught
+    probe = f"{NAME}.report._probe_switch"
+    (tmp_path / "switch.py").write_text(
+        "def radius(monitors):\n"
+        "    from ..monitors.metrics import TTCMonitor\n"
+        "    return next((m.radius for m in monitors if isinstance(m, (TTCMonitor,))), 5.0)\n")
+    monkeypatch.setitem(MODULES, probe, tmp_path / "switch.py")
+    assert _switches_on(probe, _concrete_monitor_classes()) == {"TTCMonitor"}
+    with pytest.raises(AssertionError):
+        test_nothing_outside_the_monitors_switches_on_a_concrete_monitor()
+
+
 def test_nothing_below_the_pytest_side_imports_it():
     below = [m for m in MODULES if not m.startswith(f"{NAME}.pytest_plugin")]
     reach = {(m, i) for m in below for i in _imports(m) if i.startswith(f"{NAME}.pytest_plugin")}
@@ -139,7 +215,7 @@ def test_the_cycle_check_sees_a_cycle(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("module", ["space", "samplers", "monitors", "sim", "report", "executors",
-                                    "outcome", "trajectory", "shrink", "db", "runner"])
+                                    "outcome", "trajectory", "shrink", "db", "runner", "files"])
 def test_importing_the_library_loads_no_pytest(module):
     # a real process: this one has pytest loaded already
     code = (f"import sys, {NAME}.{module}\n"

@@ -20,7 +20,8 @@ from pytest_avscenario.monitors import collision, distance, ttc
 from pytest_avscenario.monitors.base import first_violation
 from pytest_avscenario.outcome import violations_of
 from pytest_avscenario.sim import World
-from pytest_avscenario.sim.replay import decoded, dumps, frame_lines, replay_data
+from pytest_avscenario.report.recording import recording_data
+from pytest_avscenario.sim.clip import decoded, dumps, frame_lines
 from pytest_avscenario.trajectory import Trajectory
 
 MONITORS = [distance(8.0), collision(), ttc(2.0)]
@@ -52,7 +53,7 @@ def test_the_replay_of_a_collision_holds_every_agent_and_starts_at_the_first_vio
     traj = crash.trajectory
     violations = _violations(traj)
     assert set(violations) == {"distance", "collision", "ttc"}
-    data = replay_data(crash, violations=violations, monitors=MONITORS, title="test_crash[x-0]")
+    data = recording_data(crash, violations=violations, monitors=MONITORS, title="test_crash[x-0]")
     plain = decoded(json.loads(dumps(data)))  # what the card gets
     assert [a["name"] for a in plain["agents"]] == ["ego", "stopped", "passing"]
     assert [a["kind"] for a in plain["agents"]] == ["ego", "car", "car"]
@@ -90,10 +91,10 @@ def test_the_replay_of_a_collision_holds_every_agent_and_starts_at_the_first_vio
 
 
 def test_the_replay_is_small_and_the_same_for_the_same_run(crash):
-    data = replay_data(crash, violations=_violations(crash.trajectory), monitors=MONITORS)
+    data = recording_data(crash, violations=_violations(crash.trajectory), monitors=MONITORS)
     text = dumps(data)
     assert len(text) < 4000  # ~600 counterexamples per example-suite report
-    assert dumps(replay_data(crash, violations=_violations(crash.trajectory), monitors=MONITORS)) == text
+    assert dumps(recording_data(crash, violations=_violations(crash.trajectory), monitors=MONITORS)) == text
 
 
 def test_agents_present_for_part_of_the_run_are_absent_elsewhere():
@@ -104,7 +105,7 @@ def test_agents_present_for_part_of_the_run_are_absent_elsewhere():
         "walker": {"x": np.where(present, 25.0, np.nan), "y": np.where(present, 3 - 2 * (t - 1), np.nan),
                    "kind": "pedestrian", "present": present},
     })
-    data = replay_data(traj, violations={"distance": {"t": 2.0, "agent": "walker", "threshold": 8.0, "rho": -3.0}},
+    data = recording_data(traj, violations={"distance": {"t": 2.0, "agent": "walker", "threshold": 8.0, "rho": -3.0}},
                        monitors=[distance(8.0)])
     assert "road" not in data and data["agents"][1]["k0"] > 0
     plain = decoded(json.loads(dumps(data)))
@@ -121,7 +122,7 @@ def test_the_still_is_drawn_at_the_first_violation_with_every_agent_labelled(cra
     from pytest_avscenario.sim.render import render_moment
 
     violations = _violations(crash.trajectory)
-    data = replay_data(crash, violations=violations, monitors=MONITORS, title="test_crash[x-0]")
+    data = recording_data(crash, violations=violations, monitors=MONITORS, title="test_crash[x-0]")
     drawn = render_moment(crash, str(tmp_path / "m.png"), data)
     first_t = min(w["t"] for w in violations.values())
     assert drawn["t"] == pytest.approx(first_t) and crash.trajectory.t[drawn["step"]] == pytest.approx(first_t)
@@ -170,13 +171,13 @@ def test_every_counterexample_gets_its_replay_not_only_the_pictured_ones(pyteste
 
 
 def test_the_card_section_keeps_odd_agent_names_inside_its_data():
-    from pytest_avscenario.report.replay import replay_html
+    from pytest_avscenario.report.player import player_html
 
     t = np.arange(0, 1.01, 0.1)
     name = "</script><img src=x onerror=alert(1)>"
     traj = Trajectory.from_arrays(t, {"ego": {"x": 10 * t, "y": 0 * t}, name: {"x": 12 + 0 * t, "y": 0 * t}})
-    data = replay_data(traj, violations={"distance": {"t": 0.0, "agent": name, "threshold": 5.0, "rho": -3.0}})
-    section = replay_html(data)
+    data = recording_data(traj, violations={"distance": {"t": 0.0, "agent": name, "threshold": 5.0, "rho": -3.0}})
+    section = player_html(data)
     # the data's, the inline player's (a section made on its own) and the call's
     assert name not in section and section.count("</script>") == 3
     embedded = section.split("id='replay-data'>", 1)[1].split("</script>", 1)[0]
@@ -223,7 +224,7 @@ def test_the_recording_keeps_a_discrete_agents_decisions_as_changes(decided):
 
 
 def test_the_replay_names_the_decision_in_force_at_every_frame(decided):
-    data = replay_data(decided, violations={}, monitors=MONITORS, fallback_t=3.0)
+    data = recording_data(decided, violations={}, monitors=MONITORS, fallback_t=3.0)
     # each label once, each change as [centiseconds, label number]: a few bytes per change
     assert data["decisions"] == {"source": "action", "labels": ["FASTER", "IDLE", "LANE_LEFT"],
                                  "at": [[0, 0], [200, 1], [400, 2], [600, 1]]}
@@ -235,9 +236,9 @@ def test_the_replay_names_the_decision_in_force_at_every_frame(decided):
         lines = frame_lines(plain, k)
         assert f"ego decision: {script[since]} (since {since:.2f} s)" in lines, (t, lines)
     # the slider has a tick at each change of decision (and at the moment it starts from)
-    from pytest_avscenario.report.replay import replay_html
+    from pytest_avscenario.report.player import player_html
 
-    ticks = re.findall(r"<option value='(\d+)'>", replay_html(data))
+    ticks = re.findall(r"<option value='(\d+)'>", player_html(data))
     assert [plain["t"][int(k)] for k in ticks] == [0.0, 2.0, 3.0, 4.0, 6.0]
 
 
@@ -252,13 +253,13 @@ def test_a_driver_with_a_reason_gets_its_reasons_recorded():
     assert made["source"] == "reason"
     labels = [label for _, label in made["changes"]]
     assert "follow" in labels and all(a != b for a, b in zip(labels, labels[1:]))  # changes only
-    plain = decoded(json.loads(dumps(replay_data(w))))
+    plain = decoded(json.loads(dumps(recording_data(w))))
     assert any(line.startswith("ego reason: follow (since ") for line in frame_lines(plain, len(plain["t"]) - 1))
 
 
 def test_a_policy_without_decisions_records_none(crash):
     assert "decisions" not in crash.trajectory.meta
-    assert "decisions" not in replay_data(crash)
+    assert "decisions" not in recording_data(crash)
 
 
 def test_a_continuous_agents_decisions_are_its_commands_to_a_tenth():

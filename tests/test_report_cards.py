@@ -187,21 +187,22 @@ def test_the_replay_runs_in_chromium_and_redraws_at_the_chosen_time(campaign):
 
 
 def _replay_page(tmp_path, data, name: str) -> str:
-    from pytest_avscenario.report.replay import replay_html
+    from pytest_avscenario.report.player import player_html
 
     page = tmp_path / f"{name}.html"
     page.write_text("<!DOCTYPE html><html><head><meta charset='utf-8'>"
                     "<script>window.onerror = function (m) { document.documentElement.setAttribute('data-error', m); }"
-                    f"</script></head><body>{replay_html(data)}</body></html>")
+                    f"</script></head><body>{player_html(data)}</body></html>")
     return page.resolve().as_uri()
 
 
 def test_the_replay_writes_the_egos_decision_in_force_as_the_still_does(tmp_path):
     from test_replay import decided_world
 
-    from pytest_avscenario.sim.replay import decoded, dumps, frame_lines, replay_data
+    from pytest_avscenario.report.recording import recording_data
+    from pytest_avscenario.sim.clip import decoded, dumps, frame_lines
 
-    data = replay_data(decided_world(), fallback_t=4.6)
+    data = recording_data(decided_world(), fallback_t=4.6)
     plain = decoded(json.loads(dumps(data)))
     for t in (0.0, 2.4, 4.6):
         dom = _dom(_replay_page(tmp_path, data, "decided") + f"#t={t}")
@@ -216,10 +217,11 @@ def test_the_replay_labels_each_car_beside_it_and_off_the_others_in_a_dense_scen
     from test_sim_render import NEAR_PX, _gap, _overlaps, dense_scene
 
     from pytest_avscenario.monitors import distance
-    from pytest_avscenario.sim.replay import decoded, dumps, replay_data
+    from pytest_avscenario.report.recording import recording_data
+    from pytest_avscenario.sim.clip import decoded, dumps
 
     w = dense_scene()
-    data = replay_data(w, violations={"distance": {"t": 0.4, "agent": "car4", "threshold": 5.0, "rho": -4.0}},
+    data = recording_data(w, violations={"distance": {"t": 0.4, "agent": "car4", "threshold": 5.0, "rho": -4.0}},
                        monitors=[distance(5.0)])
     dom = _dom(_replay_page(tmp_path, data, "dense"))
     assert 'data-error="' not in dom, dom[:400]

@@ -139,14 +139,14 @@ NEAR_PX = 40
 def test_in_a_dense_scene_every_label_sits_by_its_own_car_and_covers_no_other(tmp_path):
     from pytest_avscenario.monitors import distance
     from pytest_avscenario.sim.render import render_moment
-    from pytest_avscenario.sim.replay import replay_data
+    from pytest_avscenario.report.recording import recording_data
 
     w = dense_scene()
     tr = w.trajectory
     step = 5
     assert np.ptp(tr.x[:, step]) < 20 and np.ptp(tr.y[:, step]) < 20  # eight cars within 20 m
     rho = distance(5.0).evaluate(tr)
-    data = replay_data(w, violations={"distance": {"t": float(tr.t[step]), "agent": "car4", "threshold": 5.0,
+    data = recording_data(w, violations={"distance": {"t": float(tr.t[step]), "agent": "car4", "threshold": 5.0,
                                                    "rho": rho.rho}}, monitors=[distance(5.0)])
     drawn = render_moment(w, str(tmp_path / "dense.png"), data)
     assert drawn["step"] == step

@@ -119,6 +119,13 @@ class Monitor(abc.ABC):
     def _evaluate(self, trajectory: Trajectory) -> MonitorResult:
         """Compute the result; may return NaN rho (evaluate turns it into an error)."""
 
+    def series(self, trajectory: Trajectory) -> np.ndarray | None:
+        """This monitor's robustness at every step, ``(n_steps,)`` in its unit, for pictures
+        and the card's recording (ρ(t) beside the run's ρ); ``None`` for a metric of the
+        whole run (progress, lane keeping: no value belongs to one step). A monitor that
+        has one overrides this; the base has none."""
+        return None
+
     def named(self, name: str) -> "Monitor":
         """A copy of this monitor reported under ``name`` (e.g. two distance thresholds)."""
         clone = copy.copy(self)

@@ -12,6 +12,7 @@ definitions".
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,11 @@ __all__ = [
     "pairwise_distance", "pairwise_ttc", "footprint_gap", "footprint_separation",
     "swept_contacts", "critical_agent",
 ]
+
+
+#: the circle [m] the paper's TTC extrapolates into (DESIGN.md, definition 2): ``ttc()``'s
+#: default and the TTC shown when a test declares no TTC monitor
+TTC_RADIUS_M = 5.0
 
 
 # -- vectorized kernels (also used by the STL signal builders) --------------------------------
@@ -367,6 +373,16 @@ class _PairwiseMin(Monitor):
     def _fields(self) -> tuple[str, ...]:
         return ("x", "y")
 
+    def series(self, traj: Trajectory) -> np.ndarray:
+        """(value - threshold) toward the nearest other agent at each step: ρ(t); +inf at a
+        step with no other agent, NaN where no value is defined (absent agents)."""
+        vals = self._values(traj)
+        if vals.shape[0] == 0:
+            return np.full(traj.n_steps, np.inf)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN step stays NaN
+            return np.nanmin(vals, axis=0) - self.threshold
+
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, self._fields())
         vals = self._values(traj)
@@ -408,7 +424,7 @@ class TTCMonitor(_PairwiseMin):
     _what = "TTC"
     _unit = "s"
 
-    def __init__(self, threshold: float = 2.0, *, radius: float = 5.0, name: str = "ttc"):
+    def __init__(self, threshold: float = 2.0, *, radius: float = TTC_RADIUS_M, name: str = "ttc"):
         self.threshold = check_threshold(name, threshold)
         self.radius = check_positive(name, radius, "radius")
         self.name = check_name(name)
@@ -430,7 +446,7 @@ def distance(threshold: float = 5.0, *, footprint: bool = False, name: str = "di
 
 
 @factory
-def ttc(threshold: float = 2.0, *, radius: float = 5.0, name: str = "ttc") -> Monitor:
+def ttc(threshold: float = 2.0, *, radius: float = TTC_RADIUS_M, name: str = "ttc") -> Monitor:
     """The paper's time-to-collision metric: rho = min over steps and other agents of
     (TTC - ``threshold``) [s], TTC from constant-velocity extrapolation reaching the
     ``radius`` [m] circle (see :func:`pairwise_ttc`); +inf when no agent is on a

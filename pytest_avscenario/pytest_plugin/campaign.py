@@ -27,7 +27,8 @@ from ..case import Case
 from ..outcome import CaseOutcome, CaseRow, all_unavoidable, violations_of
 from ..report.junit import case_properties
 from .collect import CaseSlot, ScenarioPlan, function_id, plan_of, sampled_slot, slot_of
-from .failure import failure_message, fmt_rho
+from ..codec import fmt_rho
+from .failure import failure_message
 from .identity import driver_identity
 from .stopping import stuck_case_handler
 from .stash import (
@@ -65,6 +66,7 @@ class Campaign:
     """The running state of one scenario test's campaign (all its samplers)."""
 
     plan: ScenarioPlan
+    config: Any = None  # the pytest config, whose hooks may make the samplers
     active: dict[str, ActiveRun] = field(default_factory=dict)  # active sampler name -> its run
     shrunk: dict[str, int] = field(default_factory=dict)  # sampler -> failures minimized so far
     gifs: int = 0  # GIFs rendered so far for this test
@@ -80,7 +82,7 @@ class Campaign:
     def run_of(self, name: str) -> ActiveRun:
         """The run of active sampler ``name``, made on first use."""
         if name not in self.active:
-            self.active[name] = ActiveRun(self.plan.make_sampler(name))
+            self.active[name] = ActiveRun(self.plan.make_sampler(name, self.config))
         return self.active[name]
 
     def cache_key(self, name: str) -> str:
@@ -108,7 +110,7 @@ def campaign_of(item: pytest.Item) -> Campaign:
     campaigns = item.config.stash[campaigns_key]
     test = function_id(item)
     if test not in campaigns:
-        campaigns[test] = Campaign(plan_of(item))
+        campaigns[test] = Campaign(plan_of(item), config=item.config)
     return campaigns[test]
 
 
@@ -451,13 +453,13 @@ def progress_writer(config: pytest.Config) -> Any:
 
 def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
                 shrink: ShrinkReport | None) -> dict[str, str]:
-    """The replay of a failing case and its pictures: ``{kind: path}``.
+    """The recording of a failing case and its pictures: ``{kind: path}``.
 
-    Every failing case gets its replay (``replay``: the JSON data of the card page's slider);
+    Every failing case gets its recording (``recording``: the clip the card page's player plays);
     within the per-test caps the annotated still of its first violation (``moment``), its time
     series (``timeseries``) and a GIF (``gif``). Drawn from the minimized case when there is
     one (that is the one an engineer studies), else from the case as found. Only in-process
-    outcomes keep their world; a test that returns a Trajectory of its own gets a replay
+    outcomes keep their world; a test that returns a Trajectory of its own gets a recording
     without the road and no pictures.
     """
     directory = item.config.stash[controller_key].directory
@@ -468,9 +470,10 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
     traj = world.trajectory if world is not None else shown.trajectory
     if directory is None or traj is None:
         return {}
-    from ..report.folder import atomic_write_text
+    from ..files import atomic_write_text
+    from ..report.recording import recording_data
     from ..report.table import file_slug
-    from ..sim.replay import dumps, replay_data
+    from ..sim.clip import dumps
 
     base = directory / "cases" / f"{file_slug(item.nodeid)}"
     pictures: dict[str, str] = {}
@@ -482,11 +485,12 @@ def render_case(item: pytest.Function, campaign: Campaign, outcome: CaseOutcome,
     data = None
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
-        data = replay_data(world if world is not None else traj, violations=violations, monitors=monitors,
-                           title=item.name, fallback_t=worst.t if worst is not None else None)
+        data = recording_data(world if world is not None else traj, violations=violations, monitors=monitors,
+                              title=item.name, fallback_t=worst.t if worst is not None else None)
+        # the file keeps its earlier name (".replay.json"): reports and tools read it
         atomic_write_text(f"{base}.replay.json", dumps(data), durable=False)  # one of many
-        pictures["replay"] = f"{base}.replay.json"
-    except Exception as exc:  # the replay is a convenience: never fail the case over it
+        pictures["recording"] = f"{base}.replay.json"
+    except Exception as exc:  # the recording is a convenience: never fail the case over it
         warnings.warn(pytest.PytestWarning(f"{item.nodeid}: could not record the case's replay: {exc}"))
     if world is None or data is None:
         return pictures
@@ -800,7 +804,7 @@ def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
         judged.avoidable = {m: None for m in outcome.violated}
         return judged
     from ..monitors.conflict import crash_partner, judge_conflict
-    from ..monitors.metrics import CollisionMonitor
+    from ..monitors.evidence import reads_crash_flags
 
     monitors = {m.name: m for m in (plan.monitor_set or ())}
     where = violations_of(outcome.results, outcome.first) or {}
@@ -810,7 +814,7 @@ def judge_avoidability(item: pytest.Function, campaign: Campaign, case: Case,
             judged.avoidable[m] = None
             continue
         agent, t = where.get(m, {}).get("agent"), where.get(m, {}).get("t")
-        if agent is None and isinstance(monitor, CollisionMonitor) and outcome.trajectory is not None:
+        if agent is None and reads_crash_flags(monitor) and outcome.trajectory is not None:
             # a crash flag without a visible overlap (a crash between two samples): the
             # simulator flagged the other car of it at the same step
             partner = crash_partner(outcome.trajectory)

@@ -86,15 +86,24 @@ class ScenarioPlan:
                 "priority": list(self.monitor_set.priority_order) if self.monitor_set is not None else [],
                 "accept": self.accept.to_json(), "samplers": list(self.samplers)}
 
-    def make_sampler(self, name: str) -> Any:
+    def make_sampler(self, name: str, config: pytest.Config | None = None) -> Any:
+        """Sampler ``name`` of this test: a conftest's ``pytest_avscenario_make_sampler``
+        when one answers (with ``config``), else the registry's."""
         from .. import samplers
 
+        seed = stable_seed(self.seed, name)
+        if config is not None:
+            made = config.hook.pytest_avscenario_make_sampler(
+                config=config, name=name, space=self.space, seed=seed,
+                options=dict(self.sampler_options))
+            if made is not None:
+                return made
         opts = dict(self.sampler_options)
         if samplers.base.is_active(name) and self.monitor_set is not None:
             opts.setdefault("metrics", list(self.monitor_set.names))
             if self.monitor_set.priority_edges:
                 opts.setdefault("priority", [list(e) for e in self.monitor_set.priority_edges])
-        return samplers.make(name, self.space, seed=stable_seed(self.seed, name), **opts)
+        return samplers.make(name, self.space, seed=seed, **opts)
 
 
 def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Settings,
@@ -216,7 +225,7 @@ def plan_scenario(metafunc: pytest.Metafunc, marker: pytest.Mark, settings: Sett
 
     for name in plan.samplers:
         try:
-            sampler = plan.make_sampler(name)
+            sampler = plan.make_sampler(name, metafunc.config)
         except SamplerError as exc:
             raise DeclarationError(str(exc)) from None
         except (TypeError, ValueError, ArithmeticError) as exc:

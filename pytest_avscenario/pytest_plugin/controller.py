@@ -20,13 +20,14 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import pytest
 
-from ..outcome import CaseRow
-from ..space import FeatureSpace
 from .stash import settings_key
+
+if TYPE_CHECKING:  # loaded with the first row: a run without scenario tests never needs it
+    from ..outcome import CaseRow
 
 #: where a run that re-runs some cases (``-k``, ``--lf``, a case id) writes its report, inside
 #: the report folder, so the campaign's report stays as it was
@@ -105,6 +106,8 @@ class RunState:
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
         if data is not None and not self.is_worker:
+            from ..outcome import CaseRow
+
             if getattr(report, "avs_partial", None) and not self.partial:
                 self.partial = report.avs_partial  # an xdist worker's selection
             for shrink_row in getattr(report, "avs_shrink_rows", ()):
@@ -140,7 +143,8 @@ class RunState:
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
                                      case_files=self.case_files, verdicts=verdicts,
                                      rerun=self.rerun_command, partial=self.partial,
-                                     baseline=settings.baseline, driver=session_driver(self.config))
+                                     baseline=settings.baseline, driver=session_driver(self.config),
+                                     card_sections=self.card_sections)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
@@ -153,6 +157,11 @@ class RunState:
         from .identity import session_driver
 
         return drivers_of(self.rows, session_driver(self.config))
+
+    def card_sections(self, row: CaseRow) -> list[tuple[str, str]]:
+        """The ``(title, html)`` sections conftest.py files add to ``row``'s card (newhooks)."""
+        found = self.config.hook.pytest_avscenario_card_sections(config=self.config, row=row)
+        return [(str(title), str(body)) for sections in found for title, body in (sections or ())]
 
     def rerun_command(self, row: CaseRow) -> str:
         """The command that re-runs the case of ``row`` (for its card)."""
@@ -226,6 +235,12 @@ class RunState:
             # worker's row knows nothing of its declaration)
             self.tests[row.test] = info
         self.rows.append(row)
+        try:
+            self.config.hook.pytest_avscenario_case_finished(config=self.config, row=row)
+        except Exception as exc:
+            # a team's row sink (newhooks) that raises costs a warning, not the run's rows
+            self.warn(f"avscenario: a pytest_avscenario_case_finished hook raised for {row.item} "
+                      f"({type(exc).__name__}: {exc}); the case's row is kept")
         folder = self.claim()
         if folder is None:
             return
@@ -330,7 +345,7 @@ class RunState:
         for test in ordered:
             info = self.tests[test]
             space = self.guarded("the ε-coverage (rebuilding the parameter space)", test,
-                                 lambda: FeatureSpace.from_description(info["space"]))
+                                 lambda: _space_of(info["space"]))
             infos[test] = TestInfo(metrics=tuple(info["metrics"]), space=space,
                                    priority=tuple(info.get("priority") or ()),
                                    samplers=tuple(info["samplers"]))
@@ -363,11 +378,21 @@ class RunState:
                 why = case_verdict(criteria, r, [m for m, v in r.rho.items() if v is not None and v < 0])
                 if why is not None:
                     rejected.append((r.item, why))
-            reasons = campaign_verdict(criteria, rows, rejected, baseline, test, sampler,
-                                       info["metrics"])
+            reasons = list(campaign_verdict(criteria, rows, rejected, baseline, test, sampler,
+                                            info["metrics"]) or [])
+            # a team's own criteria (newhooks): every implementation's reasons count
+            for extra in self.config.hook.pytest_avscenario_campaign_verdict(
+                    config=self.config, test=test, sampler=sampler, rows=list(rows)):
+                reasons += [str(r) for r in extra or ()]
             if reasons:
                 out[(test, sampler)] = reasons
         return out
+
+
+def _space_of(description: Any) -> Any:
+    from ..space import FeatureSpace  # numpy: only once there are scenario rows
+
+    return FeatureSpace.from_description(description)
 
 
 def versions() -> dict[str, str]:

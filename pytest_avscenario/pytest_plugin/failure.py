@@ -5,30 +5,15 @@ from __future__ import annotations
 
 import json
 import shlex
-import math
 from typing import Any, Mapping
 
 import pytest
 
 from ..case import Case
-from ..codec import rho_to_str
+from ..codec import fmt_rho, fmt_value
 from ..outcome import CaseOutcome
 from .collect import call_text, plan_of
 from .stash import settings_key
-
-
-def fmt_rho(v: float | None) -> str:
-    if v is None:
-        return "—"
-    if not math.isfinite(v):
-        return ("+" if v > 0 else "") + rho_to_str(v)
-    return f"{v:+.3f}"
-
-
-def fmt_value(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return repr(v)
 
 
 def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,

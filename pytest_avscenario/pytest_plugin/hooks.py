@@ -1,8 +1,11 @@
 """The pytest plugin's hooks and fixtures, and nothing else.
 
 Loaded through the ``pytest11`` entry point ``avscenario`` (``-p no:avscenario`` disables it).
-Loading it imports only numpy and the plugin's light modules: highway-env, scipy, matplotlib
-and the rest are imported when a scenario test is collected or run.
+Loading it imports only the plugin's light modules — options, stash, the controller's and the
+stopping's shells, the hookspecs — and neither numpy nor any ``report`` module: a repository
+with the plugin installed and no scenario test pays ~no load time (bench/bench_load.py). The
+campaign, collection, numpy, highway-env, scipy and matplotlib load when a scenario test is
+collected or run.
 
 A test marked with ``@scenario`` becomes one item per concrete case (``test_x[halton-007]``,
 :mod:`.collect`); each item runs in :mod:`.campaign`; the controller (:mod:`.controller`)
@@ -11,25 +14,11 @@ writes the error table and the report. Settings come from :mod:`.options`, once 
 
 from __future__ import annotations
 
-from typing import Any
+import os
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from ..case import Case
-from ..space import SpaceError
-from .campaign import (
-    attach_to_html_report,
-    build_world,
-    campaign_of,
-    case_for,
-    executor_of,
-    keep_drawn_values,
-    left_out,
-    note_selection,
-    prefetch_passive_cases,
-    run_item,
-)
-from .collect import CaseSlot, import_error_message, plan_of, plan_scenario, slot_of
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
 from .stopping import TermGuard, end_workers, unknown_test_info
@@ -47,6 +36,18 @@ from .stash import (
     settings_key,
     shrink_rows_key,
 )
+
+
+if TYPE_CHECKING:
+    from ..case import Case
+
+
+def pytest_addhooks(pluginmanager: pytest.PytestPluginManager) -> None:
+    """The plugin's own hooks (:mod:`.newhooks`): a conftest.py adds a sampler, a row sink, a
+    card section or an acceptance criterion without private imports."""
+    from . import newhooks
+
+    pluginmanager.add_hookspecs(newhooks)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -76,9 +77,11 @@ def _open_db(config: pytest.Config, path: Any) -> Any:
     """The replay database, or None. Workers get the controller's snapshot (same items)."""
     if path is None:
         return None
+    workerinput = getattr(config, "workerinput", None)
+    if (workerinput is None or "avs_db" not in workerinput) and not os.path.lexists(path):
+        return _DeferredDB(path)  # nothing stored yet: nothing to read or check now
     from ..db import DatabaseError, ReplayDB
 
-    workerinput = getattr(config, "workerinput", None)
     try:
         if workerinput is not None and "avs_db" in workerinput:
             return ReplayDB.from_snapshot(path, workerinput["avs_db"])
@@ -89,6 +92,22 @@ def _open_db(config: pytest.Config, path: Any) -> Any:
     for message in db.warnings:
         config.issue_config_time_warning(pytest.PytestWarning(f"avscenario replay database: {message}"), 2)
     return db
+
+
+class _DeferredDB:
+    """The replay database of a directory that does not exist yet, made on first use: a
+    repository without scenario tests (or with no stored failure) never loads ``db``."""
+
+    def __init__(self, path: Any):
+        self._path = path
+        self._db: Any = None
+
+    def __getattr__(self, name: str) -> Any:
+        if self._db is None:
+            from ..db import ReplayDB
+
+            self._db = ReplayDB(self._path)
+        return getattr(self._db, name)
 
 
 class _XdistHooks:
@@ -173,6 +192,9 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
                 "this test has no @scenario(...); add one (the parameters @example names are "
                 "declared there) or remove the @example")
         return
+    from ..space import SpaceError
+    from .collect import plan_scenario
+
     test = metafunc.definition.nodeid
     config = metafunc.config
     try:
@@ -192,6 +214,8 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Any:
     if report.failed and isinstance(collector, pytest.Module) and getattr(call, "excinfo", None) \
             and not collector.config.getoption("fulltrace", False) \
             and collector.config.getoption("verbose", 0) < 2:
+        from .collect import import_error_message
+
         message = import_error_message(collector, call.excinfo)
         if message is not None:
             report.longrepr = message
@@ -201,6 +225,9 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Any:
 @pytest.fixture
 def case(request: pytest.FixtureRequest) -> Case:
     """The concrete case of a ``@scenario`` test: ``case.<parameter>``, ``case.seed``, ``case.rng``."""
+    from .campaign import campaign_of, case_for
+    from .collect import CaseSlot
+
     slot: CaseSlot | None = getattr(request, "param", None)
     if not isinstance(slot, CaseSlot):
         raise pytest.UsageError(
@@ -230,13 +257,18 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
 @pytest.fixture
 def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
     """A fresh simulated world for this case, seeded from it, with ``avs_driver`` as the ego's."""
+    from .campaign import build_world, campaign_of
+
     return build_world(case, avs_driver, request.node.nodeid,
                        plan=campaign_of(request.node).plan, item=request.node)
 
 
 def _is_scenario_case(item: pytest.Item) -> bool:
-    return isinstance(item, pytest.Function) and item.get_closest_marker("scenario") is not None \
-        and isinstance(getattr(item, "funcargs", {}).get("case"), Case)
+    if not isinstance(item, pytest.Function) or item.get_closest_marker("scenario") is None:
+        return False  # before any import: plain tests never load the campaign
+    from ..case import Case
+
+    return isinstance(getattr(item, "funcargs", {}).get("case"), Case)
 
 
 @pytest.hookimpl(wrapper=True)
@@ -255,13 +287,15 @@ def pytest_runtest_setup(item: pytest.Item) -> Any:
     except pytest.exit.Exception:
         raise
     except (Exception, pytest.fail.Exception) as exc:
-        if slot_of(item) is not None and item.get_closest_marker("scenario") is not None:
+        if item.get_closest_marker("scenario") is not None and _slot_of(item) is not None:
             record_error_row(item, f"the item's setup failed before its case ran: "
                                    f"{type(exc).__name__}: {exc}")
         raise
     config = item.config
     if not _is_scenario_case(item) or config.option.setuponly or config.option.setupplan:
         return result
+    from .campaign import run_item
+
     try:
         outcome = item.stash[result_key] = run_item(item)
     except pytest.exit.Exception:
@@ -304,7 +338,10 @@ def _raise_for(item: pytest.Item, result: Any, when: str) -> None:
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Any:
     report = yield
     if row_key not in item.stash:
-        return report
+        return report  # not a scenario case: nothing of the campaign is loaded for it
+    from .campaign import attach_to_html_report
+    from .collect import plan_of
+
     if not item.stash.get(sent_key, False):
         # The row leaves with the first report after the case ran: the setup's, since the case
         # runs as the last step of the setup. pytest's JUnit writer counts an item from its
@@ -330,18 +367,29 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     """Note which cases of active campaigns this run selects; hand a remote executor the
     passive cases ahead, so its workers stay busy."""
     config = session.config
+    if not any(item.get_closest_marker("scenario") is not None for item in session.items):
+        return  # no scenario case selected (or an xdist controller): nothing to note or send
+    from .campaign import executor_of, left_out, note_selection, prefetch_passive_cases
+
     note_selection(session)
     config.stash[controller_key].partial = left_out(session)
     if config.stash[settings_key].executor == "inprocess" or hasattr(config, "workerinput"):
-        return
-    if not any(item.get_closest_marker("scenario") is not None for item in session.items):
         return
     executor_of(config)  # connect now: an unreachable cluster stops the run once
     prefetch_passive_cases(session)
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
-    keep_drawn_values(session.config)
+    if session.config.stash[campaigns_key]:
+        from .campaign import keep_drawn_values
+
+        keep_drawn_values(session.config)
+
+
+def _slot_of(item: pytest.Item) -> Any:
+    from .collect import slot_of
+
+    return slot_of(item)
 
 
 def record_error_row(item: pytest.Item, error: str) -> None:

@@ -29,11 +29,12 @@ import re
 import signal
 import sys
 import threading
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 import pytest
 
-from ..outcome import CaseRow
+if TYPE_CHECKING:  # loading the plugin must stay light (bench/bench_load.py)
+    from ..outcome import CaseRow
 
 #: seconds the main thread has to answer a SIGTERM before the watcher ends the process
 TERM_GRACE_S = 5.0
@@ -374,6 +375,8 @@ def crash_row(nodeid: str, names: set[str]) -> CaseRow | None:
     for match in _CASE_ID.finditer(rest[:-1]):
         name, index = match.group(1), int(match.group(2))
         if name in names:
+            from ..outcome import CaseRow
+
             origin = name if name in ("replay", "example") else "sampled"
             return CaseRow(
                 test=test, item=nodeid, sampler=name, index=index, seed=None, origin=origin,

@@ -6,7 +6,8 @@ nor scipy (they load inside the functions that draw or search). The plugin wires
 pytest's hooks: :mod:`.folder` claims the report directory (a lock, and a manifest of the
 files we wrote there), :mod:`.table` writes rows as cases finish, :mod:`.summary` computes the
 terminal table and JUnit suite properties, :mod:`.junit` adds properties to the XML,
-:mod:`.plots` and :mod:`.html` draw the pictures and the static ``index.html``; :mod:`.modes`
+:mod:`.plots` and :mod:`.html` draw the pictures and the static ``index.html``; :mod:`.cards`
+writes a page per counterexample, with its :mod:`.recording` played by :mod:`.player`; :mod:`.modes`
 groups each campaign's counterexamples into failure modes and :mod:`.compare` sets a run
 against an earlier one (``python -m pytest_avscenario.report compare OLD NEW``).
 """

@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from ..outcome import CaseRow
 from .coverage import DEFAULT_TOL
@@ -51,6 +51,7 @@ def finish_report(
     partial: str | None = None,
     baseline: Any = None,
     driver: Mapping[str, Any] | None = None,
+    card_sections: Callable[[CaseRow], Sequence[tuple[str, str]]] | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -69,7 +70,9 @@ def finish_report(
     re-ran only some cases (its page says so and links to the campaign's report in ``..``).
     ``baseline``: an earlier run's summary (:func:`~pytest_avscenario.acceptance.load_baseline`,
     the file of ``--avs-baseline``): the index opens with the comparison (:mod:`.compare`) and
-    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). Every counterexample gets a card page under
+    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run).
+    ``card_sections(row)``: more ``(title, html)`` sections for a counterexample's card (the
+    plugin's ``pytest_avscenario_card_sections`` hook). Every counterexample gets a card page under
     ``cases/``. ``driver``: the identity of the options' driver, the run's when no row
     names one; ``summary.json`` holds the run's driver as ``"driver"`` and each campaign's as
     its ``"driver"``, the index names it (see :mod:`.drivers`). Returns the summary rows.
@@ -138,7 +141,7 @@ def finish_report(
     for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
         made = part("the counterexample pages", test, lambda test=test: _cards(
             root, folder, test, by_test.get(test, []), (tests or {}).get(test), case_files or {}, rerun,
-            [s for s in summary if s.test == test]))
+            [s for s in summary if s.test == test], card_sections))
         if made:
             sections[test] = made
 
@@ -182,7 +185,8 @@ def finish_report(
 
 def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestInfo | None,
            case_files: Mapping[str, Mapping[str, str]], rerun: Callable[[CaseRow], str | None] | None,
-           campaigns: list[SummaryRow] = ()) -> list[str]:
+           campaigns: list[SummaryRow] = (),
+           card_sections: Callable[[CaseRow], Sequence[tuple[str, str]]] | None = None) -> list[str]:
     """Write a card page per counterexample of ``test``; the index's HTML listing its failure
     modes (of ``campaigns``, its summary rows) and its counterexamples."""
     from .cards import CaseFiles, card_name, card_rows, counterexample_table, render_card
@@ -201,13 +205,13 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     def slider(data: Mapping[str, Any], row: CaseRow) -> str:
         # the data knows its own first violation and critical agent: those of the case it
         # recorded (the minimized one, when there is one), not necessarily the row's
-        from .replay import player_file, replay_html
+        from .player import player_file, player_html
 
         if not player:
             name, text = player_file()
             atomic_write_text(folder.add(cases / name), text, durable=False)
             player.append(name)
-        return replay_html(data, element_id="replay", player=player[0])
+        return player_html(data, element_id="replay", player=player[0])
 
     labels = mode_labels(campaigns)
     described = {item: f"{labels[item]} ({m.what}: {m.rule})"
@@ -217,9 +221,10 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
         files = CaseFiles(dict(case_files.get(row.item) or {}))
         page = render_card(cases, row, metrics=metrics, space=space, mode=described.get(row.item),
                            files=files, rerun=rerun(row) if rerun is not None else None,
-                           index_href=f"../index.html#t-{file_slug(test)}", replay=slider)
+                           index_href=f"../index.html#t-{file_slug(test)}", player=slider,
+                           sections=card_sections(row) if card_sections is not None else ())
         atomic_write_text(cases / card_name(row), page, durable=False)  # one of many
-        recording = files.get("replay")
+        recording = files.get("recording")
         if recording is not None and "id='replay-data'" in page and folder.owns(recording):
             # the card holds the recording now (its replay-data script): one copy per report,
             # so ~700 counterexamples cost ~15 KB each, not ~19

@@ -9,7 +9,7 @@ card, ``cases/<test>-<hash>.<case>.html``, a page of its own that holds
 * the values the run drew from ``case.rng``;
 * the ``@example(...)`` line with its import, and the exact command that re-runs the case;
 * the case's pictures (time series, the annotated moment of the first violation, the GIF)
-  and, when its recording is at hand, a replay with a time slider.
+  and, when its recording is at hand, a player with a time slider.
 
 Pages are static, self-contained HTML (inline CSS and script, relative links), every text
 HTML-escaped. Nothing here imports pytest or the simulator.
@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 from urllib.parse import quote
 
-from ..codec import rho_to_str
+from ..codec import fmt_rho, fmt_value  # the terminal's formatters: one convention
 from ..outcome import CaseRow
 
 __all__ = ["CaseFiles", "card_name", "card_rows", "render_card", "counterexample_table",
@@ -44,7 +44,7 @@ FILE_CAPTIONS = {
 }
 
 #: counts the page's script errors into ``<html data-script-errors>`` (and says so on the page),
-#: so a broken replay shows instead of silently doing nothing; automated checks read it too
+#: so a broken player shows instead of silently doing nothing; automated checks read it too
 ERROR_PROBE = """
 (function () {
   var root = document.documentElement, n = 0;
@@ -96,24 +96,6 @@ def href(directory: Path, path: str | os.PathLike) -> str:
     return quote(Path(rel).as_posix(), safe="/#")
 
 
-def fmt_value(v: Any) -> str:
-    if isinstance(v, bool) or v is None:
-        return repr(v)
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    if isinstance(v, str):
-        return v
-    return repr(v)
-
-
-def fmt_rho(v: float | None) -> str:
-    if v is None:
-        return DASH
-    if not math.isfinite(v):
-        return rho_to_str(v)
-    return f"{v:+.3f}"
-
-
 def unit_of(space: Any, name: str) -> str:
     """The unit the declaration gives parameter ``name`` (``Uniform(0, 30, unit="m")``), or ""."""
     dist = getattr(space, "parameters", {}).get(name) if space is not None else None
@@ -137,7 +119,7 @@ def card_name(row: CaseRow) -> str:
 @dataclass(frozen=True)
 class CaseFiles:
     """What a case left on disk beside its row: ``{kind: path}`` with kinds ``timeseries``,
-    ``moment``, ``gif`` (pictures) and ``replay`` (its recording as JSON, for the slider; the
+    ``moment``, ``gif`` (pictures) and ``recording`` (its clip as JSON, for the player; the
     card embeds it, and the report keeps that copy only)."""
 
     files: Mapping[str, str] = field(default_factory=dict)
@@ -315,11 +297,13 @@ def render_card(
     rerun: str | None = None,
     index_href: str = "../index.html",
     mode: str | None = None,
-    replay: Callable[[Mapping[str, Any], CaseRow], str] | None = None,
+    player: Callable[[Mapping[str, Any], CaseRow], str] | None = None,
+    sections: Sequence[tuple[str, str]] = (),
 ) -> str:
     """The HTML text of ``row``'s card page, written in ``directory`` (the report's
     ``cases/``). ``files``: the case's pictures and recording; ``rerun``: the command that
-    re-runs it; ``replay(data, row)``: the slider's HTML for the recording's JSON data."""
+    re-runs it; ``player(data, row)``: the player's HTML for the recording's JSON data;
+    ``sections``: ``(title, html)`` a team adds at the end (the title escaped, the HTML as given)."""
     files = files or CaseFiles()
     violated = [m for m, v in row.rho.items() if v is not None and v < 0]
     t, agent = _first(row)
@@ -370,28 +354,31 @@ def render_card(
     parts.append(_draws_table(row.drawn))
     pictures = [(kind, files.get(kind)) for kind in FILE_CAPTIONS]
     pictures = [(k, p) for k, p in pictures if p]
-    replay_data = None
-    if files.get("replay") and replay is not None:
+    recording = None
+    if files.get("recording") and player is not None:
         try:
-            replay_data = json.loads(Path(files.get("replay")).read_text())
+            recording = json.loads(Path(files.get("recording")).read_text())
         except (OSError, ValueError):
-            replay_data = None
-    if pictures or replay_data is not None:
+            recording = None
+    if pictures or recording is not None:
         parts.append("<h2>What happened</h2>")
-        # the pictures and the replay are drawn from the minimized case when there is one
+        # the pictures and the recording are drawn from the minimized case when there is one
         # (the one an engineer studies), which may meet another agent than the case as found
         which = "minimized case" if row.minimized is not None else "case as found"
         if row.minimized is not None:
             parts.append("<p class='meta'>The replay and the pictures show the <b>minimized case</b> "
                          f"({e(', '.join(f'{k}={fmt_value(v)}' for k, v in row.minimized.items()))}), "
                          "not the case as found; the metrics table says where each violated first.</p>")
-        if replay_data is not None:
-            parts.append(f"<h3>Replay ({e(which)})</h3>")
-            parts.append(replay(replay_data, row))
+        if recording is not None:
+            parts.append(f"<h3>Replay ({e(which)})</h3>")  # the page's word for the player
+            parts.append(player(recording, row))
         for kind, path in pictures:
             link = href(directory, path)
             caption = f"{FILE_CAPTIONS[kind]} ({which})"
             parts.append(f"<figure><a href='{link}'><img src='{link}' alt='{e(caption)}: {e(row.item)}'></a>"
                          f"<figcaption>{e(caption)}</figcaption></figure>")
+    for title, body in sections:
+        parts.append(f"<h2>{e(title)}</h2>")
+        parts.append(f"<div class='team-section'>{body}</div>")
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"

@@ -19,7 +19,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..monitors.metrics import critical_agent
+from ..monitors.evidence import case_evidence, critical_agent, threshold_lines
 from ..trajectory import Trajectory
 
 __all__ = ["critical_agent", "plot_case_timeseries", "decision_spans", "TTC_CAP_S"]
@@ -90,7 +90,6 @@ def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: st
     distance and TTC thresholds are drawn."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    from ..monitors.metrics import DistanceMonitor, TTCMonitor, footprint_gap, pairwise_distance, pairwise_ttc
 
     t = traj.t
     decided = bool(decision_spans(traj))
@@ -113,26 +112,20 @@ def plot_case_timeseries(path: str | os.PathLike, traj: Trajectory, *, agent: st
     twin.plot(t, accel, color="#E69F00", lw=1.0, label="ego acceleration")
     twin.axhline(0.0, color="#E69F00", lw=0.5, alpha=0.5)
     twin.set_ylabel("acceleration [m/s²]", color="#E69F00")
-    k = critical_agent(traj, agent, first_t)
+    evidence = case_evidence(traj, monitors, agent=agent, t=first_t)
+    k = evidence.critical
     name = traj.names[k] if k is not None else None
     if k is not None:
-        dist = pairwise_distance(traj)[k - 1]
-        gap = footprint_gap(traj)[k - 1]
+        dist, gap, ttc = evidence.distance_m, evidence.gap_m, evidence.ttc_s
         axes[1].plot(t, np.where(np.isfinite(dist), dist, np.nan), color="#009E73", lw=1.5,
                      label=f"centre distance to {name}")
         axes[1].plot(t, np.where(np.isfinite(gap), gap, np.nan), color="#CC79A7", lw=1.2,
                      label=f"footprint gap to {name}")
-        radius = next((m.radius for m in monitors if isinstance(m, TTCMonitor)), 5.0)
-        ttc = pairwise_ttc(traj, radius)[k - 1]
         axes[2].plot(t, np.clip(np.where(np.isnan(ttc), np.inf, ttc), 0.0, TTC_CAP_S), color="#D55E00",
                      lw=1.5, label=f"TTC with {name} (≥ {TTC_CAP_S:g} s drawn at the top)")
         axes[2].set_ylim(-0.3, TTC_CAP_S + 0.5)
-    for m in monitors:
-        if isinstance(m, DistanceMonitor):
-            axes[1].axhline(m.threshold, color="black", ls="--", lw=0.9,
-                            label=f"{m.name} threshold ({'gap' if m.footprint else 'centre'}) {m.threshold:g} m")
-        elif isinstance(m, TTCMonitor):
-            axes[2].axhline(m.threshold, color="black", ls="--", lw=0.9, label=f"{m.name} threshold {m.threshold:g} s")
+    for quantity, threshold, label in threshold_lines(monitors):
+        axes[1 if quantity == "distance" else 2].axhline(threshold, color="black", ls="--", lw=0.9, label=label)
     axes[1].set_ylabel("distance [m]")
     axes[2].set_ylabel("TTC [s]")
     axes[2].set_xlabel("time [s]")

@@ -20,7 +20,8 @@ the directory before it writes there (:func:`claim_report_dir`):
   uses the first free sibling ``DIR-2``, ``DIR-3``, … and the caller warns with the reasons.
 
 Every file of the report is written atomically (:func:`atomic_write_bytes`), except the
-error tables, which grow row by row. Nothing here imports pytest.
+error tables, which grow row by row (the writer is :mod:`pytest_avscenario.files`, shared
+with the replay database and the pictures). Nothing here imports pytest.
 """
 
 from __future__ import annotations
@@ -29,9 +30,10 @@ import errno
 import json
 import os
 import re
-import tempfile
 from pathlib import Path
 from typing import Any, IO
+
+from ..files import atomic_write_bytes, atomic_write_text
 
 
 __all__ = ["ReportFolder", "ReportDirBusy", "claim_report_dir", "describe_fallback", "is_own_name",
@@ -60,65 +62,6 @@ _SUB = {
     # the cards' shared replay player: "replay-<hash>.js"
     "cases": re.compile(r"[^/]+-[0-9a-f]{8}(\.[A-Za-z0-9_.-]+)?\.(png|gif|json|html)|replay-[0-9a-f]{8}\.js"),
 }
-
-
-def _fsync_dir(directory: Path) -> None:
-    # Makes the rename itself durable; not possible (nor needed) on every platform.
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes, durable: bool = True) -> None:
-    """Write ``data`` to ``path`` so readers see the old file or the new one, never half.
-
-    Writes a temporary file in the same directory, fsyncs it, then ``os.replace``s it over
-    the target (atomic on POSIX and Windows within one file system). ``durable=False`` skips
-    the two fsyncs (the file and the directory; ~10 ms per file on a busy disk): still whole
-    or absent after a killed process, but a power cut may lose it — for the many per-case
-    files of a report (cards, case pictures), which are held to the error table's rows'
-    standard (flushed, not fsynced).
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        # mkstemp makes the file private (0600); a report is read by CI artifact servers and
-        # colleagues, so give it the mode a plain open() would have
-        os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            if durable:
-                os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    if durable:
-        _fsync_dir(path.parent)
-
-
-def atomic_write_text(path: str | os.PathLike, text: str, encoding: str = "utf-8",
-                      durable: bool = True) -> None:
-    """:func:`atomic_write_bytes` for text."""
-    atomic_write_bytes(path, text.encode(encoding), durable=durable)
 
 
 def is_own_name(rel: str) -> bool:

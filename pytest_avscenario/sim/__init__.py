@@ -24,7 +24,10 @@ One concept per module; scenario code talks to :mod:`.world`, the rest talk to e
   route path, perception, junction and parking modules; ``highway_agent``, an agent trained
   on highway-env in highway-env's frame).
 * :mod:`.recording` — per-step recording into the Trajectory the monitors read.
-* :mod:`.render` — PNG/GIF replays of a recorded run; :mod:`.errors` — SimError, DriverError.
+* :mod:`.render` — PNG/GIF pictures of a recorded run and the annotated still; :mod:`.clip`
+  — a run coded compactly for the card's player and the still (no monitor or report import:
+  the evidence it shows comes from :mod:`pytest_avscenario.monitors.evidence`);
+  :mod:`.errors` — SimError, DriverError.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Pictures of a recorded run: a PNG frame or strip, or an animated GIF, drawn offscreen.
 
-Rendering *replays* ``world.trajectory`` over the world's road network after the run, so
+Rendering *redraws* ``world.trajectory`` over the world's road network after the run, so
 simulation never pays for drawing and any recorded case can be drawn later. Frames are
 plain ``pygame.Surface`` objects (no display is ever opened, so no ``SDL_VIDEODRIVER``
 setting matters); lane markings come from highway-env's ``LaneGraphics``, while asphalt,
@@ -64,7 +64,7 @@ def _view(world: Any, step: int, centre: Any = None,
     The view of :func:`view_spec` at ``step``; ``centre`` (an (x, y) [m], a place, or an
     agent name) fixes the window's centre and ``width`` [m] its width.
     """
-    from .replay import view_spec
+    from .clip import view_spec
 
     tr = world.trajectory
     box = world.lane_index.boxes
@@ -310,13 +310,13 @@ def _nice_length(metres: float) -> float:
 
 def render_moment(world: Any, path: str, data: Any, k: int | None = None,
                   title: str | None = None) -> dict[str, Any]:
-    """Write the annotated still of frame ``k`` (default: the first violation) of replay
-    ``data`` (:func:`~.replay.replay_data` of ``world``) as a palette PNG at ``path``.
+    """Write the annotated still of frame ``k`` (default: the first violation) of clip
+    ``data`` (:func:`~.clip.clip_data` of ``world``, as a case's recording holds it) as a palette PNG at ``path``.
 
     Above the scene the title (``title`` or the data's) with the time; in the scene every agent
     labelled with its name and speed, a velocity arrow per agent (as long as the distance it
-    covers in :data:`~.replay.ARROW_S` s), the critical agent ringed, a scale bar; below it
-    the metric values of the frame (:func:`~.replay.frame_lines`). Each label is placed by
+    covers in :data:`~.clip.ARROW_S` s), the critical agent ringed, a scale bar; below it
+    the metric values of the frame (:func:`~.clip.frame_lines`). Each label is placed by
     :func:`_place_labels` beside its own car, off the other cars and labels where there is room.
     Returns what was drawn: ``{"path", "t", "step", "labels", "critical", "lines", "placed",
     "view"}`` — ``placed``: per agent name its label's ``box`` and its car's ``car`` footprint
@@ -326,7 +326,7 @@ def render_moment(world: Any, path: str, data: Any, k: int | None = None,
     """
     from PIL import Image
 
-    from .replay import decoded, frame_lines
+    from .clip import decoded, frame_lines
 
     pygame = _pygame()
     tr = world.trajectory
@@ -597,7 +597,7 @@ def _save_atomic(image: Any, path: str | os.PathLike) -> None:
     report's many per-case files)."""
     import io
 
-    from ..report.folder import atomic_write_bytes
+    from ..files import atomic_write_bytes
 
     buf = io.BytesIO()
     image.save(buf, format="PNG", optimize=True)

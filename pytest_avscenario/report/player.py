@@ -1,17 +1,19 @@
-"""The interactive replay on a counterexample's card: a canvas, a time slider and play/pause.
+"""The card's player: a counterexample's recording on a canvas, with a time slider and play/pause.
 
-:func:`replay_html` embeds a case's replay data (:func:`pytest_avscenario.sim.replay.replay_data`,
-kept as ``cases/<test>-<hash>.replay.json``) in the card page with a small player script —
-the report's shared ``cases/replay-<hash>.js`` (:func:`player_file`), or inline for a page
-made on its own: no network, no external library, so a report opened from a CI artifact
-works as is.
-The replay starts at the first violation and draws what the annotated still shows: the road,
+:func:`player_html` embeds a case's recording (:func:`pytest_avscenario.report.recording.recording_data`,
+a clip of :mod:`pytest_avscenario.sim.clip`, kept as ``cases/<test>-<hash>.replay.json`` until
+the card takes it in) in the card page with a small player script — the report's shared
+``cases/replay-<hash>.js`` (:func:`player_file`), or inline for a page made on its own: no
+network, no external library, so a report opened from a CI artifact works as is. (The file
+names and the page's ``replay`` ids are kept as earlier reports wrote them; in the code,
+"replay" means the replay database only.)
+The player starts at the first violation and draws what the annotated still shows: the road,
 every agent labelled with its name and speed, a velocity arrow per agent, the critical agent
 ringed, a scale bar, and beside the picture the frame's metric values and the ego's decision
-in force (the lines of :func:`pytest_avscenario.sim.replay.frame_lines`); the slider has a
+in force (the lines of :func:`pytest_avscenario.sim.clip.frame_lines`); the slider has a
 tick where the decision changes. ``card.html#t=1.5`` opens it at 1.5 s.
 
-For automated checks the replay's element carries ``data-frame``, ``data-t`` (the shown
+For automated checks the player's element carries ``data-frame``, ``data-t`` (the shown
 time, 2 decimals), ``data-draws`` (how many times the canvas was drawn) and ``data-labels``
 (JSON: per agent name its label's ``box`` and its footprint's ``car`` box on the canvas,
 ``[left, top, width, height]`` [px]; labels are placed as the still places them,
@@ -26,9 +28,9 @@ import json
 import re
 from typing import Any, Mapping
 
-__all__ = ["replay_html", "player_file", "REPLAY_CSS", "REPLAY_JS"]
+__all__ = ["player_html", "player_file", "PLAYER_CSS", "PLAYER_JS"]
 
-REPLAY_CSS = """
+PLAYER_CSS = """
 .replay { margin: .6em 0 1.2em; }
 .replay canvas { display: block; max-width: 100%; height: auto; border: 1px solid #ccc; background: #607f56; }
 .replay .controls { display: flex; align-items: center; gap: .7em; margin: .4em 0; max-width: 820px; }
@@ -40,7 +42,7 @@ REPLAY_CSS = """
 # ES5-level JavaScript on purpose: no build step, and old CI artifact viewers run it too. It is
 # shipped without indentation and comments: in the report, once per report as
 # cases/replay-<hash>.js (player_file); inline in a page made on its own.
-REPLAY_JS = r"""
+PLAYER_JS = r"""
 function avsReplay(id) {
   var root = document.getElementById(id), D = JSON.parse(document.getElementById(id + "-data").textContent);
   var canvas = root.querySelector("canvas"), c = canvas.getContext("2d");
@@ -125,13 +127,13 @@ function avsReplay(id) {
     });
     road.stop_lines.concat(road.lane_ends || []).forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
   }
-  function decision(k) {  // [since, label] in force at frame k, as sim.replay.decision_at
+  function decision(k) {  // [since, label] in force at frame k, as sim.clip.decision_at
     var now = null, cs = Math.round(T[k] * 100), at = D.decisions ? D.decisions.at : [];
     for (var i = 0; i < at.length && at[i][0] <= cs; i++) now = [at[i][0] / 100, D.decisions.labels[at[i][1]]];
     return now;
   }
   function signed(v) { return (v >= 0 ? "+" : "") + v.toFixed(2); }
-  function lines(k) {  // the same lines as sim.replay.frame_lines
+  function lines(k) {  // the same lines as sim.clip.frame_lines
     var mark = k === D.first && D.first_kind !== "moment" ? " \u2014 first " + D.first_kind : "";
     var o = ["t = " + T[k].toFixed(2) + " s" + mark], dash = "\u2014";
     if (D.critical && V.d) {
@@ -339,7 +341,7 @@ def _compact(js: str) -> str:
     return "\n".join(line for line in lines if line)
 
 
-_SHIPPED_JS = _compact(REPLAY_JS)
+_SHIPPED_JS = _compact(PLAYER_JS)
 
 
 def player_file() -> tuple[str, str]:
@@ -372,8 +374,8 @@ def _decision_frames(data: Mapping[str, Any]) -> list[int]:
     return sorted({bisect.bisect_left(times, cs) for cs, _ in made["at"]} - {len(times)})
 
 
-def replay_html(data: Mapping[str, Any], element_id: str = "replay", player: str | None = None) -> str:
-    """The replay section of a card page for replay ``data``: canvas, slider, play/pause,
+def player_html(data: Mapping[str, Any], element_id: str = "replay", player: str | None = None) -> str:
+    """The player section of a card page for recording ``data``: canvas, slider, play/pause,
     the frame's metric values, the data itself and the player script — inline, or with
     ``player`` the address of the shared file of :func:`player_file` (~10 KB less per card;
     still no network)."""
@@ -392,7 +394,7 @@ def replay_html(data: Mapping[str, Any], element_id: str = "replay", player: str
               + "Drag the slider or use ← → on it; "
               f"<code>#t=…</code> on the page's address opens the replay at that time.")
     return "\n".join([
-        f"<style>{REPLAY_CSS}</style>",
+        f"<style>{PLAYER_CSS}</style>",
         f"<section class='replay' id='{eid}' data-frame='{first}' data-draws='0'>",
         f"<canvas width='{int(size[0])}' height='{int(size[1])}' "
         f"aria-label='bird&#x27;s-eye replay of the run'></canvas>",

@@ -1,16 +1,19 @@
-"""A compact recording of one run for the report's interactive replay and its annotated still.
+"""A clip: the compact, JSON-coded recording of one run that a counterexample's card plays
+and its annotated still shows.
 
-:func:`replay_data` turns a world (or a bare :class:`~pytest_avscenario.trajectory.Trajectory`)
-into plain JSON data: the road drawn once (lane centre lines with their widths and markings,
-intersection boxes, crosswalks, stop lines), every agent's position, heading and speed at a
-decimated rate (:data:`REPLAY_HZ`, plus the steps of the first violation and first contact),
-the critical agent, the violated metrics, and per frame the distance, footprint gap and time to collision
-between the ego and the critical agent, with the pointwise margin ρ(t) of the violated
-distance and TTC monitors, and the ego's decisions (the recording's ``meta["decisions"]``:
-a discretely deciding agent's actions or its driver's reasons, as changes). :func:`frame_lines`
-is the text shown beside a frame; the still
-(:func:`~pytest_avscenario.sim.render.render_moment`) and the card page's replay
-(:mod:`pytest_avscenario.report.replay`) both show exactly these values.
+:func:`clip_data` turns a world (or a bare :class:`~pytest_avscenario.trajectory.Trajectory`)
+and the run's evidence (:class:`~pytest_avscenario.monitors.evidence.Evidence`, computed by
+the monitors: this module imports neither them nor the report) into plain JSON data: the road
+drawn once (lane centre lines with their widths and markings, intersection boxes,
+crosswalks, stop lines), every agent's position, heading and speed at a decimated rate
+(:data:`CLIP_HZ`, plus the steps of the first violation and first contact), the critical
+agent, the violated metrics, and per frame the distance, footprint gap and time to collision
+between the ego and the critical agent, with ρ(t) of the violated monitors that have one, and
+the ego's decisions (the recording's ``meta["decisions"]``: a discretely deciding agent's
+actions or its driver's reasons, as changes). :func:`frame_lines` is the text shown beside a
+frame; the still (:func:`~pytest_avscenario.sim.render.render_moment`) and the card's player
+(:mod:`pytest_avscenario.report.player`) both show exactly these values.
+:func:`pytest_avscenario.report.recording.recording_data` composes the two for a case.
 
 The data is made small enough to keep one per counterexample: times in centiseconds,
 positions and metric values in centimetres (or centiseconds), headings in degrees, speeds in
@@ -31,16 +34,16 @@ import numpy as np
 
 from ..trajectory import Trajectory
 
-__all__ = ["REPLAY_HZ", "ARROW_S", "replay_data", "dumps", "undelta", "moment_step",
+__all__ = ["CLIP_HZ", "ARROW_S", "clip_data", "dumps", "undelta", "moment_step",
            "frame_lines", "decoded", "view_spec", "decision_at"]
 
-#: frames per second of the replay (the simulation records 10 Hz by default)
-REPLAY_HZ = 5.0
+#: frames per second of a clip (the simulation records 10 Hz by default)
+CLIP_HZ = 5.0
 
 #: a velocity arrow is as long as the distance the agent covers in this many seconds [s]
 ARROW_S = 1.0
 
-#: view of a replay without a road: this wide [m], following the ego
+#: view of a clip without a road: this wide [m], following the ego
 _BARE_WIDTH_M = 120.0
 
 
@@ -105,17 +108,6 @@ def moment_step(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | 
             return traj.n_steps - 1
         t = float(fallback_t)
     return int(np.argmin(np.abs(traj.t - t)))
-
-
-def _critical(traj: Trajectory, violations: Mapping[str, Mapping[str, Any]] | None,
-              step: int) -> int | None:
-    from ..monitors.metrics import critical_agent
-
-    timed = sorted(((float(w["t"]), w.get("agent")) for w in (violations or {}).values()
-                    if w.get("t") is not None), key=lambda ta: ta[0])
-    agent = timed[0][1] if timed else next((w.get("agent") for w in (violations or {}).values()
-                                            if w.get("agent")), None)
-    return critical_agent(traj, agent, float(traj.t[step]))
 
 
 def _lane_points(lane: Any) -> list[tuple[float, float]]:
@@ -189,7 +181,7 @@ def view_spec(world: Any) -> tuple[tuple[int, int], float, float | None, float |
     The whole intersection; on a road network a 110 m square following the ego; a 133 m
     window following the ego on other roads, ``lead`` metres ahead of it in x — on a highway
     (bends, ramps) ahead along its heading and following it both ways. A centre coordinate
-    that is None follows the ego (the replay draws the same view).
+    that is None follows the ego (the card's player draws the same view).
     """
     road = world.road
     box = world.lane_index.boxes
@@ -218,17 +210,18 @@ def _view(world: Any | None) -> dict[str, Any]:
             "ahead": round(ahead, 2), "along": along}
 
 
-def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None = None,
-                monitors: Sequence[Any] = (), title: str = "", hz: float = REPLAY_HZ,
-                fallback_t: float | None = None) -> dict[str, Any]:
-    """The replay of one recorded run as plain JSON data.
+def clip_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None = None,
+              evidence: Any = None, title: str = "", hz: float = CLIP_HZ,
+              fallback_t: float | None = None) -> dict[str, Any]:
+    """The clip of one recorded run as plain JSON data.
 
     ``source``: a world after its run, or a Trajectory (then no road is drawn). ``violations``:
     ``{metric: {"t", "agent", "threshold", "rho"}}`` as a case row holds them; the earliest one
-    gives the first violation and the critical agent. ``monitors``: the test's monitors, for the
-    TTC radius and the pointwise ρ(t) of violated distance and TTC monitors. ``hz``: frames per
-    second (the steps of the first violation and the first contact are always frames).
-    ``fallback_t`` [s]: the moment to start at when nothing says when the violation happened.
+    gives the first violation. ``evidence``: the run's
+    :class:`~pytest_avscenario.monitors.evidence.Evidence` (the critical agent, the values
+    toward it, ρ(t) of violated monitors; None: no values). ``hz``: frames per second (the
+    steps of the first violation and the first contact are always frames). ``fallback_t``
+    [s]: the moment to start at when nothing says when the violation happened.
     """
     world = None if isinstance(source, Trajectory) else source
     traj: Trajectory = source if world is None else world.trajectory
@@ -240,7 +233,7 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
     contact = np.flatnonzero(traj.crashed.any(axis=0))[:1].tolist()  # the first contact is a frame too
     steps = np.array(sorted(set(range(0, T, every)) | {moment, T - 1, *contact}), dtype=int)
     k_first = int(np.searchsorted(steps, moment))
-    crit = _critical(traj, violations, moment)
+    crit = None if evidence is None else evidence.critical
 
     agents = []
     arms = {name[: -len(".stop_arm")]: v for name, v in traj.signals.items() if name.endswith(".stop_arm")}
@@ -266,8 +259,6 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
             agent["arm"] = [int(k) for k in np.flatnonzero(out)]
         agents.append(agent)
 
-    from ..monitors.metrics import DistanceMonitor, TTCMonitor, footprint_gap, pairwise_distance, pairwise_ttc
-
     viol = []
     for metric, where in (violations or {}).items():
         rho = where.get("rho")
@@ -278,26 +269,10 @@ def replay_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | No
 
     values: dict[str, Any] = {}
     rho_t: dict[str, Any] = {}
-    if traj.n_agents > 1:
-        radius = next((m.radius for m in monitors if isinstance(m, TTCMonitor)), 5.0)
-        dist = pairwise_distance(traj)
-        ttc = pairwise_ttc(traj, radius)
-        gap = footprint_gap(traj)
-        if crit is not None:
-            values = {"d": _cm(dist[crit - 1, steps]), "gap": _cm(gap[crit - 1, steps]),
-                      "ttc": _cm(ttc[crit - 1, steps]), "radius": radius}
-        violated = {v["metric"] for v in viol}
-        for m in monitors:
-            if m.name not in violated:
-                continue
-            if isinstance(m, DistanceMonitor):
-                per = gap if m.footprint else dist
-            elif isinstance(m, TTCMonitor):
-                per = pairwise_ttc(traj, m.radius) if m.radius != radius else ttc
-            else:
-                continue  # a whole-run metric has no value per frame
-            with np.errstate(invalid="ignore"):
-                rho_t[m.name] = _cm(np.nanmin(per[:, steps], axis=0) - m.threshold)
+    if evidence is not None and crit is not None:
+        values = {"d": _cm(evidence.distance_m[steps]), "gap": _cm(evidence.gap_m[steps]),
+                  "ttc": _cm(evidence.ttc_s[steps]), "radius": evidence.radius_m}
+        rho_t = {name: _cm(per[steps]) for name, per in evidence.rho_t.items()}
 
     data: dict[str, Any] = {
         "format": 1,
@@ -340,7 +315,7 @@ def _decisions(traj: Trajectory) -> dict[str, Any] | None:
 
 
 def decision_at(data: Mapping[str, Any], t: float) -> tuple[float, str] | None:
-    """``(since [s], label)`` of the ego's decision in force at ``t`` [s] in replay ``data``
+    """``(since [s], label)`` of the ego's decision in force at ``t`` [s] in clip ``data``
     (coded or decoded alike), or None before the first one or without decisions."""
     made = data.get("decisions")
     if not made:
@@ -354,12 +329,12 @@ def decision_at(data: Mapping[str, Any], t: float) -> tuple[float, str] | None:
 
 
 def dumps(data: Mapping[str, Any]) -> str:
-    """Compact JSON text of replay data (no spaces; NaN/inf were made ``null`` already)."""
+    """Compact JSON text of clip data (no spaces; NaN/inf were made ``null`` already)."""
     return json.dumps(data, separators=(",", ":"), allow_nan=False)
 
 
 def decoded(data: Mapping[str, Any]) -> dict[str, Any]:
-    """Replay ``data`` with plain per-frame values: ``t`` [s]; each agent's x, y [m], heading
+    """Clip ``data`` with plain per-frame values: ``t`` [s]; each agent's x, y [m], heading
     [deg], speed [m/s] over every frame (``None`` where absent); the metric values [m, s]."""
     t = undelta(data["t"], 100)
     n = len(t)  # frames: the coded series may be shorter (runs)
@@ -385,8 +360,8 @@ def _num(v: float | None, unit: str, digits: int = 2) -> str:
 def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
     """The text shown beside frame ``k``: its time (and whether it is the first violation),
     distance, gap and TTC to the critical agent, the ego's decision in force (and since when),
-    ρ(t) of the violated distance/TTC metrics and each violated metric's ρ over the run. The
-    card's replay script writes the same lines.
+    ρ(t) of the violated metrics that have one and each violated metric's ρ over the run. The
+    card's player script writes the same lines.
     ``data`` as :func:`decoded` gives it."""
     t = data["t"][k]
     mark = f" — first {data['first_kind']}" if k == data["first"] and data["first_kind"] != "moment" else ""
