@@ -14,7 +14,7 @@ import math
 import numbers
 from typing import Any, Mapping
 
-__all__ = ["rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str", "jsonable", "fmt_rho",
+__all__ = ["identity_text", "rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str", "jsonable", "fmt_rho",
            "fmt_value"]
 
 _POS = ("inf", "+inf", "infinity", "+infinity")
@@ -105,3 +105,17 @@ def fmt_value(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.6g}"
     return repr(v)
+
+
+def identity_text(identity: Mapping[str, Any] | None, note: str = "") -> str:
+    """One line for people: ``sb3:dqn.zip@highway-fast-v0 (sha256 3f2a9c1b7d04, from
+    --avs-driver)``; ``note`` goes last in the parentheses."""
+    if not identity:
+        return "unknown"
+    extra = [f"sha256 {identity['sha256']}"] if identity.get("sha256") else []
+    if identity.get("kind") == "several":
+        return "several: " + "; ".join(identity_text(d) for d in identity.get("drivers", ()))
+    if identity.get("from"):
+        extra.append(f"from {identity['from']}")
+    inside = ", ".join(extra) + ("; " if extra and note else "") + note
+    return str(identity.get("name")) + (f" ({inside})" if inside else "")

@@ -79,10 +79,10 @@ def test_the_replay_and_the_still_draw_the_truck_at_its_size(tmp_path):
     from PIL import Image
 
     from pytest_avscenario.sim.render import render_png
-    from pytest_avscenario.sim.replay import replay_data
+    from pytest_avscenario.sim.clip import clip_data
 
     w = _rear_end(length=16.5)
-    agents = {a["name"]: a for a in replay_data(w)["agents"]}
+    agents = {a["name"]: a for a in clip_data(w)["agents"]}
     assert (agents["truck1"]["L"], agents["truck1"]["W"], agents["truck1"]["kind"]) == (16.5, 2.55, "truck")
     # the still: the truck's colour spans its length in pixels, about 3.3 times a car's 5 m
     path = render_png(w, str(tmp_path / "still.png"), step=0)

@@ -171,8 +171,8 @@ class _XdistHooks:
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
+    from ..codec import identity_text
     from .identity import session_driver
-    from ..sim.drivers.identity import identity_text
 
     seed = config.stash[settings_key].seed
     # the driver the options name; a test whose avs_driver fixture is overridden records its

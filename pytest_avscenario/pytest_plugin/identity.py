@@ -24,10 +24,16 @@ def session_driver(config: pytest.Config) -> dict[str, Any]:
     default autopilot), with where it came from; computed once per process."""
     found = config.stash.get(driver_key, None)
     if found is None:
-        from ..sim.drivers.identity import describe
-
         settings = config.stash[settings_key]
-        found = describe(settings.driver)
+        name = settings.driver
+        if name is None or (isinstance(name, str) and ":" not in name):
+            # a built-in name (the options checked it): said without importing the drivers,
+            # so the header of a run without scenario tests loads no simulator and no numpy
+            found = {"name": (name or "autopilot").strip(), "kind": "builtin"}
+        else:
+            from ..sim.drivers.identity import describe
+
+            found = describe(name)
         found["from"] = ("--avs-driver" if "driver" in settings.command_line
                          else "ini avs_driver" if config.getini("avs_driver") not in (None, "")
                          else "default")

@@ -163,9 +163,11 @@ def _imported_driver(found: Found | None) -> None:
     """``--avs-driver package.module:Name`` imported and checked now: a typo is one usage
     error before the run, not a traceback in every case. xdist workers import it too (they
     read the same options), which they would on their first case anyway."""
+    if found is None or ":" not in str(found.value):
+        return  # a built-in name: nothing to import (and the plugin's load stays light)
     from ..sim.drivers import import_driver, is_import_path
 
-    if found is None or not is_import_path(found.value):
+    if not is_import_path(found.value):
         return
     try:
         import_driver(found.value)

@@ -28,6 +28,7 @@ import inspect
 import os
 from typing import Any, Mapping
 
+from ...codec import identity_text  # one line for people; lives where the header can read it cheaply
 from .sb3 import SHA_DIGITS, file_sha256, parse
 
 __all__ = ["describe", "file_sha256", "identity_text", "same_driver", "SHA_DIGITS"]
@@ -118,20 +119,6 @@ def _sb3(text: str) -> dict[str, Any]:
     if spec.algorithm:
         out["algorithm"] = spec.algorithm
     return out
-
-
-def identity_text(identity: Mapping[str, Any] | None, note: str = "") -> str:
-    """One line for people: ``sb3:dqn.zip@highway-fast-v0 (sha256 3f2a9c1b7d04, from
-    --avs-driver)``; ``note`` goes last in the parentheses."""
-    if not identity:
-        return "unknown"
-    extra = [f"sha256 {identity['sha256']}"] if identity.get("sha256") else []
-    if identity.get("kind") == "several":
-        return "several: " + "; ".join(identity_text(d) for d in identity.get("drivers", ()))
-    if identity.get("from"):
-        extra.append(f"from {identity['from']}")
-    inside = ", ".join(extra) + ("; " if extra and note else "") + note
-    return str(identity.get("name")) + (f" ({inside})" if inside else "")
 
 
 def same_driver(a: Mapping[str, Any] | None, b: Mapping[str, Any] | None) -> bool:
