@@ -80,8 +80,10 @@ def test_case_finished_gets_every_case_row(pytester):
     assert sum(r["verdict"] == "pass" for r in rows) == outcomes["passed"]
 
 
-def test_case_finished_runs_on_the_xdist_controller(pytester):
+def test_case_finished_runs_on_the_xdist_controller(pytester, monkeypatch):
     pytest.importorskip("xdist")
+    # the inner run's controller must not inherit this suite's own xdist worker name
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)
     _scenario(pytester)
     pytester.makeconftest(SINK)
     result = pytester.runpytest_subprocess(*ARGS, "-n", "2")
