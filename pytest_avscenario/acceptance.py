@@ -225,29 +225,58 @@ class Baseline:
     modes: Mapping[tuple[str, str], tuple[Mapping[str, Any], ...]] = field(default_factory=dict)
 
 
-def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
-    """An earlier run's ``summary.json``; ValueError says why it cannot be used."""
+#: the most sampled cases a campaign can have (``samples`` is refused above it at collection)
+MAX_BASELINE_SAMPLES = 100_000
+
+
+def load_baseline(path: str | os.PathLike, alpha: float = 0.05, partial_ok: bool = False) -> Baseline:
+    """An earlier run's ``summary.json``; ValueError names the file, the field and what was
+    wrong. Every count is checked (a whole number, ``0 <= violations <= samples``): a count the
+    verdict cannot use must stop the run at start-up, never turn the gate off at its end.
+    The summary of an interrupted run (``"interrupted": true``) is refused unless
+    ``partial_ok``: its rates describe the cases that happened to finish."""
+    from .inputs import Fields, InputError, read_json_file
+
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-        campaigns = {
-            (str(t["test"]), str(t["sampler"])): (int(t["samples"]), {str(k): int(v) for k, v in t["violations"].items()})
-            for t in data["tests"]
-        }
-        # a summary.json written before failure modes existed has none: unknown, not "none"
-        modes = {(str(t["test"]), str(t["sampler"])): tuple(_mode_json(m) for m in t["modes"])
-                 for t in data["tests"] if t.get("modes") is not None}
-    except OSError as exc:
-        raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise ValueError(f"{path} is not a pytest-avscenario summary.json ({type(exc).__name__}: {exc})") from None
+        top = Fields(read_json_file(path, finite=False))  # a count of 1e400 is named by its field
+        interrupted = top.flag("interrupted")
+        campaigns: dict[tuple[str, str], tuple[int, dict[str, int]]] = {}
+        modes: dict[tuple[str, str], tuple[dict[str, Any], ...]] = {}
+        for t in top.list("tests") or ():
+            key = (t.text("test"), t.text("sampler"))
+            n = t.count("samples", at_most=MAX_BASELINE_SAMPLES)
+            violations = t.obj("violations")
+            counts = {metric: violations.count(metric, at_most=n, of=f"its {n} samples")
+                      for metric, _ in violations.items()}
+            if key in campaigns:
+                raise t.fail("test", f"campaign {key[0]} [{key[1]}] is listed twice")
+            campaigns[key] = (n, counts)
+            listed = t.list("modes", optional=True)
+            if listed is not None:  # written before failure modes existed: unknown, not "none"
+                modes[key] = tuple(_mode_json(m, n) for m in listed)
+    except InputError as exc:
+        unreadable = str(exc).startswith(("cannot be read", "is not a regular file"))
+        raise ValueError(f"{path}: {exc}" if unreadable else
+                         f"{path} is not a pytest-avscenario summary.json: {exc}") from None
+    if interrupted and not partial_ok:
+        raise ValueError(f"{path}: the summary of an interrupted run (\"interrupted\": true); its "
+                         "rates count only the cases that finished. Use a finished run's summary, "
+                         "or add --avs-baseline-partial to compare with it anyway")
     return Baseline(str(path), campaigns, alpha, modes)
 
 
-def _mode_json(data: Mapping[str, Any]) -> dict[str, Any]:
-    return {"id": str(data["id"]), "key": str(data["key"]), "metrics": [str(m) for m in data["metrics"]],
-            "agent": None if data.get("agent") is None else str(data["agent"]), "count": int(data["count"]),
-            "rule": str(data.get("rule", ""))}
+def _mode_json(m: Any, n: int) -> dict[str, Any]:
+    return {"id": m.text("id"), "key": m.text("key"),
+            "metrics": [_text(x) for x in m.list("metrics")],
+            "agent": m.text("agent", optional=True, nullable=True),
+            "count": m.count("count", at_most=n, of=f"its campaign's {n} samples"),
+            "rule": m.text("rule", optional=True) or ""}
+
+
+def _text(f: Any) -> str:
+    if not isinstance(f.data, str):
+        raise f.fail(None, "is not text")
+    return f.data
 
 
 def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases: Sequence[tuple[str, str]],
