@@ -16,6 +16,7 @@ run's exit status.
 
 from __future__ import annotations
 
+import os
 import shutil
 import signal
 import sys
@@ -44,6 +45,9 @@ class RunState:
     def __init__(self, config: pytest.Config):
         self.config = config
         self.is_worker = hasattr(config, "workerinput")
+        #: the process that runs the session: a child the test body forked and that carried on
+        #: into pytest must not write rows (it would give an item two, #32 item 9)
+        self.pid = os.getpid()
         self.requested: Path | None = config.stash[settings_key].report_dir
         self.folder: Any = None  # the claimed report.folder.ReportFolder, while it is usable
         self._claimed: Any = None  # the same, kept to release its lock at the end
@@ -59,6 +63,9 @@ class RunState:
         #: why this run re-runs some cases rather than whole campaigns (None: it does not);
         #: such a run writes its report to ``DIR/rerun`` and leaves the campaign's report be
         self.partial: str | None = None
+        #: why the run ended before every selected case ran (None: it did not); summary.json
+        #: then says ``"interrupted": true`` and the exit status is never 0
+        self.stopped: str | None = None
 
     @property
     def directory(self) -> Path | None:
@@ -134,9 +141,14 @@ class RunState:
                 if interrupted:
                     raise KeyboardInterrupt
 
+    def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        # Ctrl-C, SIGTERM (read as Ctrl-C), pytest.exit(), or a session told to stop
+        value = getattr(excinfo, "value", None)
+        self.stopped = self.stopped or f"{type(value).__name__}: {value}".rstrip(": ")
+
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
-        if data is not None and not self.is_worker:
+        if data is not None and not self.is_worker and os.getpid() == self.pid:
             if getattr(report, "avs_partial", None) and not self.partial:
                 self.partial = report.avs_partial  # an xdist worker's selection
             for shrink_row in getattr(report, "avs_shrink_rows", ()):
@@ -150,15 +162,27 @@ class RunState:
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
         # tryfirst: the suite properties must reach pytest's JUnit writer before it writes
-        if self.is_worker:
+        if self.is_worker or os.getpid() != self.pid:
             return
         self.remove_staging()
         if not self.rows:
             return
         self.summary_rows = None
-        verdicts = self.guarded("the acceptance verdicts", None, self.verdicts)
+        try:
+            verdicts = self.verdicts()
+        except Exception as exc:
+            # the gate could not be judged: never a pass (a bad count once made every verdict
+            # null and the run exit 0); say why, fail the build
+            self.part_failed("the acceptance verdicts", None, exc)
+            verdicts = None
+            if session.exitstatus == pytest.ExitCode.OK:
+                session.exitstatus = pytest.ExitCode.TESTS_FAILED
         if verdicts and session.exitstatus == pytest.ExitCode.OK:
             session.exitstatus = pytest.ExitCode.TESTS_FAILED  # a rejected campaign fails the build
+        self.stopped = self.stopped or _stopped(session)
+        if self.stopped and session.exitstatus == pytest.ExitCode.OK:
+            # some cases never ran: whatever the finished ones say, the run is not "passed"
+            session.exitstatus = pytest.ExitCode.INTERRUPTED
         infos = self.guarded("the scenario declarations", None, self.test_infos) or {}
         settings = self.config.stash[settings_key]
         if self.folder is not None and self.table is not None:
@@ -171,7 +195,7 @@ class RunState:
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
                                      case_files=self.case_files, verdicts=verdicts,
                                      rerun=self.rerun_command, partial=self.partial,
-                                     baseline=settings.baseline)
+                                     baseline=settings.baseline, interrupted=self.stopped)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
@@ -380,6 +404,15 @@ class RunState:
             if reasons:
                 out[(test, sampler)] = reasons
         return out
+
+
+def _stopped(session: pytest.Session) -> str | None:
+    """Why ``session`` ended before its last item (``-x``, ``--maxfail``, a plugin that
+    stopped it), or None."""
+    for reason in (session.shouldstop, session.shouldfail):
+        if reason:
+            return str(reason) if not isinstance(reason, bool) else "the session was stopped"
+    return None
 
 
 def versions() -> dict[str, str]:

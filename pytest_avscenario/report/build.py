@@ -50,6 +50,7 @@ def finish_report(
     rerun: Callable[[CaseRow], str | None] | None = None,
     partial: str | None = None,
     baseline: Any = None,
+    interrupted: str | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -68,8 +69,11 @@ def finish_report(
     re-ran only some cases (its page says so and links to the campaign's report in ``..``).
     ``baseline``: an earlier run's summary (:func:`~pytest_avscenario.acceptance.load_baseline`,
     the file of ``--avs-baseline``): the index opens with the comparison (:mod:`.compare`) and
-    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). Every counterexample gets a card page under
-    ``cases/``. Returns the summary rows.
+    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). ``interrupted``:
+    why the run ended before all its cases ran — ``summary.json`` says ``"interrupted": true``
+    (and the reason), so that nobody reads its verdicts as a finished run's or takes it for a
+    baseline unawares. Every counterexample gets a card page under ``cases/``. Returns the
+    summary rows.
     """
     from .folder import ReportFolder
 
@@ -101,6 +105,8 @@ def finish_report(
 
     def write_summary() -> None:
         data = {"seed": seed, "versions": dict(versions or {}), "tests": summary_to_json(summary)}
+        if interrupted:
+            data["interrupted"], data["stopped"] = True, interrupted
         if comparison is not None:
             data["comparison"] = comparison.to_json()
         text = json.dumps(data, indent=2, allow_nan=False, default=str) + "\n"
@@ -140,7 +146,10 @@ def finish_report(
             meta["seed"] = seed
         meta.update({k: v for k, v in (versions or {}).items()})
         banner = None
-        if partial:
+        if interrupted:
+            banner = (f"An interrupted run ({e(interrupted)}): the cases that finished before it "
+                      "stopped; its verdicts are not those of the whole campaign.")
+        elif partial:
             banner = (f"A re-run of some cases ({e(partial)}): this report holds them alone. "
                       f"The campaign's report: <a href='../index.html'>../index.html</a>.")
         elif (root / "rerun" / INDEX).exists():
