@@ -5,10 +5,11 @@ a real subprocess, bounded in time, and leaves no process behind."""
 from __future__ import annotations
 
 import json
+import signal
 
 import pytest
 
-from test_stopping import junit_cases, rows_of
+from test_stopping import junit_cases, rows_of, start, wait_for_rows
 
 FOUR = """
 import os
@@ -115,3 +116,48 @@ def test_a_finished_run_is_not_marked_interrupted(pytester):
                                            timeout=120)
     assert result.ret == pytest.ExitCode.OK
     assert "interrupted" not in json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+
+
+def test_sigterm_to_a_campaign_writes_a_report_without_pictures_marked_interrupted(pytester):
+    # the stop at scale (#32 item 6; speed in bench/bench_stop.py): an interrupted run's report
+    # keeps summary.json, index.html and the error table and leaves the pictures out
+    pytester.makepyfile("""
+import time
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=300, sampler="halton")
+def test_many(case):
+    time.sleep(0.02)
+""")
+    proc = start(pytester, "-p", "no:xdist", "--avs-db=none", "--junitxml=out.xml")
+    try:
+        wait_for_rows(pytester, proc, 20)
+        proc.send_signal(signal.SIGTERM)
+        out = proc.communicate(timeout=60)[0].decode()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    report = pytester.path / "avs-report"
+    summary = json.loads((report / "summary.json").read_text())
+    assert summary["interrupted"] is True and "SIGTERM" in summary["stopped"]
+    assert summary["tests"][0]["samples"] == len(rows_of(pytester.path)) == junit_cases(pytester.path / "out.xml")
+    assert (report / "index.html").exists() and not list(report.rglob("*.png"))
+
+
+def test_the_space_plot_scales_its_axis_once_not_per_value(monkeypatch):
+    # the O(n²) behind a 108 s stop at 32,210 rows: every value divided by a scale computed
+    # again from all values
+    from types import SimpleNamespace
+
+    from pytest_avscenario.report import plots
+
+    calls = []
+    real = plots._axis_scale
+    monkeypatch.setattr(plots, "_axis_scale", lambda numbers: calls.append(1) or real(numbers))
+    rows = [SimpleNamespace(params={"x": i / 1000, "w": f"c{i % 3}"}) for i in range(1000)]
+    values, labels = plots._axis_values(rows, "x")
+    assert len(calls) == 1 and labels is None and values[500] == 0.5
+    values, labels = plots._axis_values(rows, "w")
+    assert labels == ["c0", "c1", "c2"] and [round(v) for v in values[:3]] == [0, 1, 2]

@@ -38,6 +38,10 @@ RERUN_DIR = "rerun"
 #: the prefix of a worker's temporary picture folder (the controller moves what is inside)
 STAGING_PREFIX = "avs-cases-"
 
+#: an interrupted run of at least this many items freezes its heap out of the garbage
+#: collector's work (see ``pytest_keyboard_interrupt``)
+FREEZE_ITEMS = 5_000
+
 
 class RunState:
     """The controller's view of the run: the error table and what the summary needs."""
@@ -66,6 +70,8 @@ class RunState:
         #: why the run ended before every selected case ran (None: it did not); summary.json
         #: then says ``"interrupted": true`` and the exit status is never 0
         self.stopped: str | None = None
+        self.hurry = False  # the run was interrupted: no pictures in its report
+        self.collected = 0  # items this process collected
 
     @property
     def directory(self) -> Path | None:
@@ -110,6 +116,7 @@ class RunState:
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.note_order(item.nodeid for item in session.items)
+        self.collected = len(session.items)
 
     @pytest.hookimpl(hookwrapper=True, specname="pytest_runtest_logreport")
     def hold_signals_per_report(self, report: pytest.TestReport) -> Any:
@@ -145,6 +152,20 @@ class RunState:
         # Ctrl-C, SIGTERM (read as Ctrl-C), pytest.exit(), or a session told to stop
         value = getattr(excinfo, "value", None)
         self.stopped = self.stopped or f"{type(value).__name__}: {value}".rstrip(": ")
+        # somebody wants the run over: the report keeps what must survive (summary.json,
+        # index.html, the error table, the cards, JUnit) and leaves out the pictures, whose
+        # drawing grows with the rows and would outlast a CI runner's grace before SIGKILL
+        self.hurry = True
+        if max(self.collected, len(self.rows)) >= FREEZE_ITEMS:
+            # what exists now lives to the end of the run; in the permanent generation, the
+            # collections pytest runs at its end (five full ones while unconfiguring), those
+            # the report triggers and the interpreter's at exit no longer walk it — seconds
+            # per 10,000 items of a large campaign, which the grace before SIGKILL lacks.
+            # (Garbage cycles made before now are not looked at again: an interrupted run
+            # does not report unraisable exceptions of theirs.)
+            import gc
+
+            gc.freeze()
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
@@ -195,7 +216,8 @@ class RunState:
                                      on_error=self.part_failed, seed=settings.seed, versions=versions(),
                                      case_files=self.case_files, verdicts=verdicts,
                                      rerun=self.rerun_command, partial=self.partial,
-                                     baseline=settings.baseline, interrupted=self.stopped)
+                                     baseline=settings.baseline, interrupted=self.stopped,
+                                     pictures=not self.hurry)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
