@@ -154,3 +154,43 @@ def test_every_printed_rerun_command_is_shell_quoted(pytester):
         assert "it's $(touch PWNED2) `touch PWNED3`" in words[words.index("--avs-params") + 1]
         assert shlex.split(command)[1:] == words
     assert not list(pytester.path.rglob("PWNED*"))
+
+
+def test_a_full_disk_while_the_report_folder_is_closed_is_one_line_not_a_traceback(pytester):
+    # #32 item 7: an all-passing run ended with a raw OSError from the folder clean-up and
+    # exit status 1. The disk fills after the report is written: every flush and close of the
+    # manifest's log (and the error table's files) now fails with ENOSPC, simulated in-process
+    pytester.makeconftest("""
+import errno
+import pytest
+from pytest_avscenario.pytest_plugin.stash import controller_key
+
+class Full:
+    closed = False
+    def _full(self, *args):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    write = flush = close = _full
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session):
+    state = session.config.stash[controller_key]
+    state._claimed._log = Full()
+    if state.table is not None:
+        state.table._jsonl = {"x": Full()}
+""")
+    pytester.makepyfile(FOUR_PASSING)
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:cacheprovider", "-p", "no:xdist")
+    out = result.stdout.str() + result.stderr.str()
+    assert result.ret == pytest.ExitCode.OK, out
+    assert "Traceback" not in out and "INTERNALERROR" not in out
+    assert "could not finish the report folder's manifest and lock under" in out
+    assert "No space left on device" in out
+
+
+FOUR_PASSING = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=4)
+def test_x(case):
+    pass
+"""

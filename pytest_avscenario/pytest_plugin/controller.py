@@ -338,6 +338,11 @@ class RunState:
     def part_failed(self, part: str, test: str | None, exc: Exception) -> None:
         """One part of the report could not be made: say which and why; the rest goes on."""
         where = f" of {test}" if test else ""
+        if isinstance(exc, OSError):  # a full disk, a read-only folder: the machine's, not a bug
+            self.warn(f"avscenario: the report could not write {part}{where} under "
+                      f"{self.requested} ({exc.strerror or exc}); the other parts of the report "
+                      "are still written and the tests' outcomes stand")
+            return
         self.warn(f"avscenario: the report could not make {part}{where} ({type(exc).__name__}: {exc}); "
                   "the other parts of the report are still written and the tests' outcomes stand. "
                   "Please report this to pytest-avscenario with the scenario's declaration")
@@ -368,14 +373,22 @@ class RunState:
                   "this run is reported in the terminal only")
 
     def close(self) -> None:
-        try:
-            if self.table is not None:
-                self.table.close()
-        finally:
-            if self._claimed is not None:
-                self._claimed.release()
-            if self.is_worker:
-                self.remove_staging()
+        """The end of the run: close the error table, fold the manifest, give the lock back.
+        Each step on its own: a full disk (ENOSPC while a buffer is flushed) is one line
+        naming the folder, never a traceback out of pytest_unconfigure that turns an
+        all-passing run into exit status 1 — every row was flushed as it came."""
+        steps = [("the error table", self.table.close)] if self.table is not None else []
+        if self._claimed is not None:
+            steps.append(("the report folder's manifest and lock", self._claimed.release))
+        for what, step in steps:
+            try:
+                step()
+            except OSError as exc:
+                directory = self._claimed.path if self._claimed is not None else self.requested
+                _say(f"avscenario: could not finish {what} under {directory} "
+                     f"({exc.strerror or exc}); the rows and the report written before stand")
+        if self.is_worker:
+            self.remove_staging()
 
     def test_infos(self) -> dict[str, Any]:
         """What the summary knows of each scenario test; a declaration whose space cannot be
@@ -426,6 +439,15 @@ class RunState:
             if reasons:
                 out[(test, sampler)] = reasons
         return out
+
+
+def _say(message: str) -> None:
+    """A last word after the terminal reporter is gone (pytest_unconfigure)."""
+    try:
+        sys.stderr.write(f"{message}\n")
+        sys.stderr.flush()
+    except Exception:  # noqa: BLE001 - nowhere left to say it
+        pass
 
 
 def _stopped(session: pytest.Session) -> str | None:
