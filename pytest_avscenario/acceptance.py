@@ -28,7 +28,6 @@ Nothing here imports pytest; scipy is imported when a rate or a baseline is judg
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re

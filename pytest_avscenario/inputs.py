@@ -17,7 +17,6 @@ import json
 import math
 import os
 import stat
-from pathlib import Path
 from typing import Any, Callable
 
 __all__ = ["InputError", "parse_json", "read_json_file", "Fields", "MAX_DEPTH", "MAX_INT_DIGITS"]
