@@ -71,6 +71,7 @@ def test_ctrl_c_while_the_report_is_written_finishes_the_report(pytester, xdist)
         pytest.importorskip("xdist")
     pytester.makeconftest("""
 import os
+import signal
 import pytest
 
 @pytest.hookimpl(wrapper=True)
