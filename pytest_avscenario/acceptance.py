@@ -222,6 +222,7 @@ class Baseline:
     campaigns: Mapping[tuple[str, str], tuple[int, Mapping[str, int]]]
     alpha: float = 0.05
     modes: Mapping[tuple[str, str], tuple[Mapping[str, Any], ...]] = field(default_factory=dict)
+    interrupted: bool = False  # the run stopped before all its cases ran (read with partial_ok)
 
 
 #: the most sampled cases a campaign can have (``samples`` is refused above it at collection)
@@ -254,14 +255,17 @@ def load_baseline(path: str | os.PathLike, alpha: float = 0.05, partial_ok: bool
             if listed is not None:  # written before failure modes existed: unknown, not "none"
                 modes[key] = tuple(_mode_json(m, n) for m in listed)
     except InputError as exc:
-        unreadable = str(exc).startswith(("cannot be read", "is not a regular file"))
-        raise ValueError(f"{path}: {exc}" if unreadable else
-                         f"{path} is not a pytest-avscenario summary.json: {exc}") from None
+        text = str(exc)
+        if text.startswith("cannot be read: "):
+            raise ValueError(f"cannot read {path}: {text[len('cannot be read: '):]}") from None
+        if text.startswith("is not a regular file"):
+            raise ValueError(f"{path} {text}") from None
+        raise ValueError(f"{path} is not a pytest-avscenario summary.json: {text}") from None
     if interrupted and not partial_ok:
         raise ValueError(f"{path}: the summary of an interrupted run (\"interrupted\": true); its "
                          "rates count only the cases that finished. Use a finished run's summary, "
                          "or add --avs-baseline-partial to compare with it anyway")
-    return Baseline(str(path), campaigns, alpha, modes)
+    return Baseline(str(path), campaigns, alpha, modes, interrupted)
 
 
 def _mode_json(m: Any, n: int) -> dict[str, Any]:

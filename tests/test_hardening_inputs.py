@@ -194,3 +194,13 @@ from pytest_avscenario import scenario, Uniform
 def test_x(case):
     pass
 """
+
+
+def test_comparing_two_finished_reports_by_hand_reads_an_interrupted_one_with_a_note(tmp_path, capsys):
+    from pytest_avscenario.report.__main__ import main
+
+    for name, extra in (("old.json", {"interrupted": True, "stopped": "KeyboardInterrupt"}), ("new.json", {})):
+        (tmp_path / name).write_text(json.dumps({"tests": [
+            {"test": "t.py::test_x", "sampler": "halton", "samples": 10, "violations": {"collision": 1}}], **extra}))
+    assert main(["compare", str(tmp_path / "old.json"), str(tmp_path / "new.json")]) == 0
+    assert "old.json is the summary of an interrupted run" in capsys.readouterr().err
