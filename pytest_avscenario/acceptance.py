@@ -28,7 +28,6 @@ Nothing here imports pytest; scipy is imported when a rate or a baseline is judg
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -225,32 +224,66 @@ class Baseline:
     modes: Mapping[tuple[str, str], tuple[Mapping[str, Any], ...]] = field(default_factory=dict)
     #: the driver that run tested (its summary's "driver"), None when it recorded none
     driver: Mapping[str, Any] | None = None
+    interrupted: bool = False  # the run stopped before all its cases ran (read with partial_ok)
 
 
-def load_baseline(path: str | os.PathLike, alpha: float = 0.05) -> Baseline:
-    """An earlier run's ``summary.json``; ValueError says why it cannot be used."""
+#: the most sampled cases a campaign can have (``samples`` is refused above it at collection)
+MAX_BASELINE_SAMPLES = 100_000
+
+
+def load_baseline(path: str | os.PathLike, alpha: float = 0.05, partial_ok: bool = False) -> Baseline:
+    """An earlier run's ``summary.json``; ValueError names the file, the field and what was
+    wrong. Every count is checked (a whole number, ``0 <= violations <= samples``): a count the
+    verdict cannot use must stop the run at start-up, never turn the gate off at its end.
+    The summary of an interrupted run (``"interrupted": true``) is refused unless
+    ``partial_ok``: its rates describe the cases that happened to finish."""
+    from .inputs import Fields, InputError, read_json_file
+
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-        campaigns = {
-            (str(t["test"]), str(t["sampler"])): (int(t["samples"]), {str(k): int(v) for k, v in t["violations"].items()})
-            for t in data["tests"]
-        }
-        # a summary.json written before failure modes existed has none: unknown, not "none"
-        modes = {(str(t["test"]), str(t["sampler"])): tuple(_mode_json(m) for m in t["modes"])
-                 for t in data["tests"] if t.get("modes") is not None}
-    except OSError as exc:
-        raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise ValueError(f"{path} is not a pytest-avscenario summary.json ({type(exc).__name__}: {exc})") from None
-    driver = data.get("driver") if isinstance(data.get("driver"), dict) else None
-    return Baseline(str(path), campaigns, alpha, modes, driver)
+        top = Fields(read_json_file(path, finite=False))  # a count of 1e400 is named by its field
+        interrupted = top.flag("interrupted")
+        campaigns: dict[tuple[str, str], tuple[int, dict[str, int]]] = {}
+        modes: dict[tuple[str, str], tuple[dict[str, Any], ...]] = {}
+        for t in top.list("tests") or ():
+            key = (t.text("test"), t.text("sampler"))
+            n = t.count("samples", at_most=MAX_BASELINE_SAMPLES)
+            violations = t.obj("violations")
+            counts = {metric: violations.count(metric, at_most=n, of=f"its {n} samples")
+                      for metric, _ in violations.items()}
+            if key in campaigns:
+                raise t.fail("test", f"campaign {key[0]} [{key[1]}] is listed twice")
+            campaigns[key] = (n, counts)
+            listed = t.list("modes", optional=True)
+            if listed is not None:  # written before failure modes existed: unknown, not "none"
+                modes[key] = tuple(_mode_json(m, n) for m in listed)
+    except InputError as exc:
+        text = str(exc)
+        if text.startswith("cannot be read: "):
+            raise ValueError(f"cannot read {path}: {text[len('cannot be read: '):]}") from None
+        if text.startswith("is not a regular file"):
+            raise ValueError(f"{path} {text}") from None
+        raise ValueError(f"{path} is not a pytest-avscenario summary.json: {text}") from None
+    if interrupted and not partial_ok:
+        raise ValueError(f"{path}: the summary of an interrupted run (\"interrupted\": true); its "
+                         "rates count only the cases that finished. Use a finished run's summary, "
+                         "or add --avs-baseline-partial to compare with it anyway")
+    raw = top.data.get("driver") if isinstance(top.data, dict) else None
+    driver = raw if isinstance(raw, dict) else None  # None: that run recorded no driver
+    return Baseline(str(path), campaigns, alpha, modes, driver=driver, interrupted=interrupted)
 
 
-def _mode_json(data: Mapping[str, Any]) -> dict[str, Any]:
-    return {"id": str(data["id"]), "key": str(data["key"]), "metrics": [str(m) for m in data["metrics"]],
-            "agent": None if data.get("agent") is None else str(data["agent"]), "count": int(data["count"]),
-            "rule": str(data.get("rule", ""))}
+def _mode_json(m: Any, n: int) -> dict[str, Any]:
+    return {"id": m.text("id"), "key": m.text("key"),
+            "metrics": [_text(x) for x in m.list("metrics")],
+            "agent": m.text("agent", optional=True, nullable=True),
+            "count": m.count("count", at_most=n, of=f"its campaign's {n} samples"),
+            "rule": m.text("rule", optional=True) or ""}
+
+
+def _text(f: Any) -> str:
+    if not isinstance(f.data, str):
+        raise f.fail(None, "is not text")
+    return f.data
 
 
 def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases: Sequence[tuple[str, str]],

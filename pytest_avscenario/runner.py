@@ -161,8 +161,10 @@ def run_case(
             outcome.error = _one_line(exc)
         elif isinstance(exc, SystemExit):
             outcome.verdict, outcome.exc = "error", exc
+            # a subclass says itself what was called (os._exit, through the plugin's guard)
             outcome.error = (f"SystemExit: the test body or its driver called sys.exit({exc.code!r}); "
-                             "a scenario case cannot end the test run")
+                             "a scenario case cannot end the test run") if type(exc) is SystemExit \
+                else f"{type(exc).__name__}: {exc}"
         else:
             outcome.verdict, outcome.exc = "error", exc
             outcome.error = f"{type(exc).__name__}: {_one_line(exc)}"

@@ -135,6 +135,10 @@ def test_body(case, world):
     ("time.sleep(1e6)", "CaseTimeout"),
     ("return ('1', '0')", "text, booleans and complex numbers are not accepted"),
     ("return (True, False)", "text, booleans and complex numbers are not accepted"),
+    # #32 item 10: a raw OverflowError; 1e308 was clamped to a hard brake in silence
+    ("return (10**400, 0)", "an integer too large for a float"),
+    ("return [10**400, 0.0]", "an integer too large for a float"),
+    ("return (1e308, 1e308)", "absurd action"),
 ])
 def test_broken_drivers_make_error_cases_and_the_campaign_goes_on(pytester, driver, cause):
     pytester.makeconftest(f"""
@@ -289,3 +293,20 @@ def test_unknown_executor_and_dask_under_xdist_without_address_are_usage_errors(
     pytest.importorskip("xdist")
     result = pytester.runpytest_subprocess("--avs-executor=dask", "-n", "2")
     result.stderr.fnmatch_lines(["*needs --avs-dask-address*"])
+
+
+def test_two_hundred_continuous_parameters_report_epsilon_as_a_dash_not_a_failure(pytester):
+    # #32 item 10: the ε-coverage part failed with the plugin's own "please report this"
+    # warning (a 2^200-node mesh); beyond MAX_EPS_DIMENSIONS it is "—", as for no continuous one
+    pytester.makepyfile("""
+from pytest_avscenario import scenario, Uniform
+
+@scenario(**{f"p{i}": Uniform(0, 1) for i in range(200)}, samples=3)
+def test_wide(case):
+    pass
+""")
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:cacheprovider", "-W", "error::pytest.PytestWarning")
+    assert result.ret == pytest.ExitCode.OK
+    assert "please report" not in (result.stdout.str() + result.stderr.str()).lower()
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["tests"][0]["samples"] == 3 and summary["tests"][0]["epsilon"] is None

@@ -16,6 +16,7 @@ run's exit status.
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 import tempfile
@@ -36,6 +37,10 @@ RERUN_DIR = "rerun"
 #: the prefix of a worker's temporary picture folder (the controller moves what is inside)
 STAGING_PREFIX = "avs-cases-"
 
+#: an interrupted run of at least this many items freezes its heap out of the garbage
+#: collector's work (see ``pytest_keyboard_interrupt``)
+FREEZE_ITEMS = 5_000
+
 
 class RunState:
     """The controller's view of the run: the error table and what the summary needs."""
@@ -43,6 +48,9 @@ class RunState:
     def __init__(self, config: pytest.Config):
         self.config = config
         self.is_worker = hasattr(config, "workerinput")
+        #: the process that runs the session: a child the test body forked and that carried on
+        #: into pytest must not write rows (it would give an item two, #32 item 9)
+        self.pid = os.getpid()
         self.requested: Path | None = config.stash[settings_key].report_dir
         self.folder: Any = None  # the claimed report.folder.ReportFolder, while it is usable
         self._claimed: Any = None  # the same, kept to release its lock at the end
@@ -58,6 +66,11 @@ class RunState:
         #: why this run re-runs some cases rather than whole campaigns (None: it does not);
         #: such a run writes its report to ``DIR/rerun`` and leaves the campaign's report be
         self.partial: str | None = None
+        #: why the run ended before every selected case ran (None: it did not); summary.json
+        #: then says ``"interrupted": true`` and the exit status is never 0
+        self.stopped: str | None = None
+        self.hurry = False  # the run was interrupted: no pictures in its report
+        self.collected = 0  # items this process collected
 
     @property
     def directory(self) -> Path | None:
@@ -102,10 +115,31 @@ class RunState:
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.note_order(item.nodeid for item in session.items)
+        self.collected = len(session.items)
+
+    def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        # Ctrl-C, SIGTERM (read as Ctrl-C), pytest.exit(), or a session told to stop
+        value = getattr(excinfo, "value", None)
+        self.stopped = self.stopped or f"{type(value).__name__}: {value}".rstrip(": ")
+        # somebody wants the run over: the report keeps what must survive (summary.json,
+        # index.html, the error table, the cards, JUnit) and leaves out the pictures, whose
+        # drawing grows with the rows and would outlast a CI runner's grace before SIGKILL
+        self.hurry = True
+        if max(self.collected, len(self.rows)) >= FREEZE_ITEMS:
+            # what exists now lives to the end of the run; in the permanent generation, the
+            # collections pytest runs at its end (five full ones while unconfiguring), those
+            # the report triggers and the interpreter's at exit no longer walk it — seconds
+            # per 10,000 items of a large campaign, which the grace before SIGKILL lacks.
+            # (Garbage cycles made before now are not looked at again: an interrupted run
+            # does not report unraisable exceptions of theirs.)
+            import gc
+
+            gc.freeze()
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)
-        if data is not None and not self.is_worker:
+        # only the process that started the run writes rows (a body's forked child does not)
+        if data is not None and not self.is_worker and os.getpid() == self.pid:
             from ..outcome import CaseRow
 
             if getattr(report, "avs_partial", None) and not self.partial:
@@ -121,15 +155,27 @@ class RunState:
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
         # tryfirst: the suite properties must reach pytest's JUnit writer before it writes
-        if self.is_worker:
+        if self.is_worker or os.getpid() != self.pid:
             return
         self.remove_staging()
         if not self.rows:
             return
         self.summary_rows = None
-        verdicts = self.guarded("the acceptance verdicts", None, self.verdicts)
+        try:
+            verdicts = self.verdicts()
+        except Exception as exc:
+            # the gate could not be judged: never a pass (a bad count once made every verdict
+            # null and the run exit 0); say why, fail the build
+            self.part_failed("the acceptance verdicts", None, exc)
+            verdicts = None
+            if session.exitstatus == pytest.ExitCode.OK:
+                session.exitstatus = pytest.ExitCode.TESTS_FAILED
         if verdicts and session.exitstatus == pytest.ExitCode.OK:
             session.exitstatus = pytest.ExitCode.TESTS_FAILED  # a rejected campaign fails the build
+        self.stopped = self.stopped or _stopped(session)
+        if self.stopped and session.exitstatus == pytest.ExitCode.OK:
+            # some cases never ran: whatever the finished ones say, the run is not "passed"
+            session.exitstatus = pytest.ExitCode.INTERRUPTED
         infos = self.guarded("the scenario declarations", None, self.test_infos) or {}
         settings = self.config.stash[settings_key]
         if self.folder is not None and self.table is not None:
@@ -144,7 +190,8 @@ class RunState:
                                      case_files=self.case_files, verdicts=verdicts,
                                      rerun=self.rerun_command, partial=self.partial,
                                      baseline=settings.baseline, driver=session_driver(self.config),
-                                     card_sections=self.card_sections)
+                                     card_sections=self.card_sections, interrupted=self.stopped,
+                                     pictures=not self.hurry)
 
             self.summary_rows = self.guarded("the report", None, report)
         if self.summary_rows is None:
@@ -295,6 +342,11 @@ class RunState:
     def part_failed(self, part: str, test: str | None, exc: Exception) -> None:
         """One part of the report could not be made: say which and why; the rest goes on."""
         where = f" of {test}" if test else ""
+        if isinstance(exc, OSError):  # a full disk, a read-only folder: the machine's, not a bug
+            self.warn(f"avscenario: the report could not write {part}{where} under "
+                      f"{self.requested} ({exc.strerror or exc}); the other parts of the report "
+                      "are still written and the tests' outcomes stand")
+            return
         self.warn(f"avscenario: the report could not make {part}{where} ({type(exc).__name__}: {exc}); "
                   "the other parts of the report are still written and the tests' outcomes stand. "
                   "Please report this to pytest-avscenario with the scenario's declaration")
@@ -325,14 +377,22 @@ class RunState:
                   "this run is reported in the terminal only")
 
     def close(self) -> None:
-        try:
-            if self.table is not None:
-                self.table.close()
-        finally:
-            if self._claimed is not None:
-                self._claimed.release()
-            if self.is_worker:
-                self.remove_staging()
+        """The end of the run: close the error table, fold the manifest, give the lock back.
+        Each step on its own: a full disk (ENOSPC while a buffer is flushed) is one line
+        naming the folder, never a traceback out of pytest_unconfigure that turns an
+        all-passing run into exit status 1 — every row was flushed as it came."""
+        steps = [("the error table", self.table.close)] if self.table is not None else []
+        if self._claimed is not None:
+            steps.append(("the report folder's manifest and lock", self._claimed.release))
+        for what, step in steps:
+            try:
+                step()
+            except OSError as exc:
+                directory = self._claimed.path if self._claimed is not None else self.requested
+                _say(f"avscenario: could not finish {what} under {directory} "
+                     f"({exc.strerror or exc}); the rows and the report written before stand")
+        if self.is_worker:
+            self.remove_staging()
 
     def test_infos(self) -> dict[str, Any]:
         """What the summary knows of each scenario test; a declaration whose space cannot be
@@ -393,6 +453,24 @@ def _space_of(description: Any) -> Any:
     from ..space import FeatureSpace  # numpy: only once there are scenario rows
 
     return FeatureSpace.from_description(description)
+
+
+def _say(message: str) -> None:
+    """A last word after the terminal reporter is gone (pytest_unconfigure)."""
+    try:
+        sys.stderr.write(f"{message}\n")
+        sys.stderr.flush()
+    except Exception:  # noqa: BLE001 - nowhere left to say it
+        pass
+
+
+def _stopped(session: pytest.Session) -> str | None:
+    """Why ``session`` ended before its last item (``-x``, ``--maxfail``, a plugin that
+    stopped it), or None."""
+    for reason in (session.shouldstop, session.shouldfail):
+        if reason:
+            return str(reason) if not isinstance(reason, bool) else "the session was stopped"
+    return None
 
 
 def versions() -> dict[str, str]:

@@ -107,13 +107,15 @@ def rerun_command(item: pytest.Item, case: Case) -> str:
 
 def rerun_text(settings: Any, nodeid: str, params: Mapping[str, Any], names: Any) -> str:
     """The re-run command of case ``nodeid`` with ``params`` under the run's ``settings``;
-    ``names``: the test's parameter names (what ``--avs-params`` pins)."""
-    cmd = f"pytest '{nodeid}' --avs-seed={settings.seed}"
+    ``names``: the test's parameter names (what ``--avs-params`` pins).
+
+    A user pastes this into a shell, so every word that comes from the user's files (the node
+    id holds directory, file and test names; pinned values are the user's strings) is
+    ``shlex.quote``d: a folder named ``d'$(touch x)'`` must be a name, never a command."""
+    words = ["pytest", nodeid, f"--avs-seed={settings.seed}"]
     if settings.pinned:
-        pinned = json.dumps({k: v for k, v in params.items() if k in names})
-        cmd += f" --avs-params '{pinned}'"
+        words += ["--avs-params", json.dumps({k: v for k, v in params.items() if k in names})]
     for name in ("samples", "sampler", "driver"):  # they change which case an id names
         if name in settings.command_line:
-            # quoted: a driver such as osi+spawn:COMMAND holds spaces and braces
-            cmd += " " + shlex.quote(f"--avs-{name}={settings.command_line[name]}")
-    return cmd
+            words.append(f"--avs-{name}={settings.command_line[name]}")
+    return " ".join(shlex.quote(w) for w in words)

@@ -21,7 +21,7 @@ import pytest
 
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
-from .stopping import TermGuard, end_workers, unknown_test_info
+from .stopping import ExitGuard, TermGuard, end_workers, unknown_test_info
 from .stash import (
     campaigns_key,
     controller_key,
@@ -66,6 +66,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[campaigns_key] = {}
     config.stash[guard_key] = guard = TermGuard()
     config.pluginmanager.register(guard, "avscenario-sigterm")
+    config.pluginmanager.register(ExitGuard(config), "avscenario-exit")
     config.stash[db_key] = _open_db(config, settings.db_path)
     config.stash[controller_key] = state = RunState(config)
     config.pluginmanager.register(state, "avscenario-run")

@@ -15,7 +15,6 @@ test at once (their ini keys are defaults for tests whose marker does not say).
 
 from __future__ import annotations
 
-import json
 import math
 import secrets
 from dataclasses import dataclass
@@ -255,6 +254,15 @@ def _text(raw: Any) -> str:
     return str(raw).strip()
 
 
+def _yes_no(raw: Any) -> bool:
+    value = str(raw).strip().lower()
+    if value in ("yes", "true", "1", "on"):
+        return True
+    if value in ("no", "false", "0", "off"):
+        return False
+    raise ValueError(f"must be yes or no, got {_show(raw)}")
+
+
 def _sampler_names(raw: Any) -> tuple[str, ...]:
     from ..samplers import base
 
@@ -286,6 +294,7 @@ class Option:
     per_test: bool = False  # @scenario(<key>=...) may set it too
     cli_first: bool = False  # the command line overrides the marker
     ini: bool = True
+    flag: bool = False  # a switch on the command line (no value); the ini key takes yes/no
 
     @property
     def key(self) -> str:
@@ -425,6 +434,11 @@ OPTIONS = (
            "an earlier run's summary.json: a campaign whose violation rate of a metric is "
            "significantly higher (one-sided Fisher exact test, p < 0.05) is rejected",
            "summary.json of an earlier run to compare violation rates with", _text),
+    Option("baseline-partial", "",
+           "accept the --avs-baseline summary of an interrupted run (refused otherwise: its "
+           "rates count only the cases that finished)",
+           "accept an interrupted run's summary.json as the baseline (yes/no)", _yes_no,
+           flag=True),
     Option("junit", "MODE",
            "per-case data in the --junitxml file: 'properties' (default: <properties> in each "
            "<testcase>, read by junitparser, GitLab, GitHub) or 'strict' (valid against the "
@@ -442,8 +456,12 @@ def add_options(parser: pytest.Parser) -> None:
     group = parser.getgroup("avscenario", "scenario-based AV testing (pytest-avscenario)")
     for o in OPTIONS:
         # argparse formats help with %: a literal % (as in "rate:METRIC<=1%@95%") is doubled
-        group.addoption(f"--avs-{o.name}", dest=o.dest, metavar=o.metavar, default=None,
-                        help=o.help.replace("%", "%%"))
+        if o.flag:
+            group.addoption(f"--avs-{o.name}", dest=o.dest, action="store_const", const="yes",
+                            default=None, help=o.help.replace("%", "%%"))
+        else:
+            group.addoption(f"--avs-{o.name}", dest=o.dest, metavar=o.metavar, default=None,
+                            help=o.help.replace("%", "%%"))
         if o.ini:
             parser.addini(o.dest, o.ini_help, type="string", default=None)
 
@@ -633,7 +651,7 @@ def read_settings(config: pytest.Config) -> Settings:
         gifs=value("gifs", DEFAULT_GIFS),
         case_pictures=value("case_pictures", DEFAULT_CASE_PICTURES),
         params=_pinned_params(found.get("params")),
-        baseline=_baseline(found.get("baseline"), config),
+        baseline=_baseline(found.get("baseline"), config, value("baseline_partial", False)),
         junit=value("junit", "properties"),
         per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
         command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
@@ -647,13 +665,13 @@ def _default_criteria() -> Any:
     return DEFAULT
 
 
-def _baseline(found: Found | None, config: pytest.Config) -> Any:
+def _baseline(found: Found | None, config: pytest.Config, partial_ok: bool) -> Any:
     if found is None:
         return None
     from ..acceptance import load_baseline
 
     try:
-        return load_baseline(config.invocation_params.dir / found.value)
+        return load_baseline(config.invocation_params.dir / found.value, partial_ok=partial_ok)
     except ValueError as exc:
         raise pytest.UsageError(f"{found.source}: {exc}") from None
 
@@ -661,10 +679,14 @@ def _baseline(found: Found | None, config: pytest.Config) -> Any:
 def _pinned_params(found: Found | None) -> Mapping[str, Any] | None:
     if found is None:
         return None
+    from ..inputs import InputError, parse_json
+
+    # the same bounded reader as the baseline's: 5,000 digits or 40,000 brackets are an
+    # answer about the option, not a ValueError or RecursionError from inside json
     try:
-        given = json.loads(found.value)
-    except json.JSONDecodeError as exc:
-        raise pytest.UsageError(f"--avs-params is not valid JSON: {exc}") from None
+        given = parse_json(found.value)
+    except InputError as exc:
+        raise pytest.UsageError(f"--avs-params: the value {exc}") from None
     if not isinstance(given, dict):
         raise pytest.UsageError("--avs-params must be a JSON object of parameter values")
     return given

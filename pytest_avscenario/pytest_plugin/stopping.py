@@ -18,6 +18,16 @@
   it ends, so the error table and the JUnit file never hold different parts of a run.
 * :func:`end_workers` — an interrupted xdist controller ends its workers and reports what they
   sent until they ended.
+* :class:`ExitGuard` — ``os._exit()`` in a scenario item of a serial run: a process that
+  ends that way writes nothing afterwards (no JUnit file, no summary) and its status is the
+  one the body chose (0: "all passed"). While a scenario item runs in the process that started
+  the run, ``os._exit`` raises :class:`ProcessExitCalled` instead (a ``SystemExit``: the case is
+  an error row saying so) and the session stops after that item, so the rows, JUnit file and
+  report describe every case that ran and the run ends as interrupted (status 2). In a
+  process the body forked, ``os._exit`` is the real one — and such a child that returns into
+  pytest instead is ended at the end of the item, so it neither writes rows nor runs the rest
+  of the session a second time. Under pytest-xdist nothing is wrapped: the controller already
+  gives a worker that ends this way an error row and replaces it.
 * :func:`crash_row` — the row of an item whose xdist worker died while running it.
 """
 
@@ -38,6 +48,9 @@ if TYPE_CHECKING:  # loading the plugin must stay light (bench/bench_load.py)
 
 #: seconds the main thread has to answer a SIGTERM before the watcher ends the process
 TERM_GRACE_S = 5.0
+
+#: the plugin's own ways out end the process for real, even while :class:`ExitGuard` wraps it
+_REAL_EXIT = os._exit
 
 
 def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Callable[[Any], CaseRow],
@@ -77,14 +90,79 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
             sys.stderr.write(f"\navscenario: {item.nodeid}: the case ran past its time limit of "
                              f"{limit_s:g} s and would not stop (ran {ran_s:.1f} s): its error "
                              f"row is reported; ending {where}\n")
-            for stream in (sys.stdout, sys.stderr):
-                try:
-                    stream.flush()
-                except Exception:  # noqa: BLE001 - a closed stream: nothing left to flush
-                    pass
-            os._exit(1)
+            _flush_streams()
+            _REAL_EXIT(1)
 
     return on_stuck
+
+
+class ProcessExitCalled(SystemExit):
+    """``os._exit(status)`` called by a scenario item in the process that runs the session."""
+
+    def __init__(self, status: Any):
+        super().__init__(status)
+        self.status = status
+
+    def __str__(self) -> str:
+        return (f"os._exit({self.status!r}) called while the case ran; the process was not ended "
+                "(it would have lost the JUnit file and the report) and the run stops after this "
+                "case as interrupted")
+
+
+class ExitGuard:
+    """``os._exit`` while the scenario items of a serial run run (see the module's text)."""
+
+    def __init__(self, config: pytest.Config):
+        self.config = config
+        self.pid = os.getpid()  # the process that runs the session; rows are written only here
+        self.real_exit = os._exit
+        self.called: Any = None  # the status of the first os._exit a scenario item called
+        self.item: str | None = None
+        self.session: pytest.Session | None = None
+
+    def _exit(self, status: int = 0) -> None:
+        if os.getpid() != self.pid or self.item is None:
+            self.real_exit(status)  # a forked child, or no scenario item running: the real thing
+        if threading.current_thread() is not threading.main_thread():
+            # a thread of the test's (a watchdog of its own, say) means to end a process whose
+            # main thread may be stuck: end it, but never with "all passed"; the finished rows
+            # are on disk already (the error table is flushed per row)
+            _flush_streams()
+            self.real_exit(status if status else int(pytest.ExitCode.INTERRUPTED))
+        if self.called is None:
+            self.called = status
+        if self.session is not None:
+            self.session.shouldstop = f"os._exit({status!r}) called in {self.item}"
+        raise ProcessExitCalled(status)
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+        if item.get_closest_marker("scenario") is None or os.getpid() != self.pid:
+            return (yield)
+        wrap = not hasattr(item.config, "workerinput")  # xdist gives a dead worker's case its row
+        if wrap:
+            self.session, self.item, os._exit = item.session, item.nodeid, self._exit
+        try:
+            return (yield)
+        finally:
+            if wrap:
+                os._exit = self.real_exit
+                self.item = None
+            if os.getpid() != self.pid:
+                # the body forked and the child returned into pytest instead of ending: it
+                # must not run the rest of the session a second time, nor write its reports
+                try:
+                    sys.stderr.write(f"\navscenario: {item.nodeid}: a process the test forked "
+                                     f"(pid {os.getpid()}) returned into pytest; it is ended here\n")
+                except Exception:  # noqa: BLE001 - a closed stream: nothing left to say
+                    pass
+                _flush_streams()
+                self.real_exit(0)
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> None:
+        if self.called is not None and session.exitstatus in (pytest.ExitCode.OK, pytest.ExitCode.TESTS_FAILED):
+            session.exitstatus = pytest.ExitCode.INTERRUPTED
 
 
 class TermGuard:
@@ -101,6 +179,7 @@ class TermGuard:
         self.previous: Any = None
         self.deferred = False  # while the report is written: remember, raise nothing
         self.pending = False  # a SIGTERM arrived while deferred
+        self.int_pending = False  # a Ctrl-C arrived while the report was written
         self.answered = threading.Event()
         self.seen = 0
         self._wakeup: tuple[int, int] | None = None
@@ -111,12 +190,13 @@ class TermGuard:
     def install(self, deferred: bool = False) -> None:
         """Scenario work runs (only in the main thread, only over SIGTERM's default action)."""
         self.deferred = deferred
+        self.used = True  # scenario work ran here: its report is written whole (SIGINT too)
         if self.installed or self.terminated or not self.usable():
             return
         if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
             return  # somebody else handles SIGTERM: leave it to them
         self.previous = signal.signal(signal.SIGTERM, self._handle)
-        self.installed = self.used = True
+        self.installed = True
         self._watch()
 
     def uninstall(self) -> None:
@@ -152,15 +232,34 @@ class TermGuard:
     @pytest.hookimpl(wrapper=True, tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> Any:
         # the report is written whole: a SIGTERM meanwhile waits for it, then the run ends
-        # as interrupted (a second SIGTERM still ends the process at once)
+        # as interrupted (a second SIGTERM still ends the process at once). Ctrl-C likewise:
+        # it raised KeyboardInterrupt wherever the report was, and the run ended with a raw
+        # traceback and no summary, index or JUnit file; a second Ctrl-C still aborts
+        hold_int = False
         if self.used:
             self.install(deferred=True)
+            hold_int = self.usable() and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+            if hold_int:
+                signal.signal(signal.SIGINT, self._handle_int)
         try:
             return (yield)
         finally:
+            if hold_int:
+                signal.signal(signal.SIGINT, signal.default_int_handler)
             self.uninstall()
-            if self.pending:
+            if self.pending or self.int_pending:
                 session.exitstatus = pytest.ExitCode.INTERRUPTED
+
+    def _handle_int(self, signum: int, frame: Any) -> None:
+        if self.int_pending:  # a second Ctrl-C: the user means it
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            raise KeyboardInterrupt
+        self.int_pending = True
+        try:
+            os.write(self.terminal_fd if self.terminal_fd is not None else 2,
+                     b"\navscenario: Ctrl-C: finishing the report first (Ctrl-C again to abort it)\n")
+        except OSError:
+            pass
 
     def pytest_unconfigure(self, config: pytest.Config) -> None:
         self.uninstall()
@@ -309,15 +408,19 @@ def whole_xdist_events(config: pytest.Config) -> Iterator[None]:
         del dsession.loop_once  # the class's own again
 
 
-def _die_by_sigterm() -> None:
-    """End the process as SIGTERM's default action would (status 143 to a shell); every
-    finished row is on disk already (the error table is flushed per row)."""
+def _flush_streams() -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except Exception:  # noqa: BLE001 - a closed stream: nothing left to flush
             pass
-    os._exit(128 + signal.SIGTERM)
+
+
+def _die_by_sigterm() -> None:
+    """End the process as SIGTERM's default action would (status 143 to a shell); every
+    finished row is on disk already (the error table is flushed per row)."""
+    _flush_streams()
+    _REAL_EXIT(128 + signal.SIGTERM)
 
 
 def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:

@@ -41,11 +41,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .compare import compare, comparison_html, format_comparison
 
     try:
-        old = load_baseline(_summary_path(args.old))
-        new = load_baseline(_summary_path(args.new))
+        # a look by hand may compare an interrupted run (its rates cover the finished cases)
+        old = load_baseline(_summary_path(args.old), partial_ok=True)
+        new = load_baseline(_summary_path(args.new), partial_ok=True)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    for run in (old, new):
+        if run.interrupted:
+            print(f"note: {run.path} is the summary of an interrupted run: its rates count only "
+                  "the cases that finished", file=sys.stderr)
     comparison = compare(new, old)
     for line in format_comparison(comparison, now=new.path):
         print(line)

@@ -52,6 +52,7 @@ def finish_report(
     baseline: Any = None,
     driver: Mapping[str, Any] | None = None,
     card_sections: Callable[[CaseRow], Sequence[tuple[str, str]]] | None = None,
+    interrupted: str | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -70,12 +71,15 @@ def finish_report(
     re-ran only some cases (its page says so and links to the campaign's report in ``..``).
     ``baseline``: an earlier run's summary (:func:`~pytest_avscenario.acceptance.load_baseline`,
     the file of ``--avs-baseline``): the index opens with the comparison (:mod:`.compare`) and
-    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run).
-    ``card_sections(row)``: more ``(title, html)`` sections for a counterexample's card (the
-    plugin's ``pytest_avscenario_card_sections`` hook). Every counterexample gets a card page under
-    ``cases/``. ``driver``: the identity of the options' driver, the run's when no row
-    names one; ``summary.json`` holds the run's driver as ``"driver"`` and each campaign's as
-    its ``"driver"``, the index names it (see :mod:`.drivers`). Returns the summary rows.
+    ``summary.json`` holds it as ``"comparison"`` (not for a ``partial`` run). ``interrupted``:
+    why the run ended before all its cases ran — ``summary.json`` says ``"interrupted": true``
+    (and the reason), so that nobody reads its verdicts as a finished run's or takes it for a
+    baseline unawares. ``card_sections(row)``: more ``(title, html)`` sections for a
+    counterexample's card (the plugin's ``pytest_avscenario_card_sections`` hook). Every
+    counterexample gets a card page under ``cases/``. ``driver``: the identity of the options'
+    driver, the run's when no row names one; ``summary.json`` holds the run's driver as
+    ``"driver"`` and each campaign's as its ``"driver"``, the index names it (see
+    :mod:`.drivers`). Returns the summary rows.
     """
     from .folder import ReportFolder
 
@@ -115,6 +119,8 @@ def finish_report(
         for entry in tests_json:
             entry["driver"] = test_drivers.get(entry["test"])
         data = {"seed": seed, "driver": run_driver, "versions": dict(versions or {}), "tests": tests_json}
+        if interrupted:
+            data["interrupted"], data["stopped"] = True, interrupted
         if comparison is not None:
             data["comparison"] = comparison.to_json()
         text = json.dumps(data, indent=2, allow_nan=False, default=str) + "\n"
@@ -158,7 +164,10 @@ def finish_report(
             meta["seed"] = seed
         meta.update({k: v for k, v in (versions or {}).items()})
         banner = None
-        if partial:
+        if interrupted:
+            banner = (f"An interrupted run ({e(interrupted)}): the cases that finished before it "
+                      "stopped; its verdicts are not those of the whole campaign.")
+        elif partial:
             banner = (f"A re-run of some cases ({e(partial)}): this report holds them alone. "
                       f"The campaign's report: <a href='../index.html'>../index.html</a>.")
         elif (root / "rerun" / INDEX).exists():

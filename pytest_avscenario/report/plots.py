@@ -95,16 +95,17 @@ def _axis_values(rows: Sequence[Mapping[str, Any]], name: str):
     values = [r.params.get(name) for r in rows]
     if all(_is_number(v) for v in values):
         numbers = [float(v) for v in values]
-        return [x / _axis_scale(numbers) for x in numbers], None
+        scale = _axis_scale(numbers)  # once: per value it made the plot O(n²) (#32 item 6)
+        return [x / scale for x in numbers], None
     # Categorical (or mixed): position by first appearance, label with the value itself.
-    keys: list[str] = []
+    first: dict[str, Any] = {}
     for v in values:
-        if str(v) not in keys:
-            keys.append(str(v))
-    labels = [_label(next(v for v in values if str(v) == k)) for k in keys]
+        first.setdefault(str(v), v)
+    position = {k: i for i, k in enumerate(first)}
+    labels = [_label(v) for v in first.values()]
     # A small deterministic jitter keeps cases with the same category from hiding each other.
     jitter = [((i * 0.6180339887) % 1.0 - 0.5) * 0.3 for i in range(len(values))]
-    return [keys.index(str(v)) + j for v, j in zip(values, jitter)], labels
+    return [position[str(v)] + j for v, j in zip(values, jitter)], labels
 
 
 #: beyond this magnitude matplotlib cannot lay out ticks (their spacing overflows)

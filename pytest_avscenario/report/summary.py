@@ -204,7 +204,10 @@ def summarize(
         space = info.space
         continuous = tuple(getattr(space, "continuous", ()) or ()) if space is not None else ()
         eps = cover = frac = None
-        if continuous and sampled:
+        # beyond MAX_EPS_DIMENSIONS continuous parameters the mesh ε-coverage probes cannot be
+        # enumerated in reasonable time (seconds at 16, minutes at 20, 2^200 nodes at 200):
+        # ε is "—" there, as for a space with no continuous parameter, not a failed report part
+        if continuous and sampled and len(continuous) <= MAX_EPS_DIMENSIONS:
             try:
                 pts = _unit_points(sampled, space)
                 if pts is not None and pts.shape[1] > 0:
@@ -257,6 +260,10 @@ def summarize(
             )
         )
     return out
+
+
+#: the most continuous parameters whose ε-coverage the summary computes (see summarize)
+MAX_EPS_DIMENSIONS = 12
 
 
 def _summary_resolution(d: int) -> int:

@@ -340,6 +340,9 @@ def action_pair(raw: Any) -> tuple[float, float]:
             raise not_numbers
         try:
             arr = np.asarray(raw, dtype=float)
+        except OverflowError:  # an integer beyond a float (10**400): a bad action, not a crash
+            raise ValueError(f"expected (acceleration, steering) as two numbers, got {_short(raw)}: "
+                             "an integer too large for a float") from None
         except (TypeError, ValueError):
             raise ValueError(
                 f"expected (acceleration, steering), got {raw!r} ({type(raw).__name__})") from None
@@ -349,8 +352,25 @@ def action_pair(raw: Any) -> tuple[float, float]:
         vals = arr.reshape(2).tolist()
     try:
         a, d = float(vals[0]), float(vals[1])
+    except OverflowError:
+        raise ValueError(f"expected two numbers, got {_short(raw)}: an integer too large for a float") from None
     except (TypeError, ValueError):
         raise ValueError(f"expected two numbers, got {raw!r}") from None
     if not (math.isfinite(a) and math.isfinite(d)):
         raise ValueError(f"non-finite action (acceleration={a!r}, steering={d!r})")
+    if abs(a) > MAX_ACTION_MAGNITUDE or abs(d) > MAX_ACTION_MAGNITUDE:
+        # the world clamps an action to the vehicle's limits, which would hide a driver
+        # answering 1e308 (a unit or scaling bug) as a hard brake; a saturating controller
+        # stays far below this
+        raise ValueError(f"absurd action (acceleration={a:g} m/s², steering={d:g} rad): beyond "
+                         f"±{MAX_ACTION_MAGNITUDE:g}, no vehicle; a unit or scaling mistake?")
     return a, d
+
+
+#: an action component beyond this (m/s² or rad) is a driver's bug, never clamped to the limits
+MAX_ACTION_MAGNITUDE = 1e3
+
+
+def _short(raw: Any) -> str:
+    text = repr(raw)
+    return text if len(text) <= 60 else text[:57] + "..."

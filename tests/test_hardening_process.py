@@ -1,0 +1,164 @@
+"""Issue #32: the process family — os._exit in a body, Ctrl-C while the report is written, a
+body that forks, and what an interrupted run's summary and exit status say. Every run here is
+a real subprocess, bounded in time, and leaves no process behind."""
+
+from __future__ import annotations
+
+import json
+import signal
+
+import pytest
+
+from test_stopping import junit_cases, rows_of, start, wait_for_rows
+
+FOUR = """
+import os
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=4, sampler="halton")
+def test_x(case):
+    {body}
+"""
+
+
+@pytest.mark.parametrize("status", [0, 3])
+def test_os_exit_in_a_body_stops_the_run_as_interrupted_with_its_row_and_report(pytester, status):
+    # serially, os._exit(0) in case 1 ended the process: exit 0, 1 of 4 rows, no JUnit file
+    pytester.makepyfile(FOUR.format(body=f"if case.index == 1:\n        os._exit({status})"))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           "--junitxml=out.xml", timeout=120)
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    rows = rows_of(pytester.path)
+    # the case that called it is an error row saying so; the run stopped after it
+    assert [r["verdict"] for r in rows] == ["pass", "error"]
+    assert f"os._exit({status}) called" in rows[1]["error"]
+    assert junit_cases(pytester.path / "out.xml") == 2
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["interrupted"] is True and "os._exit" in summary["stopped"]
+    assert summary["tests"][0]["samples"] == 2
+
+
+def test_a_forked_child_that_returns_into_pytest_writes_no_rows_and_runs_nothing_more(pytester):
+    # a body that forks and lets the child return gave 7 rows for 4 items
+    pytester.makepyfile(FOUR.format(body="""if case.index == 1:
+        pid = os.fork()
+        if pid:
+            os.waitpid(pid, 0)"""))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           "--junitxml=out.xml", timeout=120)
+    assert result.ret == pytest.ExitCode.OK
+    rows = rows_of(pytester.path)
+    assert sorted(r["index"] for r in rows) == [0, 1, 2, 3]
+    assert junit_cases(pytester.path / "out.xml") == 4
+    assert "returned into pytest; it is ended here" in result.stderr.str()
+
+
+def test_a_forked_child_may_still_end_itself_with_os_exit(pytester):
+    pytester.makepyfile(FOUR.format(body="""pid = os.fork()
+    if pid == 0:
+        os._exit(7)
+    assert os.waitpid(pid, 0)[1] >> 8 == 7"""))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           timeout=120)
+    result.assert_outcomes(passed=4)
+    assert len(rows_of(pytester.path)) == 4
+
+
+@pytest.mark.parametrize("xdist", [[], ["-n", "2"]], ids=["serial", "xdist"])
+def test_ctrl_c_while_the_report_is_written_finishes_the_report(pytester, xdist):
+    # a raw traceback, no summary.json, no index.html, no JUnit file (SIGTERM worked)
+    if xdist:
+        pytest.importorskip("xdist")
+    pytester.makeconftest("""
+import os
+import signal
+import pytest
+
+@pytest.hookimpl(wrapper=True)
+def pytest_sessionfinish(session):
+    if not hasattr(session.config, "workerinput"):
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C as the report is being built
+    return (yield)
+""")
+    pytester.makepyfile(FOUR.format(body="assert case.x < 0.6"))
+    args = xdist or ["-p", "no:xdist"]
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:cacheprovider", *args,
+                                           "--junitxml=out.xml", timeout=120)
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert "Traceback" not in result.stdout.str() + result.stderr.str()
+    report = pytester.path / "avs-report"
+    summary = json.loads((report / "summary.json").read_text())
+    assert summary["tests"][0]["samples"] == 4
+    assert (report / "index.html").exists() and junit_cases(pytester.path / "out.xml") == 4
+
+
+def test_an_interrupted_run_says_so_and_never_exits_0(pytester):
+    # a run stopped after its first case (pytest.exit with status 0, as a CI step might)
+    # wrote "accepted" and no mark that most cases never ran
+    pytester.makepyfile(FOUR.format(body="""if case.index == 1:
+        import pytest
+        pytest.exit("enough", returncode=0)"""))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           timeout=120)
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["interrupted"] is True and "enough" in summary["stopped"]
+    # ...and that summary is no baseline unless asked for
+    again = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                          "--avs-baseline=avs-report/summary.json", "--avs-report=two",
+                                          timeout=120)
+    assert again.ret == pytest.ExitCode.USAGE_ERROR
+    assert "interrupted" in again.stderr.str()
+
+
+def test_a_finished_run_is_not_marked_interrupted(pytester):
+    pytester.makepyfile(FOUR.format(body="pass"))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           timeout=120)
+    assert result.ret == pytest.ExitCode.OK
+    assert "interrupted" not in json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+
+
+def test_sigterm_to_a_campaign_writes_a_report_without_pictures_marked_interrupted(pytester):
+    # the stop at scale (#32 item 6; speed in bench/bench_stop.py): an interrupted run's report
+    # keeps summary.json, index.html and the error table and leaves the pictures out
+    pytester.makepyfile("""
+import time
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=300, sampler="halton")
+def test_many(case):
+    time.sleep(0.02)
+""")
+    proc = start(pytester, "-p", "no:xdist", "--avs-db=none", "--junitxml=out.xml")
+    try:
+        wait_for_rows(pytester, proc, 20)
+        proc.send_signal(signal.SIGTERM)
+        out = proc.communicate(timeout=60)[0].decode()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    report = pytester.path / "avs-report"
+    summary = json.loads((report / "summary.json").read_text())
+    assert summary["interrupted"] is True and "SIGTERM" in summary["stopped"]
+    assert summary["tests"][0]["samples"] == len(rows_of(pytester.path)) == junit_cases(pytester.path / "out.xml")
+    assert (report / "index.html").exists() and not list(report.rglob("*.png"))
+
+
+def test_the_space_plot_scales_its_axis_once_not_per_value(monkeypatch):
+    # the O(n²) behind a 108 s stop at 32,210 rows: every value divided by a scale computed
+    # again from all values
+    from types import SimpleNamespace
+
+    from pytest_avscenario.report import plots
+
+    calls = []
+    real = plots._axis_scale
+    monkeypatch.setattr(plots, "_axis_scale", lambda numbers: calls.append(1) or real(numbers))
+    rows = [SimpleNamespace(params={"x": i / 1000, "w": f"c{i % 3}"}) for i in range(1000)]
+    values, labels = plots._axis_values(rows, "x")
+    assert len(calls) == 1 and labels is None and values[500] == 0.5
+    values, labels = plots._axis_values(rows, "w")
+    assert labels == ["c0", "c1", "c2"] and [round(v) for v in values[:3]] == [0, 1, 2]
