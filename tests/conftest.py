@@ -43,3 +43,7 @@ def _terminal_like_output(monkeypatch):
     change what the tests read from the output."""
     monkeypatch.delenv("CI", raising=False)
     monkeypatch.delenv("BUILD_NUMBER", raising=False)
+    # an inner run is never this suite's xdist worker: under `-n 2` it would inherit the
+    # worker's name, which plugins read as "xdist is running me" (pytest-benchmark then warns)
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)
+    monkeypatch.delenv("PYTEST_XDIST_WORKER_COUNT", raising=False)
