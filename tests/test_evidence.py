@@ -92,3 +92,23 @@ def test_the_terminal_and_the_card_write_a_case_the_same_way(pytester):
     page = card.read_text()
     assert ">+inf<" in page  # the TTC cell of the metrics table
     assert f">{html.escape(chr(39) + 'left' + chr(39))}<" in page  # the parameter table: 'left'
+
+
+def test_an_stl_formula_gives_its_rho_at_every_step_of_the_recording():
+    # an STL formula's own series is (rho, times) over the kept steps: the recording places it
+    # on its steps instead of failing the card's replay (found by the declaration fuzz test)
+    import numpy as np
+
+    from pytest_avscenario.monitors import always, gap
+    from pytest_avscenario.monitors.evidence import case_evidence
+    from pytest_avscenario.trajectory import Trajectory
+
+    t = np.arange(0.0, 2.0, 0.1)
+    traj = Trajectory.from_arrays(t, agents={
+        "ego": {"x": 10.0 * t, "y": 0 * t, "vx": 10.0, "vy": 0.0},
+        "lead": {"x": -1.0 + 8.0 * t, "y": 0 * t, "vx": 8.0, "vy": 0.0}})
+    formula = always(gap("lead") >= 5.0).named("gap5")
+    ev = case_evidence(traj, [formula], violated=["gap5"], agent="lead", t=0.0)
+    rho = ev.rho_t["gap5"]
+    assert rho.shape == (traj.n_steps,)
+    assert np.allclose(rho, formula.series(traj)[0])

@@ -77,12 +77,31 @@ def case_evidence(traj: Trajectory, monitors: Sequence[Any] = (), *, agent: str 
     for m in monitors:
         series = getattr(m, "series", None)  # a user's duck-typed monitor may have none
         if getattr(m, "name", None) in violated and series is not None:
-            per = series(traj)
+            per = _per_step(series(traj), traj)
             if per is not None:
-                rho_t[m.name] = np.asarray(per, dtype=float)
+                rho_t[m.name] = per
     return Evidence(critical=k, radius_m=radius,
                     distance_m=pairwise_distance(traj)[k - 1], gap_m=footprint_gap(traj)[k - 1],
                     ttc_s=pairwise_ttc(traj, radius)[k - 1], rho_t=rho_t)
+
+
+def _per_step(per: Any, traj: Trajectory) -> np.ndarray | None:
+    """A monitor's series as ``(n_steps,)``: an STL formula's ``series`` gives ``(ρ, times)``
+    over the steps it keeps (the ego present), placed here on their steps (NaN elsewhere);
+    anything else of the wrong shape is left out rather than drawn wrong."""
+    if per is None:
+        return None
+    if isinstance(per, tuple) and len(per) == 2:
+        rho, times = (np.asarray(a, dtype=float) for a in per)
+        if rho.shape != times.shape or rho.ndim != 1:
+            return None
+        out = np.full(traj.n_steps, np.nan)
+        steps = np.searchsorted(traj.t, times)
+        ok = (steps < traj.n_steps) & np.isclose(traj.t[np.minimum(steps, traj.n_steps - 1)], times)
+        out[steps[ok]] = rho[ok]
+        return out
+    arr = np.asarray(per, dtype=float)
+    return arr if arr.shape == (traj.n_steps,) else None
 
 
 def threshold_lines(monitors: Iterable[Any]) -> list[tuple[str, float, str]]:
