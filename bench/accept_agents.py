@@ -40,26 +40,16 @@ def train_ppo(out: Path, steps: int, budget_s: float, seed: int) -> dict:
     import highway_env  # noqa: F401
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
+
+    sys.path.insert(0, str(ROOT / "example_tests"))
+    from train_dqn import budget_callback
 
     torch.set_num_threads(1)
-
-    class Budget(BaseCallback):
-        def __init__(self) -> None:
-            super().__init__()
-            self.start = time.perf_counter()
-            self.stopped_early = False
-
-        def _on_step(self) -> bool:
-            if time.perf_counter() - self.start > budget_s:
-                self.stopped_early = True
-                return False
-            return True
 
     env = gymnasium.make("highway-fast-v0", config=PPO_CONFIG)
     model = PPO("MlpPolicy", env, policy_kwargs=dict(net_arch=[64, 64]), n_steps=512, batch_size=64,
                 n_epochs=5, learning_rate=3e-4, gamma=0.8, seed=seed, device="cpu", verbose=0)
-    cb = Budget()
+    cb = budget_callback(budget_s)
     t0 = time.perf_counter()
     model.learn(total_timesteps=steps, callback=cb)
     took = time.perf_counter() - t0

@@ -47,19 +47,12 @@ MARK_BEGIN = "<!-- train_dqn: begin -->"
 MARK_END = "<!-- train_dqn: end -->"
 
 
-def train(out: Path, steps: int, budget_s: float, seed: int) -> dict:
-    """Train the DQN, save it to ``out``; what happened as a dict."""
-    import gymnasium
-    import highway_env  # noqa: F401  (registers the environment ids)
-    import torch
-    from stable_baselines3 import DQN
+def budget_callback(budget_s: float):
+    """A stable-baselines3 callback that stops training once ``budget_s`` of wall time has
+    passed; its ``stopped_early`` says whether it did (bench/accept_agents.py uses it too)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
-    torch.set_num_threads(1)  # a 64x64 network: threads cost more than they give
-
     class Budget(BaseCallback):
-        """Stop training once ``budget_s`` of wall time has passed."""
-
         def __init__(self) -> None:
             super().__init__()
             self.start = time.perf_counter()
@@ -70,6 +63,18 @@ def train(out: Path, steps: int, budget_s: float, seed: int) -> dict:
                 self.stopped_early = True
                 return False
             return True
+
+    return Budget()
+
+
+def train(out: Path, steps: int, budget_s: float, seed: int) -> dict:
+    """Train the DQN, save it to ``out``; what happened as a dict."""
+    import gymnasium
+    import highway_env  # noqa: F401  (registers the environment ids)
+    import torch
+    from stable_baselines3 import DQN
+
+    torch.set_num_threads(1)  # a 64x64 network: threads cost more than they give
 
     env = gymnasium.make(ENV_ID)
     model = DQN(
@@ -88,7 +93,7 @@ def train(out: Path, steps: int, budget_s: float, seed: int) -> dict:
         device="cpu",
         verbose=0,
     )
-    budget = Budget()
+    budget = budget_callback(budget_s)
     t0 = time.perf_counter()
     model.learn(total_timesteps=steps, callback=budget)
     took = time.perf_counter() - t0
