@@ -17,6 +17,7 @@ _LAZY = {
     "example": "markers", "scenario": "markers",
     "Choice": "space", "Constant": "space", "Distribution": "space", "FeatureSpace": "space",
     "IntRange": "space", "Normal": "space", "SpaceError": "space", "Uniform": "space",
+    "MapLane": "sim.opendrive",
 }
 
 __version__ = "0.1.0"
@@ -28,6 +29,7 @@ __all__ = [
     "Distribution",
     "FeatureSpace",
     "IntRange",
+    "MapLane",
     "Normal",
     "SpaceError",
     "Uniform",

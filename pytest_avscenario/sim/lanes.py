@@ -110,7 +110,7 @@ class LaneIndex:
             lane = self.order[j]
             g = lane.geometry
             s, r = g.local_coordinates((x, y))
-            if 0.0 <= s <= g.length and abs(r) <= g.width / 2:
+            if 0.0 <= s <= g.length and abs(r) <= g.width_at(s) / 2:
                 out.append((lane, s, r))
         return out
 
@@ -173,7 +173,7 @@ class LaneIndex:
             else:
                 g = self.lanes[cur].geometry
                 s, r = g.local_coordinates(pos)
-            if 0.0 <= s <= g.length and abs(r) <= g.width / 2:
+            if 0.0 <= s <= g.length and abs(r) <= g.width_at(s) / 2:
                 agent.lane_r = r
                 agent.is_on_road = True
                 return
@@ -187,7 +187,7 @@ class LaneIndex:
         for lane in candidates:
             g = lane.geometry
             s, r = g.local_coordinates(pos)
-            inside = 0.0 <= s <= g.length and abs(r) <= g.width / 2
+            inside = 0.0 <= s <= g.length and abs(r) <= g.width_at(s) / 2
             if not inside and lane.index != cur:
                 continue
             score = self._score(lane, s, r, heading, pedestrian, on_route)
@@ -219,7 +219,7 @@ class LaneIndex:
         else:
             # Past a lane's end but still on its asphalt (highway-env's own on_lane margin).
             s, _ = lane.geometry.local_coordinates(pos)
-            agent.is_on_road = bool(abs(r) <= lane.width / 2
+            agent.is_on_road = bool(abs(r) <= lane.geometry.width_at(s) / 2
                                     and -2.5 <= s <= lane.geometry.length + 2.5)
 
     @staticmethod

@@ -187,6 +187,28 @@ class World:
         self.road = Network(self, net)
         return self.road
 
+    def map(self, path: Any, *, speed_limit: float = 13.9, evaluator: str = "numpy") -> Any:
+        """The drivable lanes of an OpenDRIVE map file as this world's road (a
+        :class:`~.maps.MapRoad`): lanes by id (``road.lane("12/0/-1")``), routes through
+        junctions (``road.route(a, b)``), the closest lane to a point. A relative ``path`` is
+        looked up from the calling test module's folder, then the working directory; the
+        file is read once per process. ``speed_limit`` [m/s] is for lanes the file gives
+        none."""
+        from .engine import SimRoad
+        from .maps import MapRoad
+        from .opendrive import _caller_dirs
+
+        self._new_network("map")
+        dirs = _caller_dirs()
+        road = MapRoad(self, path, base=dirs[0] if dirs else None, speed_limit=speed_limit,
+                       evaluator=evaluator)
+        self._road = SimRoad(network=road.net, vehicles=[],
+                             np_random=np.random.default_rng(self.seed), record_history=False)
+        self._road.neighbour_vehicles_connected_lanes = True
+        self._index = road.make_index()
+        self.road = road
+        return road
+
     # -- the interface of the engine, roads and behaviours to the world ------------------------
     # Agents, roads and behaviours go through these few members, never through the world's
     # private attributes, so the world can change how it keeps its state.
@@ -244,8 +266,8 @@ class World:
     def _need_road(self, what: str) -> None:
         if self.road is None or self._index is None:
             raise SimError(f"{what}: build a road first (world.straight_road(), "
-                           "world.highway(), world.two_way_road(), world.intersection() or an intersection "
-                           "on world.road_network())", test=self.name)
+                           "world.highway(), world.two_way_road(), world.intersection(), world.map() "
+                           "or an intersection on world.road_network())", test=self.name)
         if self.trajectory is not None:
             raise SimError(f"{what}: the world has already run; a world runs once",
                            test=self.name)

@@ -1,0 +1,445 @@
+"""A map file as the world's road: OpenDRIVE lanes as highway-env lanes, routes through junctions.
+
+``world.map("maps/Town06.xodr")`` gives a :class:`MapRoad`. Its lanes (the drivable ones:
+driving, ramps, parking; see :data:`.opendrive.DRIVABLE`) are :class:`MapLaneShape` lanes —
+highway-env ``AbstractLane`` subclasses with the width the file gives at every point (highway-env's
+own ``PolyLane`` fixes every lane at 4 m) — joined in a highway-env ``RoadNetwork`` whose nodes
+are the points where one lane continues into the next, so highway-env's IDM follows a route
+across lane sections and junctions, and the world's lane tracking, the autopilot and the
+monitors see the map's real centre lines and widths::
+
+    town = world.map("maps/Town06.xodr")
+    lane = town.lane(case.lane)                  # "road/section/lane", e.g. from MapLane(...)
+    world.ego(lane, s=10, speed=20, route=town.route(lane, town.lane("5/0/-1")))
+    world.car(town.ahead(lane.at(10), 40), speed=15)   # 40 m further along the default route
+
+Everything built from one map file (the lane shapes, the network, the lane index) is made once
+per process and shared by every world that loads it: nothing of it changes during a run.
+"""
+
+from __future__ import annotations
+
+import bisect
+import copy
+import heapq
+import math
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import SimError
+from .lanes import LaneIndex
+from .opendrive import DRIVABLE, LaneData, MapData, MapError, load
+from .places import Lane, Route, Spot
+
+__all__ = ["MapRoad", "MapLaneShape", "RoadLane", "MapLaneIndex", "DEFAULT_SPEED_LIMIT"]
+
+DEFAULT_SPEED_LIMIT = 13.9  # [m/s] (50 km/h) for lanes whose file gives no limit
+
+
+def _abstract_lane() -> type:
+    from ._hwenv import load_core
+
+    load_core()
+    from highway_env.road.lane import AbstractLane
+
+    return AbstractLane
+
+
+def _shape_class() -> type:
+    global _SHAPE
+    if _SHAPE is None:
+        from highway_env.road.lane import LineType
+
+        base = _abstract_lane()
+
+        class MapLaneShape(base):
+            """A lane along a sampled centre line with the file's width at every sample.
+
+            ``position``/``heading_at``/``width_at`` interpolate between samples
+            (:data:`.opendrive.STEP` apart); ``local_coordinates`` projects onto the
+            polyline, extending its first and last segments so that points before the start
+            or past the end get ``s < 0`` or ``s > length`` (highway-env moves on to the next
+            lane there).
+            """
+
+            DEFAULT_WIDTH = 3.5
+            VEHICLE_LENGTH = 5.0
+
+            def __init__(self, data: LaneData, speed_limit: float) -> None:
+                self.data = data
+                self._s = data.s.astype(float)
+                self._sl = self._s.tolist()
+                self._xy = data.xy.astype(float)
+                self._h = data.heading.astype(float)
+                self._w = data.width.astype(float)
+                # lateral offsets run square to the reference line (OpenDRIVE's t axis),
+                # so position(s, +-width/2) is exactly the lane's edge
+                rh = data.ref_heading.astype(float)
+                self._rh = rh
+                mid = rh[:-1] + 0.5 * np.angle(np.exp(1j * (rh[1:] - rh[:-1])))
+                self._tau = np.stack([np.cos(mid), np.sin(mid)], axis=1)  # per segment
+                self._dc = np.diff(self._xy, axis=0)
+                self._along = np.einsum("ij,ij->i", self._dc, self._tau)
+                self._along[np.abs(self._along) < 1e-12] = 1e-12
+                self.length = float(self._s[-1])
+                self.width = float(np.median(self._w))
+                self.line_types = (LineType.STRIPED, LineType.STRIPED)
+                self.speed_limit = float(speed_limit)
+                self.forbidden = False
+                self.priority = 0
+                self.radius = math.inf  # per-point curvature lives in the samples
+
+            def _at(self, s: float) -> tuple[int, float]:
+                k = bisect.bisect_right(self._sl, s) - 1
+                k = min(max(k, 0), len(self._sl) - 2)
+                return k, (s - self._sl[k]) / (self._sl[k + 1] - self._sl[k])
+
+            def position(self, longitudinal: float, lateral: float) -> np.ndarray:
+                k, f = self._at(float(longitudinal))
+                p0, p1 = self._xy[k], self._xy[k + 1]
+                g = min(max(f, 0.0), 1.0)
+                h = self._rh[k] + g * (self._rh[k + 1] - self._rh[k])
+                x = p0[0] + f * (p1[0] - p0[0]) - lateral * math.sin(h)
+                y = p0[1] + f * (p1[1] - p0[1]) + lateral * math.cos(h)
+                return np.array([x, y])
+
+            def heading_at(self, longitudinal: float) -> float:
+                k, f = self._at(float(longitudinal))
+                f = min(max(f, 0.0), 1.0)
+                return float(self._h[k] + f * (self._h[k + 1] - self._h[k]))
+
+            def width_at(self, longitudinal: float) -> float:
+                k, f = self._at(float(longitudinal))
+                f = min(max(f, 0.0), 1.0)
+                return float(self._w[k] + f * (self._w[k + 1] - self._w[k]))
+
+            def local_coordinates(self, position: Any) -> tuple[float, float]:
+                # On each segment, the point of the centre line from which ``position`` lies
+                # square to the reference line: f = (p - c_k).tau / (dc.tau); of the segments
+                # that hold it (0 <= f <= 1), the nearest. The whole line every time: a search
+                # near the last answer would make the answer depend on earlier queries.
+                px, py = float(position[0]), float(position[1])
+                xy, tau = self._xy, self._tau
+                ex, ey = px - xy[:-1, 0], py - xy[:-1, 1]
+                f = (ex * tau[:, 0] + ey * tau[:, 1]) / self._along
+                n = len(f)
+                fc = np.clip(f, 0.0, 1.0)
+                fc[0] = min(f[0], 1.0)  # before the start: along the first segment
+                fc[-1] = max(f[-1], 0.0) if n > 1 else f[-1]  # past the end: the last
+                dx = ex - fc * self._dc[:, 0]
+                dy = ey - fc * self._dc[:, 1]
+                d2 = dx * dx + dy * dy
+                # a segment that holds the foot (unclipped) beats one whose end is merely near
+                d2[fc != f] += 1e9
+                k = int(np.argmin(d2))
+                r = tau[k, 0] * dy[k] - tau[k, 1] * dx[k]
+                s = self._sl[k] + fc[k] * (self._sl[k + 1] - self._sl[k])
+                return float(s), float(r)
+
+            def to_config(self) -> dict:
+                return {"class_path": "pytest_avscenario.sim.maps.MapLaneShape",
+                        "config": {"lane": self.data.id}}
+
+            def __repr__(self) -> str:
+                return f"MapLaneShape({self.data.id!r}, {self.length:.1f} m)"
+
+        MapLaneShape.__module__ = __name__
+        _SHAPE = MapLaneShape
+    return _SHAPE
+
+
+_SHAPE: Any = None
+
+
+def __getattr__(name: str) -> Any:
+    if name == "MapLaneShape":
+        return _shape_class()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class RoadLane(Lane):
+    """A lane of a map: ``id`` is ``"road/section/lane"``, ``kind`` its OpenDRIVE type,
+    ``data`` the :class:`~.opendrive.LaneData` it was made from (width along s, successors…)."""
+
+    data: Any = field(default=None, repr=False)
+
+    @property
+    def junction(self) -> str:
+        """The id of the junction this lane is inside, "" when none."""
+        return self.data.junction
+
+    @property
+    def speed_limit(self) -> float:
+        """[m/s] what IDM drivers cap their target speed at on this lane."""
+        return float(self.geometry.speed_limit)
+
+    def __repr__(self) -> str:
+        return f"RoadLane({self.id!r})"
+
+
+class MapLaneIndex(LaneIndex):
+    """The lane index of a map: successors as the file links them, neighbours beside each
+    lane in its lane section, boxes over the whole sampled lane."""
+
+    def __init__(self, lanes: list[RoadLane], by_id: dict[str, RoadLane]) -> None:
+        self.lanes = {l.index: l for l in lanes}
+        self.order = list(lanes)
+        self.code = {l.index: i for i, l in enumerate(self.order)}
+        self.stop_marks = {}
+        self.straight_on = {}
+        self.drops = {}
+        boxes = []
+        for lane in self.order:
+            d = lane.data
+            pad = float(d.width.max()) / 2 + 0.05
+            boxes.append([d.xy[:, 0].min() - pad, d.xy[:, 1].min() - pad,
+                          d.xy[:, 0].max() + pad, d.xy[:, 1].max() + pad])
+        self._box = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        self.boxes = self._box
+        self.successors = {}
+        preds: dict[tuple, list[RoadLane]] = {}
+        for lane in self.order:
+            succ = [by_id[i] for i in lane.data.successors if i in by_id]
+            self.successors[lane.index] = succ
+            preds[lane.index] = [by_id[i] for i in lane.data.predecessors if i in by_id]
+        groups: dict[str, list[RoadLane]] = {}
+        for lane in self.order:
+            groups.setdefault(lane.group, []).append(lane)
+        self._beside = {}
+        for lane in self.order:
+            self._beside[lane.index] = [o for o in groups[lane.group]
+                                        if abs(o.number - lane.number) == 1]
+        self.near = {}
+        for lane in self.order:
+            near: list[RoadLane] = []
+            cands = (self.successors[lane.index] + preds[lane.index] + self._beside[lane.index]
+                     + [s for p in preds[lane.index] for s in self.successors[p.index]]
+                     + [p for s in self.successors[lane.index] for p in preds[s.index]])
+            for other in cands:
+                if other is not lane and other not in near:
+                    near.append(other)
+            self.near[lane.index] = tuple(near)
+            if self.successors[lane.index]:
+                self.straight_on[lane.index] = min(
+                    self.successors[lane.index], key=lambda s: (_turn(lane, s), s.id))
+
+    def _parallel(self, i: int) -> list[Lane]:
+        return list(self._beside[self.order[i].index])
+
+    def fresh(self) -> "MapLaneIndex":
+        """A copy for one world: its own stop marks and links, the shared lanes."""
+        twin = copy.copy(self)
+        twin.stop_marks = {}
+        twin.straight_on = dict(self.straight_on)
+        twin.drops = {}
+        return twin
+
+
+def _turn(a: RoadLane, b: RoadLane) -> float:
+    """How much [rad] driving from ``a`` on through ``b`` turns (a connector's whole turn)."""
+    h0 = float(a.data.heading[-1])
+    h1 = float(b.data.heading[-1])
+    return abs(math.atan2(math.sin(h1 - h0), math.cos(h1 - h0)))
+
+
+@dataclass
+class _Built:
+    """What one map file makes, shared by every world that loads it."""
+
+    data: MapData
+    net: Any
+    lanes: list[RoadLane]
+    by_id: dict[str, RoadLane]
+    index: MapLaneIndex
+
+
+_BUILT: dict[tuple, _Built] = {}
+_LOCK = threading.Lock()
+
+
+def _build(data: MapData, speed_limit: float) -> _Built:
+    key = (data.digest, data.path, speed_limit)
+    with _LOCK:
+        got = _BUILT.get(key)
+        if got is None:
+            got = _BUILT[key] = _make(data, speed_limit)
+    return got
+
+
+def _make(data: MapData, speed_limit: float) -> _Built:
+    from highway_env.road.road import RoadNetwork
+
+    shape = _shape_class()
+    drivable = [l for l in data.lanes.values() if l.kind in DRIVABLE]
+    # Nodes: the point where a lane ends is the node its successors start from.
+    parent: dict[str, str] = {}
+
+    def find(a: str) -> str:
+        while parent.setdefault(a, a) != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    ids = {l.id for l in drivable}
+    for l in drivable:
+        for s in l.successors:
+            if s in ids:
+                parent[find(f"{l.id}>")] = find(f"<{s}")
+    names: dict[str, str] = {}
+
+    def node(key: str) -> str:
+        root = find(key)
+        return names.setdefault(root, f"n{len(names)}")
+
+    # group and number: lanes side by side in a lane section travelling the same way,
+    # numbered from the left of the direction of travel
+    groups: dict[str, list[LaneData]] = {}
+    for l in drivable:
+        groups.setdefault(f"{l.road}/{l.section}/{'+' if l.forward else '-'}", []).append(l)
+    number: dict[str, int] = {}
+    for g, members in groups.items():
+        members.sort(key=lambda l: abs(l.lane) if (l.lane < 0) == l.forward else -abs(l.lane))
+        for i, l in enumerate(members):
+            number[l.id] = i
+    net = RoadNetwork()
+    lanes: list[RoadLane] = []
+    for l in drivable:
+        frm, to = node(f"<{l.id}"), node(f"{l.id}>")
+        lim = l.speed_limit if math.isfinite(l.speed_limit) else speed_limit
+        geom = shape(l, lim)
+        net.add_lane(frm, to, geom)
+        i = len(net.graph[frm][to]) - 1
+        lanes.append(RoadLane(l.id, (frm, to, i), geom, kind=l.kind,
+                              direction="forward" if l.forward else "backward",
+                              group=f"{l.road}/{l.section}/{'+' if l.forward else '-'}",
+                              number=number[l.id], data=l))
+    by_id = {l.id: l for l in lanes}
+    return _Built(data, net, lanes, by_id, MapLaneIndex(lanes, by_id))
+
+
+class MapRoad:
+    """The lanes of a map file as the world's road (``world.map(path)``)."""
+
+    kind = "map"
+
+    def __init__(self, world: Any, path: Any, *, base: Any = None,
+                 speed_limit: float = DEFAULT_SPEED_LIMIT, evaluator: str = "numpy") -> None:
+        self.world = world
+        try:
+            self.data = load(path, base=base, evaluator=evaluator)
+        except MapError as exc:
+            raise MapError(str(exc), test=world.name) from None
+        built = _build(self.data, float(speed_limit))
+        self._built = built
+        self.net = built.net
+        self.all_lanes: list[RoadLane] = built.lanes
+        self.crosswalks: list = []
+        self.stop_lines: list = []
+        self.path = self.data.path
+
+    def make_index(self) -> MapLaneIndex:
+        return self._built.index.fresh()
+
+    # -- places ------------------------------------------------------------------------------------
+    def lane(self, lane_id: str) -> RoadLane:
+        """The lane ``"road/section/lane"`` (a drivable one)."""
+        got = self._built.by_id.get(str(lane_id))
+        if got is None:
+            other = self.data.lanes.get(str(lane_id))
+            why = (f"it is a {other.kind} lane, not a drivable one" if other is not None
+                   else f"the map has {len(self._built.by_id)} drivable lanes, e.g. "
+                   f"{', '.join(list(self._built.by_id)[:3])}")
+            raise SimError(f"{self.path}: no lane {lane_id!r} to drive on ({why})",
+                           test=self.world.name)
+        return got
+
+    def lanes(self, kind: Any = "driving", min_length: float = 0.0) -> list[RoadLane]:
+        """The drivable lanes of ``kind`` (None: all) at least ``min_length`` [m] long."""
+        kinds = None if kind is None else ({kind} if isinstance(kind, str) else set(kind))
+        return [l for l in self.all_lanes
+                if (kinds is None or l.kind in kinds) and l.length >= min_length]
+
+    def closest(self, x: float, y: float) -> Spot:
+        """The spot on the drivable lane nearest (x, y) [m] (a shapely STRtree query)."""
+        lane = self._built.by_id[self.data.closest(x, y).id]
+        s, r = lane.local((x, y))
+        return Spot(lane, min(max(s, 0.0), lane.length), r)
+
+    def ahead(self, spot: Spot, d: float, route: Route | None = None) -> Spot:
+        """The spot ``d`` [m] further along ``route`` (default: straight on from the spot)."""
+        lanes = list(route.lanes) if route is not None else list(
+            self.default_route(spot.lane).lanes)
+        k = lanes.index(spot.lane) if spot.lane in lanes else 0
+        s = spot.s + float(d)
+        while s > lanes[k].length and k + 1 < len(lanes):
+            s -= lanes[k].length
+            k += 1
+        if s > lanes[k].length:
+            raise SimError(f"{self.path}: {d:g} m ahead of {spot.lane.id!r} at s={spot.s:g} m "
+                           f"runs past the end of {lanes[k].id!r}, which has no successor",
+                           test=self.world.name)
+        return Spot(lanes[k], s, spot.r)
+
+    # -- routes ------------------------------------------------------------------------------------
+    def successors(self, lane: RoadLane) -> list[RoadLane]:
+        """The lanes traffic on ``lane`` may drive on into (several at a junction)."""
+        return list(self.world.lane_index.successors[lane.index])
+
+    def default_route(self, lane: Lane) -> Route:
+        """Straight on from ``lane`` (the least turning way through each junction), up to
+        64 lanes."""
+        return Route(tuple(self.world.lane_index.continue_route(lane, limit=64)))
+
+    def route(self, *via: Any) -> Route:
+        """The shortest way (by length) from the first lane through each of ``via`` in turn
+        (lanes or their ids), across lane sections and junctions."""
+        if len(via) < 2:
+            raise SimError("map.route(from_lane, to_lane): give at least two lanes",
+                           test=self.world.name)
+        stops = [self.lane(v) if isinstance(v, str) else v for v in via]
+        out: list[RoadLane] = [stops[0]]
+        for a, b in zip(stops, stops[1:]):
+            out.extend(self._way(a, b)[1:])
+        return Route(tuple(out))
+
+    def _way(self, a: RoadLane, b: RoadLane) -> list[RoadLane]:
+        succ = self.world.lane_index.successors
+        if a is b:
+            return [a]
+        if not succ.get(a.index):
+            raise SimError(f"{self.path}: no way from {a.id!r} to {b.id!r}: {a.id!r} has no "
+                           "successor (the map ends there)", test=self.world.name)
+        dist = {a.index: 0.0}
+        prev: dict[tuple, RoadLane] = {}
+        heap = [(0.0, a.id, a)]
+        while heap:
+            d, _, lane = heapq.heappop(heap)
+            if lane is b:
+                break
+            if d > dist.get(lane.index, math.inf):
+                continue
+            for nxt in succ.get(lane.index, ()):
+                nd = d + lane.length
+                if nd < dist.get(nxt.index, math.inf):
+                    dist[nxt.index] = nd
+                    prev[nxt.index] = lane
+                    heapq.heappush(heap, (nd, nxt.id, nxt))
+        if b.index not in prev:
+            raise SimError(f"{self.path}: no way from {a.id!r} to {b.id!r} along the lanes' "
+                           "successors (they are not connected in the driving direction)",
+                           test=self.world.name)
+        way = [b]
+        while way[-1] is not a:
+            way.append(prev[way[-1].index])
+        return way[::-1]
+
+    def junction_of(self, lane: Lane) -> str:
+        """The id of the junction ``lane`` lies in, "" when none."""
+        return getattr(lane, "data", None).junction if hasattr(lane, "data") else ""
+
+    def __repr__(self) -> str:
+        return f"MapRoad({self.path!r}, {len(self.all_lanes)} drivable lanes)"

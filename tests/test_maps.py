@@ -1,0 +1,187 @@
+"""OpenDRIVE maps: every shared map loads, lane geometry matches the file's closed forms and a
+second evaluator, links carry routes through junctions, bad files get clear errors, and
+highway-env's IDM drives on the map's lanes."""
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pytest_avscenario.sim import World
+from pytest_avscenario.sim import opendrive as od
+from pytest_avscenario.sim.opendrive import MapError
+
+DATA = Path(__file__).parent / "data" / "maps"
+SHARED = Path(__file__).parents[1].parent / "shared" / "maps"
+SHARED_MAPS = sorted(SHARED.glob("*.xodr")) if SHARED.is_dir() else []
+needs_shared = pytest.mark.skipif(not SHARED_MAPS, reason=f"no shared maps at {SHARED}")
+
+
+@needs_shared
+@pytest.mark.parametrize("path", SHARED_MAPS, ids=[p.stem for p in SHARED_MAPS])
+def test_every_shared_map_loads_with_continuous_geometry(path):
+    data = od.load(path)
+    assert data.of_kind("driving"), "every shared map has driving lanes"
+    for lane in data.lanes.values():
+        assert np.isfinite(lane.xy).all() and (lane.width >= 0).all(), lane.id
+        assert len(lane.xy) >= 2 and lane.length > 0
+    # Each geometry's start agrees with where the previous geometry of its road ends, and
+    # the reference line passes through every start the file gives.
+    for road, s, x, y in data.geometry_starts:
+        ref = data.reference[road]
+        for at in (s, max(s - 1e-9, 0.0)):
+            X, Y, _ = ref(np.array([at]))
+            assert math.hypot(X[0] - x, Y[0] - y) < 0.05, (road, s)
+
+
+@needs_shared
+@pytest.mark.parametrize("path", [p for p in SHARED_MAPS if p.stem != "Town06"],
+                         ids=[p.stem for p in SHARED_MAPS if p.stem != "Town06"])
+def test_lane_centre_lines_agree_with_pyxodr(path):
+    pytest.importorskip("pyxodr")
+    ours, theirs = od.load(path), od.load(path, evaluator="pyxodr")
+    assert ours.lanes.keys() == theirs.lanes.keys()
+    for k, lane in ours.lanes.items():
+        assert np.abs(lane.xy - theirs.lanes[k].xy).max() < 0.05, k
+
+
+def test_pyxodr_writes_nothing_into_the_working_directory(tmp_path, monkeypatch):
+    pytest.importorskip("pyxodr")
+    # a 0.3-m arc turning 0.6 rad: pyxodr's arc check fails there at 0.1 m resolution (and
+    # writes arc_error.pdf); the loader evaluates such roads finer
+    xodr = (DATA / "straight_500m.xodr").read_text().replace(
+        '<line/>', '<arc curvature="2.0"/>', 1)
+    src = tmp_path / "tight.xodr"
+    src.write_text(xodr)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    data = od.load(src, evaluator="pyxodr")
+    assert data.lanes and list(work.iterdir()) == []
+
+
+def test_widths_and_offsets_match_the_closed_forms():
+    """lane_width_and_offset.xodr: reference line from (10, -10) at heading 1 rad, laneOffset
+    = s, lane -1 of width s: its centre lies s/2 left of the reference, its right edge on it."""
+    data = od.load(DATA / "lane_width_and_offset.xodr")
+    lane = data.lanes["4/0/-1"]
+    d = np.array([math.cos(1.0), math.sin(1.0)])
+    n = np.array([-d[1], d[0]])
+    rel = lane.xy - np.array([10.0, -10.0])
+    s_ref = rel @ d
+    assert np.abs(rel @ n - s_ref / 2).max() < 0.02
+    assert np.abs(lane.width - s_ref).max() < 0.02
+    left, right = lane.edges()
+    assert np.abs((left - [10.0, -10.0]) @ n - s_ref).max() < 0.02
+    assert np.abs((right - [10.0, -10.0]) @ n).max() < 0.02
+    # the highway-env lane gives the same width and centre at any s between samples
+    w = World(0, name="t")
+    road = w.map(DATA / "lane_width_and_offset.xodr")
+    g = road.lane("4/0/-1").geometry
+    for s in np.linspace(0.3, g.length - 0.3, 7):
+        p = g.position(s, 0.0) - [10.0, -10.0]
+        assert abs(p @ n - (p @ d) / 2) < 0.02
+        assert abs(g.width_at(s) - p @ d) < 0.02
+        s2, r2 = g.local_coordinates(g.position(s, 0.4))
+        assert abs(s2 - s) < 0.02 and abs(r2 - 0.4) < 0.02
+
+
+def test_direction_of_travel_and_left_hand_traffic(tmp_path):
+    rht = od.load(DATA / "straight_500m.xodr")
+    fwd = [l for l in rht.of_kind("driving") if l.forward]
+    back = [l for l in rht.of_kind("driving") if not l.forward]
+    assert [l.lane < 0 for l in fwd] == [True] and [l.lane > 0 for l in back] == [True]
+    text = (DATA / "straight_500m.xodr").read_text().replace("<road ", '<road rule="LHT" ')
+    (tmp_path / "lht.xodr").write_text(text)
+    lht = od.load(tmp_path / "lht.xodr")
+    for lane in lht.of_kind("driving"):
+        assert lane.forward == (lane.lane > 0), lane.id
+        twin = rht.lanes[lane.id]
+        # same asphalt, driven the other way
+        assert np.allclose(lane.xy, twin.xy[::-1]) and not lane.forward == twin.forward
+    # a car on the LHT map drives along its lane's heading
+    w = World(1, name="t")
+    road = w.map(tmp_path / "lht.xodr")
+    lane = next(l for l in road.lanes() if l.data.lane > 0)
+    w.ego(lane, s=5, speed=10, driver="idm")
+    tr = w.run(5)
+    assert tr.on_road[0].all() and set(tr.lane[0]) == {lane.id}
+    assert abs(tr.lane_offset[0]).max() < 0.3
+
+
+def test_routes_run_through_the_junction_and_links_are_continuous():
+    w = World(0, name="t")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    junction_lanes = [l for l in town.lanes() if l.junction]
+    assert junction_lanes
+    for lane in town.all_lanes:
+        for nxt in town.successors(lane):
+            gap = np.hypot(*(lane.end.position - nxt.start.position))
+            assert gap < 1.0, (lane.id, nxt.id)
+    # every lane into the junction can reach three other arms
+    entering = {p for l in junction_lanes for p in l.data.predecessors}
+    assert entering
+    lane = town.lane(sorted(entering)[0])
+    exits = {s for j in town.successors(lane) for s in town.successors(j)}
+    assert len(exits) >= 2
+    target = sorted(exits, key=lambda l: l.id)[-1]
+    route = town.route(lane, target)
+    assert route.lanes[0] is lane and route.lanes[-1] is target
+    assert any(l.junction for l in route.lanes)
+    with pytest.raises(Exception, match="no way from"):
+        town.route(target, lane)
+
+
+def test_closest_lane_matches_a_brute_force_search():
+    w = World(0, name="t")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    rng = np.random.default_rng(3)
+    pts = np.concatenate([l.data.xy for l in town.all_lanes])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    for x, y in rng.uniform(lo, hi, size=(40, 2)):
+        spot = town.closest(x, y)
+        best = min(np.hypot(*(l.data.xy - [x, y]).T).min() for l in town.all_lanes)
+        mine = np.hypot(*(spot.lane.data.xy - [x, y]).T).min()
+        assert mine <= best + 0.6  # samples are 0.5 m apart: the line lies between them
+
+
+def test_idm_follows_a_route_through_the_junction():
+    w = World(4, name="t")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    entering = sorted({p for l in town.lanes() if l.junction for p in l.data.predecessors})
+    lane = town.lane(entering[0])
+    turns = town.successors(lane)
+    turn = max(turns, key=lambda j: (abs(j.data.heading[-1] - j.data.heading[0]), j.id))
+    route = town.route(lane, town.successors(turn)[0])
+    w.ego(lane, s=max(lane.length - 30, 0), speed=6, driver="idm", route=route)
+    left = 30 + sum(l.length for l in route.lanes[1:])  # [m] to the end of the map's lane
+    tr = w.run((left - 5) / 6)
+    lanes_driven = [l for l in dict.fromkeys(tr.lane[0]) if l]
+    assert turn.id in lanes_driven and lanes_driven[-1] == route.lanes[-1].id
+    assert tr.on_road[0].all() and not tr.crashed[0].any()
+    # highway-env's IDM steers without curvature feed-forward: it cuts a tight turn by ~1 m
+    assert abs(tr.lane_offset[0][np.isfinite(tr.lane_offset[0])]).max() < 1.5
+
+
+@pytest.mark.parametrize("text, match", [
+    (None, "not found"),
+    ("this is not xml <", "is not XML"),
+    ("<OpenDRIVE><road id='1' length='10'><planView><geometry s='0' x='0' y='0' hdg='0' "
+     "length='10'><clothoid/></geometry></planView></road></OpenDRIVE>",
+     r"road 1 geometry at s=0 is <clothoid>"),
+    ("<OpenDRIVE><road id='7' length='10'><planView><geometry s='0' x='0' y='0' hdg='0' "
+     "length='10'><line/></geometry></planView><lanes><laneSection s='0'><right>"
+     "<lane id='-1' type='sidewalk'><width sOffset='0' a='2' b='0' c='0' d='0'/></lane>"
+     "</right></laneSection></lanes></road></OpenDRIVE>", "no driving lane"),
+])
+def test_bad_maps_get_an_error_naming_the_file_and_element(tmp_path, text, match):
+    path = tmp_path / "bad.xodr"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(MapError, match=match) as info:
+        od.load(path)
+    assert "bad.xodr" in str(info.value)
+    with pytest.raises(MapError, match=match):
+        World(0, name="test_x").map(path)
