@@ -1,0 +1,118 @@
+"""Scenarios over a map: MapLane is a categorical parameter over a map's lanes, read at
+collection; cases place agents by lane id and drive them on the map; a bad map is a
+collection error naming the test and the parameter; a Town06 campaign has stable case ids
+under xdist."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from pytest_avscenario.space import Choice, FeatureSpace
+from pytest_avscenario.sim import opendrive as od
+
+DATA = Path(__file__).parent / "data" / "maps"
+TOWN06 = Path(__file__).parents[1] / "example_tests" / "maps" / "Town06.xodr"
+
+FOLLOW = """
+from pytest_avscenario import MapLane, Uniform, scenario
+from pytest_avscenario.monitors import collision, distance
+
+@scenario(lane=MapLane("maps/{map}", kind="driving", min_length={min_length}),
+          gap=Uniform(8.0, 30.0, unit="m"), samples={samples}, sampler="halton",
+          monitors=[distance({threshold}), collision()])
+def test_follow(case, world):
+    town = world.map("maps/{map}")
+    start = town.lane(case.lane).at(5.0)
+    world.ego(start, speed=10.0, driver="idm")
+    world.car(town.ahead(start, case.gap), speed=4.0)
+    world.run(seconds={seconds})
+"""
+
+
+def _rows(pytester):
+    rows = [json.loads(l) for l in
+            (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()]
+    return {r["item"]: (r["params"], r["seed"], r["rho"], r["verdict"]) for r in rows}
+
+
+def _with_map(pytester, source: Path) -> None:
+    (pytester.path / "maps").mkdir(exist_ok=True)
+    shutil.copy(source, pytester.path / "maps" / source.name)
+
+
+def test_maplane_is_a_categorical_choice_over_the_map_lanes():
+    lanes = od.MapLane(DATA / "fabriksgatan.xodr", kind="driving", min_length=10)
+    space = FeatureSpace({"lane": lanes})
+    assert space.dims[0].kind == "categorical"
+    data = od.load(DATA / "fabriksgatan.xodr")
+    expected = [l.id for l in data.of_kind("driving", 10) if not l.junction]
+    assert list(lanes.options) == expected and len(expected) >= 4
+    # stored as a plain Choice: a replay needs no map file
+    again = FeatureSpace.from_description(json.loads(json.dumps(space.describe())))
+    assert isinstance(again.parameters["lane"], Choice)
+    assert again.parameters["lane"].options == lanes.options
+    space.check_description()
+    assert {space.from_unit([u])["lane"] for u in (0.01, 0.5, 0.99)} <= set(expected)
+    with_junctions = od.MapLane(DATA / "fabriksgatan.xodr", kind="driving", junctions=True)
+    assert set(with_junctions.options) > set(expected)
+
+
+def test_a_campaign_over_map_lanes_runs_and_places_the_ego_on_the_drawn_lane(pytester):
+    _with_map(pytester, DATA / "fabriksgatan.xodr")
+    pytester.makepyfile(test_m=FOLLOW.format(map="fabriksgatan.xodr", min_length=40,
+                                             samples=6, threshold=8.0, seconds=3))
+    res = pytester.runpytest("--avs-db=none", "--avs-seed=3", "--avs-shrink-budget=0",
+                             "-p", "no:randomly", "-p", "no:cacheprovider")
+    rows = _rows(pytester)
+    assert len(rows) == 6, res.stdout.str()[-3000:]
+    lanes = {p["lane"] for p, *_ in rows.values()}
+    assert len(lanes) >= 3
+    # the drawn lane is where the ego drove: informative verdicts both ways
+    verdicts = {v for *_, v in rows.values()}
+    assert verdicts == {"pass", "fail"}, rows
+
+
+@pytest.mark.parametrize("decl, match", [
+    ('MapLane("maps/nowhere.xodr")', r"parameter 'lane'.*nowhere\.xodr.*not found"),
+    ('MapLane("maps/fabriksgatan.xodr", kind="tram")', r"parameter 'lane'.*no lane of the map matches"),
+])
+def test_a_bad_map_is_a_collection_error_naming_test_and_parameter(pytester, decl, match):
+    _with_map(pytester, DATA / "fabriksgatan.xodr")
+    pytester.makepyfile(test_bad=f"""
+from pytest_avscenario import MapLane, scenario
+
+@scenario(lane={decl}, samples=2)
+def test_on_map(case, world):
+    pass
+""")
+    res = pytester.runpytest("--avs-db=none", "-p", "no:cacheprovider", "--collect-only")
+    out = res.stdout.str()
+    assert res.ret != 0
+    assert "test_on_map" in out or "test_bad.py" in out
+    import re
+
+    assert re.search(match, out), out[-3000:]
+
+
+@pytest.mark.slow
+def test_town06_lane_campaign_has_stable_case_ids_under_xdist(pytester):
+    """Every Town06 driving lane of 100 m or more is a possible ego lane; serial and -n 2
+    runs give every case id the same lane, seed and robustness."""
+    pytest.importorskip("xdist")
+    _with_map(pytester, TOWN06)
+    pytester.makepyfile(test_town=FOLLOW.format(map="Town06.xodr", min_length=100,
+                                                samples=8, threshold=10.0, seconds=2))
+    base = ["--avs-db=none", "--avs-seed=11", "--avs-shrink-budget=0", "-p", "no:randomly",
+            "-p", "no:cacheprovider"]
+    pytester.runpytest_subprocess(*base)
+    serial = _rows(pytester)
+    assert len(serial) == 8
+    shutil.rmtree(pytester.path / "avs-report")
+    res = pytester.runpytest_subprocess(*base, "-n", "2")
+    parallel = _rows(pytester)
+    assert parallel == serial, res.stdout.str()[-2000:]
+    all_lanes = od.MapLane(TOWN06, kind="driving", min_length=100).options
+    assert {p["lane"] for p, *_ in serial.values()} <= set(all_lanes)
+    assert len({p["lane"] for p, *_ in serial.values()}) >= 6
