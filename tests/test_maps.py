@@ -185,3 +185,22 @@ def test_bad_maps_get_an_error_naming_the_file_and_element(tmp_path, text, match
     assert "bad.xodr" in str(info.value)
     with pytest.raises(MapError, match=match):
         World(0, name="test_x").map(path)
+
+
+def test_lane_coordinates_are_the_nearest_foot_whatever_was_asked_before():
+    """local_coordinates searches blocks of segments nearest first; its answer equals a scan
+    of every segment, and does not depend on the questions asked before it."""
+    w = World(0, name="t")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    rng = np.random.default_rng(5)
+    for lane in town.all_lanes[:12]:
+        g = lane.geometry
+        pts = [g.position(s, r) for s, r in zip(rng.uniform(-3, g.length + 3, 15),
+                                                 rng.uniform(-4, 4, 15))]
+        first = [g.local_coordinates(p) for p in pts]
+        again = [g.local_coordinates(p) for p in pts[::-1]][::-1]
+        assert first == again
+        for p, (s, r) in zip(pts, first):
+            d2, s_all, r_all = g._foot(float(p[0]), float(p[1]), 0, g._nseg)
+            if d2 < 1e9:
+                assert (s, r) == pytest.approx((s_all, r_all), abs=1e-9), lane.id

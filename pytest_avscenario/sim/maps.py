@@ -37,6 +37,7 @@ from .places import Lane, Route, Spot
 __all__ = ["MapRoad", "MapLaneShape", "RoadLane", "MapLaneIndex", "DEFAULT_SPEED_LIMIT"]
 
 DEFAULT_SPEED_LIMIT = 13.9  # [m/s] (50 km/h) for lanes whose file gives no limit
+_BLOCK = 10  # segments per block of MapLaneShape's nearest-foot search
 
 
 def _abstract_lane() -> type:
@@ -84,6 +85,27 @@ def _shape_class() -> type:
                 self._dc = np.diff(self._xy, axis=0)
                 self._along = np.einsum("ij,ij->i", self._dc, self._tau)
                 self._along[np.abs(self._along) < 1e-12] = 1e-12
+                # scalar look-ups go through lists: indexing numpy arrays per call costs more
+                # than the arithmetic
+                self._xl, self._yl = self._xy[:, 0].tolist(), self._xy[:, 1].tolist()
+                self._hl, self._wl, self._rhl = self._h.tolist(), self._w.tolist(), rh.tolist()
+                self._txl, self._tyl = self._tau[:, 0].tolist(), self._tau[:, 1].tolist()
+                self._dcx, self._dcy = self._dc[:, 0].tolist(), self._dc[:, 1].tolist()
+                self._alongl = self._along.tolist()
+                self._nseg = len(self._dc)
+                # blocks of segments with a bounding circle each: local_coordinates scans the
+                # blocks nearest first and stops when no further block can hold a nearer foot
+                nseg = len(self._dc)
+                self._blocks = [(i, min(i + _BLOCK, nseg)) for i in range(0, nseg, _BLOCK)]
+                centres, radii = [], []
+                for i, j in self._blocks:
+                    pts = self._xy[i:j + 1]
+                    c = (pts.min(axis=0) + pts.max(axis=0)) / 2
+                    centres.append(c)
+                    radii.append(float(np.hypot(*(pts - c).T).max()))
+                self._bc = np.asarray(centres)
+                self._bcz = self._bc[:, 0] + 1j * self._bc[:, 1]
+                self._br = np.asarray(radii)
                 self.length = float(self._s[-1])
                 self.width = float(np.median(self._w))
                 self.line_types = (LineType.STRIPED, LineType.STRIPED)
@@ -91,6 +113,18 @@ def _shape_class() -> type:
                 self.forbidden = False
                 self.priority = 0
                 self.radius = math.inf  # per-point curvature lives in the samples
+                # A lane that is one straight line of one width (half of Town06's driving
+                # lanes) answers local_coordinates in closed form.
+                chord = self._xy[-1] - self._xy[0]
+                clen = float(np.hypot(*chord))
+                self._line = None
+                if clen > 0 and np.ptp(self._w) < 1e-9 and np.ptp(rh) < 1e-9:
+                    ux, uy = chord / clen
+                    off = (self._xy[:, 0] - self._xy[0, 0]) * -uy + (self._xy[:, 1] - self._xy[0, 1]) * ux
+                    if float(np.abs(off).max()) < 1e-6 and abs(math.atan2(uy, ux) - rh[0]) % (2 * math.pi) < 1e-6:
+                        self._line = (float(self._xy[0, 0]), float(self._xy[0, 1]), float(ux), float(uy),
+                                      clen / self.length)
+                self._memo: tuple | None = None
 
             def _at(self, s: float) -> tuple[int, float]:
                 k = bisect.bisect_right(self._sl, s) - 1
@@ -99,45 +133,88 @@ def _shape_class() -> type:
 
             def position(self, longitudinal: float, lateral: float) -> np.ndarray:
                 k, f = self._at(float(longitudinal))
-                p0, p1 = self._xy[k], self._xy[k + 1]
+                xl, yl, rh = self._xl, self._yl, self._rhl
                 g = min(max(f, 0.0), 1.0)
-                h = self._rh[k] + g * (self._rh[k + 1] - self._rh[k])
-                x = p0[0] + f * (p1[0] - p0[0]) - lateral * math.sin(h)
-                y = p0[1] + f * (p1[1] - p0[1]) + lateral * math.cos(h)
-                return np.array([x, y])
+                h = rh[k] + g * (rh[k + 1] - rh[k])
+                return np.array([xl[k] + f * (xl[k + 1] - xl[k]) - lateral * math.sin(h),
+                                 yl[k] + f * (yl[k + 1] - yl[k]) + lateral * math.cos(h)])
 
             def heading_at(self, longitudinal: float) -> float:
                 k, f = self._at(float(longitudinal))
                 f = min(max(f, 0.0), 1.0)
-                return float(self._h[k] + f * (self._h[k + 1] - self._h[k]))
+                return self._hl[k] + f * (self._hl[k + 1] - self._hl[k])
 
             def width_at(self, longitudinal: float) -> float:
                 k, f = self._at(float(longitudinal))
                 f = min(max(f, 0.0), 1.0)
-                return float(self._w[k] + f * (self._w[k + 1] - self._w[k]))
+                return self._wl[k] + f * (self._wl[k + 1] - self._wl[k])
+
+            def centre_points(self, ss: Any) -> np.ndarray:
+                """Centre-line points (N, 2) [m] at arc lengths ``ss`` [m] (vectorized)."""
+                ss = np.asarray(ss, dtype=float)
+                return np.stack([np.interp(ss, self._s, self._xy[:, 0]),
+                                 np.interp(ss, self._s, self._xy[:, 1])], axis=1)
 
             def local_coordinates(self, position: Any) -> tuple[float, float]:
-                # On each segment, the point of the centre line from which ``position`` lies
-                # square to the reference line: f = (p - c_k).tau / (dc.tau); of the segments
-                # that hold it (0 <= f <= 1), the nearest. The whole line every time: a search
-                # near the last answer would make the answer depend on earlier queries.
+                # a pure function of the position: the last answer serves a repeated question
+                # (tracking, route progress and the driver ask about the same point)
                 px, py = float(position[0]), float(position[1])
-                xy, tau = self._xy, self._tau
-                ex, ey = px - xy[:-1, 0], py - xy[:-1, 1]
-                f = (ex * tau[:, 0] + ey * tau[:, 1]) / self._along
-                n = len(f)
-                fc = np.clip(f, 0.0, 1.0)
-                fc[0] = min(f[0], 1.0)  # before the start: along the first segment
-                fc[-1] = max(f[-1], 0.0) if n > 1 else f[-1]  # past the end: the last
-                dx = ex - fc * self._dc[:, 0]
-                dy = ey - fc * self._dc[:, 1]
-                d2 = dx * dx + dy * dy
-                # a segment that holds the foot (unclipped) beats one whose end is merely near
-                d2[fc != f] += 1e9
-                k = int(np.argmin(d2))
-                r = tau[k, 0] * dy[k] - tau[k, 1] * dx[k]
-                s = self._sl[k] + fc[k] * (self._sl[k + 1] - self._sl[k])
-                return float(s), float(r)
+                memo = self._memo
+                if memo is not None and memo[0] == px and memo[1] == py:
+                    return memo[2], memo[3]
+                line = self._line
+                if line is not None:
+                    ex, ey = px - line[0], py - line[1]
+                    return (ex * line[2] + ey * line[3]) / line[4], ey * line[2] - ex * line[3]
+                s, r = self._local(px, py)
+                self._memo = (px, py, s, r)
+                return s, r
+
+            def _local(self, px: float, py: float) -> tuple[float, float]:
+                # On each segment, the point of the centre line from which the position lies
+                # square to the reference line: f = (p - c_k).tau / (dc.tau); of the segments
+                # that hold it (0 <= f <= 1), the nearest. The block whose bounding circle is
+                # nearest is searched first, then only blocks that could hold a nearer foot:
+                # the same answer as a scan of every segment, whatever was asked before.
+                lower = np.abs(self._bcz - complex(px, py)) - self._br
+                b0 = int(lower.argmin())
+                best = self._foot(px, py, *self._blocks[b0]) + (b0,)
+                if best[0] >= 1e9:  # no segment holds the foot there: look everywhere
+                    cands = range(len(self._blocks))
+                else:
+                    cands = (lower <= math.sqrt(best[0])).nonzero()[0].tolist()
+                for b in cands:
+                    if b != b0:
+                        got = self._foot(px, py, *self._blocks[b]) + (b,)
+                        if (got[0], got[3]) < (best[0], best[3]):
+                            best = got
+                return best[1], best[2]
+
+            def _foot(self, px: float, py: float, i: int, j: int) -> tuple[float, float, float]:
+                """(squared distance, s, r) of the foot on segments i..j-1, 1e9 added to the
+                distance when no segment holds it unclipped (then the nearest clipped end)."""
+                xl, yl, tx, ty = self._xl, self._yl, self._txl, self._tyl
+                dcx, dcy, along = self._dcx, self._dcy, self._alongl
+                last = self._nseg - 1
+                best_d2, best_k, best_f, best_dx, best_dy = math.inf, i, 0.0, 0.0, 0.0
+                for k in range(i, j):
+                    ex, ey = px - xl[k], py - yl[k]
+                    f = (ex * tx[k] + ey * ty[k]) / along[k]
+                    if f < 0.0:
+                        fc = f if k == 0 else 0.0  # before the start: the first segment's line
+                    elif f > 1.0:
+                        fc = f if k == last else 1.0  # past the end: the last segment's line
+                    else:
+                        fc = f
+                    dx, dy = ex - fc * dcx[k], ey - fc * dcy[k]
+                    d2 = dx * dx + dy * dy
+                    if fc != f:
+                        d2 += 1e9  # a segment holding the foot beats one whose end is near
+                    if d2 < best_d2:
+                        best_d2, best_k, best_f, best_dx, best_dy = d2, k, fc, dx, dy
+                r = tx[best_k] * best_dy - ty[best_k] * best_dx
+                sl = self._sl
+                return best_d2, sl[best_k] + best_f * (sl[best_k + 1] - sl[best_k]), r
 
             def to_config(self) -> dict:
                 return {"class_path": "pytest_avscenario.sim.maps.MapLaneShape",

@@ -107,7 +107,10 @@ class RoutePath:
             offsets.append(acc - s_from)
             n = 1 if _is_straight(lane) else max(2, int(math.ceil((s_to - s_from) / _ARC_SAMPLE_M)))
             ss = np.linspace(s_from, s_to, n + 1)
-            xy = np.array([lane.position(float(s), 0.0) for s in ss], dtype=float)
+            if hasattr(lane, "centre_points"):  # a map lane samples its centre line at once
+                xy = np.asarray(lane.centre_points(ss), dtype=float)
+            else:
+                xy = np.array([lane.position(float(s), 0.0) for s in ss], dtype=float)
             # Consecutive lanes share their junction point; drop the duplicate knot so the
             # interpolation below sees strictly increasing arc length.
             if knots_s:
