@@ -35,12 +35,12 @@ TOWN06 = ROOT / "example_tests" / "maps" / "Town06.xodr"
 
 LOAD = """
 import json, sys, time
+from pytest_avscenario.sim import opendrive
 t0, c0 = time.perf_counter(), time.process_time()
 ev = sys.argv[2]
 if ev == "pyxodr":
     import pyxodr.road_objects.road  # noqa: F401  (its import: matplotlib, scipy, rich)
 t1, c1 = time.perf_counter(), time.process_time()
-from pytest_avscenario.sim import opendrive
 data = opendrive.load(sys.argv[1], evaluator=ev)
 t2, c2 = time.perf_counter(), time.process_time()
 print(json.dumps({"import_wall": t1 - t0, "import_cpu": c1 - c0, "wall": t2 - t1,

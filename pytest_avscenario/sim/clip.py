@@ -145,7 +145,13 @@ def _road(world: Any) -> dict[str, Any]:
     lines and lane ends ``[x0, y0, x1, y1]`` in metres."""
     road = world.road
     lanes = []
-    for lane in world.lane_index.order:
+    order = world.lane_index.order
+    if road.kind == "map":  # a map has hundreds of lanes: only those near the agents' paths
+        from .map_render import lanes_near
+
+        tr = world.trajectory
+        order = lanes_near(road, np.column_stack([tr.x.ravel(), tr.y.ravel()])[::5], 40.0)
+    for lane in order:
         types = [int(getattr(t, "value", t)) for t in getattr(lane.geometry, "line_types", (0, 0))]
         lanes.append([round(lane.width, 2), int(lane.kind == "parking"), *types[:2], *_dm(_lane_points(lane))])
     boxes = ([road] if road.kind == "intersection" else
@@ -192,7 +198,7 @@ def view_spec(world: Any) -> tuple[tuple[int, int], float, float | None, float |
     if road.kind == "network":
         return (640, 640), 640 / 110.0, None, None, 0.0, False
     size, scale = (800, 320), 6.0
-    if road.kind == "highway":
+    if road.kind in ("highway", "map"):
         return size, scale, None, None, size[0] / scale / 6, True
     return size, scale, None, float(box[:, 1].min() + box[:, 3].max()) / 2, size[0] / scale / 6, False
 

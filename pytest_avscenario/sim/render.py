@@ -132,6 +132,11 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None,
         cx, cy, h = inter.centre.x, inter.centre.y, inter.half
         pygame.draw.polygon(surface, ASPHALT, [surface.vec2pix(p) for p in (
             (cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h))])
+    if road.kind == "map":  # the lanes in view, in their real shape (sidewalks too)
+        from .map_render import draw
+
+        draw(road, surface, pygame)
+        lanes = []
     for lane in lanes:
         w = lane.width
         colour = PARKING if lane.kind == "parking" else ASPHALT
