@@ -30,6 +30,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 FRAME_VIEWS = {
     "test_03_parallel_parking": "122,-2,50",
     "test_06_pedestrian_crossing": "112,0,60",
+    "test_maps_fabriksgatan_left_turn": "22,-6,70",
 }
 
 
@@ -102,8 +103,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.frames:
         for name in sorted(f[:-3] for f in os.listdir(HERE)
-                           if f.startswith("test_") and (f[5:7].isdigit()
-                                                         or f.startswith("test_r157_"))):
+                           if f.startswith("test_") and f.endswith(".py")
+                           and (f[5:7].isdigit() or f.startswith(("test_r157_", "test_maps_")))):
             out = os.path.join(HERE, "frames", name.removeprefix("test_") + ".png")
             extra = ["--view", FRAME_VIEWS[name]] if name in FRAME_VIEWS else []
             main([name, "--png", out, "--quiet", "--driver", args.driver, *extra])

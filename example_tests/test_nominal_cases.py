@@ -20,7 +20,8 @@ MODULES = [
     "test_07_oncoming_left_turn", "test_08_unprotected_left_lateral_car",
     "test_09_right_turn_lateral_car", "test_10_unprotected_left_pedestrian",
     "test_11_composed_route", "test_12_highway_merge", "test_r157_lead_deceleration", "test_r157_cut_in",
-    "test_r157_cut_out",
+    "test_r157_cut_out", "test_maps_town06_following", "test_maps_fabriksgatan_left_turn",
+    "test_maps_highway_merge",
 ]
 EXEMPT = {"test_03_parallel_parking": {"distance", "ttc"}}
 

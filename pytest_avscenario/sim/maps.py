@@ -268,7 +268,7 @@ class MapLaneIndex(LaneIndex):
         self.code = {l.index: i for i, l in enumerate(self.order)}
         self.stop_marks = {}
         self.straight_on = {}
-        self.drops = {}
+        self.drops: dict[tuple, str] = {}
         boxes = []
         for lane in self.order:
             d = lane.data
@@ -303,6 +303,14 @@ class MapLaneIndex(LaneIndex):
             if self.successors[lane.index]:
                 self.straight_on[lane.index] = min(
                     self.successors[lane.index], key=lambda s: (_turn(lane, s), s.id))
+            elif float(lane.data.width[-1]) < 0.5:
+                # a lane that narrows to nothing with a lane beside it (an acceleration
+                # lane, a lane drop): its traffic merges there (behaviours' keep_lane does)
+                numbers = {o.number for o in self._beside[lane.index]}
+                if lane.number - 1 in numbers:
+                    self.drops[lane.index] = "left"
+                elif lane.number + 1 in numbers:
+                    self.drops[lane.index] = "right"
 
     def _parallel(self, i: int) -> list[Lane]:
         return list(self._beside[self.order[i].index])
@@ -312,7 +320,7 @@ class MapLaneIndex(LaneIndex):
         twin = copy.copy(self)
         twin.stop_marks = {}
         twin.straight_on = dict(self.straight_on)
-        twin.drops = {}
+        twin.drops = dict(self.drops)
         return twin
 
 
