@@ -204,3 +204,16 @@ def test_lane_coordinates_are_the_nearest_foot_whatever_was_asked_before():
             d2, s_all, r_all = g._foot(float(p[0]), float(p[1]), 0, g._nseg)
             if d2 < 1e9:
                 assert (s, r) == pytest.approx((s_all, r_all), abs=1e-9), lane.id
+
+
+@pytest.mark.parametrize("driver", ["autopilot", "careful"])
+def test_the_autopilot_and_the_careful_driver_turn_through_the_junction_in_lane(driver):
+    w = World(2, name="t", driver=driver)
+    town = w.map(DATA / "fabriksgatan.xodr")
+    route = town.route("0/0/1", "3/0/1")  # from the south, left into the west arm
+    assert [l.id for l in route.lanes] == ["0/0/1", "10/0/-1", "3/0/1"]
+    w.ego(town.lane("0/0/1").at(40.0), speed=6.0, route=route)
+    tr = w.run(9)
+    assert tr.lane[0, -1] == "3/0/1" and tr.on_road[0].all()
+    assert np.nanmax(np.abs(tr.lane_offset[0])) < 0.6
+    assert w.view().lanes and {l.id for l in w.view().lanes} == {l.id for l in town.all_lanes}

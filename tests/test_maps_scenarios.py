@@ -116,3 +116,37 @@ def test_town06_lane_campaign_has_stable_case_ids_under_xdist(pytester):
     all_lanes = od.MapLane(TOWN06, kind="driving", min_length=100).options
     assert {p["lane"] for p, *_ in serial.values()} <= set(all_lanes)
     assert len({p["lane"] for p, *_ in serial.values()}) >= 6
+
+
+def test_failures_over_map_lanes_shrink_to_a_lane_of_the_map(pytester):
+    """Hypothesis shrinking works over a map-lane parameter: a categorical value either stays
+    as found or goes back to the nominal lane (the first), the continuous one moves toward its
+    nominal value; the minimized case names a failing lane of the map in its @example line."""
+    _with_map(pytester, DATA / "fabriksgatan.xodr")
+    pytester.makepyfile(test_s="""
+from pytest_avscenario import MapLane, Uniform, scenario
+from pytest_avscenario.monitors import distance
+from pytest_avscenario.trajectory import Trajectory
+
+LANES = MapLane("maps/fabriksgatan.xodr", kind="driving")
+
+@scenario(lane=LANES, x=Uniform(0, 1), samples=12, sampler="halton", monitors=[distance(5.0)])
+def test_lanes(case):
+    # fails on every lane but the first two, more so for larger x
+    gap = 10.0 if case.lane in LANES.options[:2] else 4.0 - case.x
+    return Trajectory.from_arrays([0.0, 0.1], {
+        "ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
+        "other": {"x": [gap, gap], "y": [0.0, 0.0]}})
+""")
+    res = pytester.runpytest("--avs-db=none", "--avs-seed=2", "--avs-shrink-budget=30",
+                             "--avs-shrink-max=1", "-p", "no:randomly", "-p", "no:cacheprovider")
+    out = res.stdout.str()
+    import re
+
+    from pytest_avscenario.sim.opendrive import MapLane
+
+    options = MapLane(DATA / "fabriksgatan.xodr", kind="driving").options
+    found = re.findall(r"@example\(lane='([^']+)', x=([0-9.]+)\)", out)
+    assert found, out[-3000:]
+    assert all(lane in options[2:] for lane, _ in found)
+    assert all(float(x) == 0.5 for _, x in found)  # x back at its nominal value
