@@ -108,6 +108,7 @@ def _shape_class() -> type:
                 self._br = np.asarray(radii)
                 self.length = float(self._s[-1])
                 self.width = float(np.median(self._w))
+                self._wconst = float(self._w[0]) if np.ptp(self._w) == 0 else None
                 self.line_types = (LineType.STRIPED, LineType.STRIPED)
                 self.speed_limit = float(speed_limit)
                 self.forbidden = False
@@ -145,6 +146,8 @@ def _shape_class() -> type:
                 return self._hl[k] + f * (self._hl[k + 1] - self._hl[k])
 
             def width_at(self, longitudinal: float) -> float:
+                if self._wconst is not None:
+                    return self._wconst
                 k, f = self._at(float(longitudinal))
                 f = min(max(f, 0.0), 1.0)
                 return self._wl[k] + f * (self._wl[k + 1] - self._wl[k])
