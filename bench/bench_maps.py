@@ -14,7 +14,8 @@ wall time beside it:
    8 m/s): on a Town06 driving lane (the lane drawn per case from all its driving lanes of
    100 m or more, as ``example_tests/test_maps_town06_following.py`` does) against the same
    on ``world.straight_road`` (the anchor), ``--cases`` each, interleaved, after one warm-up
-   of each. The ratio is the result.
+   of each; the built road gets the speed limit of the case's map lane (the autopilot
+   cruises at it). The ratio is the result.
 
     python bench/bench_maps.py --repeats 3 --queries 2000 --cases 20 --pyxodr
 """
@@ -104,18 +105,24 @@ def _case(kind: str, k: int, lanes: list[str]) -> float:
         start = town.lane(lanes[k % len(lanes)]).at(10.0)
         world.ego(start, speed=12.0)
         world.car(town.ahead(start, 25.0), speed=8.0)
-    else:
-        road = world.straight_road(lanes=1, length=400)
+    else:  # the same speed limit as the map lane of this case: the autopilot cruises at it
+        road = world.straight_road(lanes=1, length=400, speed_limit=_LIMITS[lanes[k % len(lanes)]])
         world.ego(road.lane(0), s=10.0, speed=12.0)
         world.car(road.lane(0), s=35.0, speed=8.0)
     world.run(seconds=12)
     return world.trajectory.t[-1]
 
 
+_LIMITS: dict[str, float] = {}
+
+
 def cases(n: int) -> dict:
+    from pytest_avscenario.sim import World
     from pytest_avscenario.sim.opendrive import MapLane
 
     lanes = list(MapLane(TOWN06, kind="driving", min_length=100).options)
+    town = World(0).map(TOWN06)
+    _LIMITS.update({l: town.lane(l).speed_limit for l in lanes})
     _case("map", 0, lanes)
     _case("built", 0, lanes)
     cpu = {"map": [], "built": []}

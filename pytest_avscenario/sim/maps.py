@@ -87,25 +87,43 @@ def _shape_class() -> type:
                 self._along[np.abs(self._along) < 1e-12] = 1e-12
                 # scalar look-ups go through lists: indexing numpy arrays per call costs more
                 # than the arithmetic
-                self._xl, self._yl = self._xy[:, 0].tolist(), self._xy[:, 1].tolist()
                 self._hl, self._wl, self._rhl = self._h.tolist(), self._w.tolist(), rh.tolist()
-                self._txl, self._tyl = self._tau[:, 0].tolist(), self._tau[:, 1].tolist()
-                self._dcx, self._dcy = self._dc[:, 0].tolist(), self._dc[:, 1].tolist()
-                self._alongl = self._along.tolist()
-                self._nseg = len(self._dc)
-                # blocks of segments with a bounding circle each: local_coordinates scans the
-                # blocks nearest first and stops when no further block can hold a nearer foot
-                nseg = len(self._dc)
+                # The nearest-foot search runs on the centre line with runs of collinear
+                # segments of one reference direction merged (exact: the lane's s is linear
+                # along them), in blocks with a bounding circle each: local_coordinates scans
+                # the blocks nearest first and stops when no further block can hold a nearer
+                # foot.
+                tau, dc = self._tau, self._dc
+                u = dc / np.maximum(np.hypot(dc[:, 0], dc[:, 1]), 1e-12)[:, None]
+                same = ((np.abs(tau[1:] - tau[:-1]).max(axis=1) < 1e-12)
+                        & (np.abs(u[1:, 0] * u[:-1, 1] - u[1:, 1] * u[:-1, 0]) < 1e-9)
+                        & ((u[1:] * u[:-1]).sum(axis=1) > 0))
+                keep = np.concatenate([[0], np.flatnonzero(~same) + 1, [len(self._xy) - 1]])
+                kx, ky = self._xy[keep, 0], self._xy[keep, 1]
+                st = tau[keep[:-1]]
+                sdc = np.stack([np.diff(kx), np.diff(ky)], axis=1)
+                salong = np.einsum("ij,ij->i", sdc, st)
+                salong[np.abs(salong) < 1e-12] = 1e-12
+                self._xl, self._yl = kx.tolist(), ky.tolist()
+                self._txl, self._tyl = st[:, 0].tolist(), st[:, 1].tolist()
+                self._dcx, self._dcy = sdc[:, 0].tolist(), sdc[:, 1].tolist()
+                self._alongl = salong.tolist()
+                self._ssl = self._s[keep].tolist()
+                nseg = self._nseg = len(sdc)
                 self._blocks = [(i, min(i + _BLOCK, nseg)) for i in range(0, nseg, _BLOCK)]
                 centres, radii = [], []
+                kxy = self._xy[keep]
                 for i, j in self._blocks:
-                    pts = self._xy[i:j + 1]
+                    pts = kxy[i:j + 1]
                     c = (pts.min(axis=0) + pts.max(axis=0)) / 2
                     centres.append(c)
                     radii.append(float(np.hypot(*(pts - c).T).max()))
                 self._bc = np.asarray(centres)
                 self._bcz = self._bc[:, 0] + 1j * self._bc[:, 1]
                 self._br = np.asarray(radii)
+                self._bl = [(float(c[0]), float(c[1]), r) for c, r in zip(centres, radii)]
+                self._hl, self._wl, self._rhl = self._h.tolist(), self._w.tolist(), rh.tolist()
+                self._xfl, self._yfl = self._xy[:, 0].tolist(), self._xy[:, 1].tolist()
                 self.length = float(self._s[-1])
                 self.width = float(np.median(self._w))
                 self._wconst = float(self._w[0]) if np.ptp(self._w) == 0 else None
@@ -134,7 +152,7 @@ def _shape_class() -> type:
 
             def position(self, longitudinal: float, lateral: float) -> np.ndarray:
                 k, f = self._at(float(longitudinal))
-                xl, yl, rh = self._xl, self._yl, self._rhl
+                xl, yl, rh = self._xfl, self._yfl, self._rhl
                 g = min(max(f, 0.0), 1.0)
                 h = rh[k] + g * (rh[k + 1] - rh[k])
                 return np.array([xl[k] + f * (xl[k + 1] - xl[k]) - lateral * math.sin(h),
@@ -179,11 +197,18 @@ def _shape_class() -> type:
                 # that hold it (0 <= f <= 1), the nearest. The block whose bounding circle is
                 # nearest is searched first, then only blocks that could hold a nearer foot:
                 # the same answer as a scan of every segment, whatever was asked before.
-                lower = np.abs(self._bcz - complex(px, py)) - self._br
-                b0 = int(lower.argmin())
+                if len(self._bl) <= 8:  # few blocks: plain Python beats numpy's call overhead
+                    lower = [math.hypot(cx - px, cy - py) - r for cx, cy, r in self._bl]
+                    b0 = min(range(len(lower)), key=lower.__getitem__)
+                else:
+                    lower = np.abs(self._bcz - complex(px, py)) - self._br
+                    b0 = int(lower.argmin())
                 best = self._foot(px, py, *self._blocks[b0]) + (b0,)
                 if best[0] >= 1e9:  # no segment holds the foot there: look everywhere
                     cands = range(len(self._blocks))
+                elif isinstance(lower, list):
+                    reach = math.sqrt(best[0])
+                    cands = [b for b, lo in enumerate(lower) if lo <= reach]
                 else:
                     cands = (lower <= math.sqrt(best[0])).nonzero()[0].tolist()
                 for b in cands:
@@ -216,7 +241,7 @@ def _shape_class() -> type:
                     if d2 < best_d2:
                         best_d2, best_k, best_f, best_dx, best_dy = d2, k, fc, dx, dy
                 r = tx[best_k] * best_dy - ty[best_k] * best_dx
-                sl = self._sl
+                sl = self._ssl
                 return best_d2, sl[best_k] + best_f * (sl[best_k + 1] - sl[best_k]), r
 
             def to_config(self) -> dict:
