@@ -3,7 +3,6 @@ second evaluator, links carry routes through junctions, bad files get clear erro
 highway-env's IDM drives on the map's lanes."""
 
 import math
-import os
 from pathlib import Path
 
 import numpy as np

@@ -23,7 +23,6 @@ highway-env; :mod:`.maps` makes highway-env lanes of this data.
 from __future__ import annotations
 
 import hashlib
-import inspect
 import math
 import os
 import threading
@@ -252,12 +251,6 @@ def _parse(path: str, digest: str, blob: bytes, evaluator: str) -> MapData:
 def _order(lane_id: str) -> tuple:
     road, sec, lane = lane_id.split("/")
     return (int(road) if road.lstrip("-").isdigit() else 0, road, int(sec), int(lane))
-
-
-def _replace(lane: LaneData, **kw: Any) -> LaneData:
-    import dataclasses
-
-    return dataclasses.replace(lane, **kw)
 
 
 def _num(el: Any, attr: str, path: str, where: str, default: float | None = None) -> float:
