@@ -65,6 +65,34 @@ def test_a_stack_written_from_the_protocol_alone_drives_a_campaign(pytester, ans
     result.assert_outcomes(passed=3)
 
 
+TRAJECTORY_SCENARIO = """
+import numpy as np
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(60, 80), samples=2, monitors=[])
+def test_change_lane(case, world):
+    road = world.straight_road(lanes=2, length=400)
+    world.ego(road.lane(0), s=10.0, speed=8.0)
+    world.car(road.lane(0), s=10.0 + case.gap, speed=5.0)
+    world.run(seconds=6)
+    ego = world.trajectory.agent("ego")
+    # the stack's trajectories lead to lane 1's centre (y = -3.5) at 10 m/s; the plugin's
+    # controller follows them there: moved over, straightened out, at speed
+    assert abs(ego.y[-1] + 3.5) < 0.2 and abs(ego.heading[-1]) < 0.02, (ego.y[-1], ego.heading[-1])
+    assert 9.5 < ego.speed[-1] < 10.3, ego.speed[-1]
+    assert ego.y.min() > -3.5 - 0.3  # no overshoot into the next lane
+    assert np.all(np.diff(ego.x) > 0)
+"""
+
+
+def test_a_stack_answering_desired_trajectories_drives_a_campaign(pytester):
+    pytester.makepyfile(test_traj=TRAJECTORY_SCENARIO)
+    result = pytester.runpytest("--avs-driver", raw_stack("--answer", "trajectory", "--to-y", "-3.5"),
+                                "--avs-db=none", "--avs-report=none", "--avs-shrink-budget=0",
+                                "-p", "no:xdist", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=2)
+
+
 def test_the_driver_spec_is_checked_at_start_up(pytester):
     pytester.makepyfile(test_raw=SCENARIO)
     result = pytester.runpytest("--avs-driver", "osi:udp://127.0.0.1:5", "-p", "no:xdist")
