@@ -105,6 +105,23 @@ class Sentinel:
             self._send({})
 
 
+    def close(self) -> None:
+        """The run is over: the sentinel ends (its pipe closes), the SIGUSR2 handler goes."""
+        self.disarm()
+        proc, self.proc = self.proc, None
+        if proc is not None:
+            try:
+                proc.stdin.close()  # type: ignore[union-attr]
+                proc.wait(timeout=5)
+            except (OSError, subprocess.TimeoutExpired):
+                proc.kill()
+        if self.dump:
+            import faulthandler
+
+            faulthandler.unregister(signal.SIGUSR2)
+            self.dump = False
+
+
 # -- the sentinel process -------------------------------------------------------------------
 def _fire(parent: int, message: dict[str, Any]) -> None:
     path, row = message.get("path"), message.get("row")

@@ -138,6 +138,7 @@ def _sentinel(config: pytest.Config) -> Any:
     if sentinel is None:
         guard = config.stash.get(guard_key, None)
         sentinel = config.stash[sentinel_key] = Sentinel(getattr(guard, "terminal_fd", None))
+        config.add_cleanup(sentinel.close)
     return sentinel
 
 
