@@ -15,6 +15,7 @@ writes the error table and the report. Settings come from :mod:`.options`, once 
 from __future__ import annotations
 
 import os
+import sys
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -409,6 +410,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     executor = config.stash.get(executor_key, None)
     if executor is not None:
         executor.close()
+    stacks = sys.modules.get("pytest_avscenario.stack.client")
+    if stacks is not None:  # the run is over: its spawned stacks too (atexit is the backstop)
+        stacks.stop_all()
     state = config.stash.get(controller_key, None)
     if state is not None:
         state.close()

@@ -15,8 +15,8 @@ the case ends in time, it is told so (one short write on a pipe). When the deadl
 first, the sentinel appends the row to the error table (``errors.jsonl``, flushed and
 fsynced), says on the terminal what happened, asks the process for its Python traceback
 (SIGUSR2, a C-level ``faulthandler`` handler that needs no interpreter) and ends it with
-SIGKILL. The run's status is then that of a killed process (-9, 137 to a shell): not
-zero. An xdist worker has no table: its sentinel only ends it, and the controller gives the
+SIGKILL, and the AV stacks it spawned (``osi+spawn:``) with SIGTERM. The run's status is
+then that of a killed process (-9, 137 to a shell): not zero. An xdist worker has no table: its sentinel only ends it, and the controller gives the
 case its row as for any worker that died (``pytest_handlecrashitem``). The sentinel ends by
 itself when its pytest process does (its pipe closes).
 
@@ -85,7 +85,7 @@ class Sentinel:
         ``row_line`` (one JSON line) is appended to ``path`` before (both None: no table here)."""
         self.armed = True
         if self._start() and self._send({"after_s": after_s, "row": row_line, "path": path,
-                                         "say": say, "dump": self.dump}):
+                                         "say": say, "dump": self.dump, "groups": _stack_groups()}):
             return
         import faulthandler
 
@@ -122,6 +122,16 @@ class Sentinel:
             self.dump = False
 
 
+def _stack_groups() -> list[int]:
+    """The process groups of the AV stacks this process spawned (each leads its own): the
+    sentinel ends them with it, since a killed process cannot stop them itself."""
+    stacks = sys.modules.get("pytest_avscenario.stack.client")
+    if stacks is None:
+        return []
+    return [sp.proc.pid for sp in list(stacks._SPAWNED.values())
+            if sp.proc is not None and sp.proc.poll() is None]
+
+
 # -- the sentinel process -------------------------------------------------------------------
 def _fire(parent: int, message: dict[str, Any]) -> None:
     path, row = message.get("path"), message.get("row")
@@ -147,6 +157,11 @@ def _fire(parent: int, message: dict[str, Any]) -> None:
         os.kill(parent, signal.SIGKILL)
     except ProcessLookupError:
         pass
+    for group in message.get("groups") or ():
+        try:
+            os.killpg(group, signal.SIGTERM)
+        except (ProcessLookupError, PermissionError):
+            pass
 
 
 def main() -> None:

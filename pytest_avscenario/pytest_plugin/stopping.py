@@ -121,6 +121,7 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
             sys.stderr.write(f"\navscenario: {item.nodeid}: the case ran past its time limit of "
                              f"{limit_s:g} s and would not stop (ran {ran_s:.1f} s): its error "
                              f"row is reported; ending {where}\n")
+            _end_children()
             _flush_streams()
             _REAL_EXIT(1)
 
@@ -454,6 +455,16 @@ def whole_xdist_events(config: pytest.Config) -> Iterator[None]:
         del dsession.loop_once  # the class's own again
 
 
+def _end_children() -> None:
+    """Stop the AV stacks this process spawned (the hard exits below skip atexit)."""
+    stacks = sys.modules.get("pytest_avscenario.stack.client")
+    if stacks is not None:
+        try:
+            stacks.stop_processes()
+        except Exception:  # noqa: BLE001 - on the way out: the process ends regardless
+            pass
+
+
 def _flush_streams() -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
@@ -465,6 +476,7 @@ def _flush_streams() -> None:
 def _die_by_sigterm() -> None:
     """End the process as SIGTERM's default action would (status 143 to a shell); every
     finished row is on disk already (the error table is flushed per row)."""
+    _end_children()
     _flush_streams()
     _REAL_EXIT(128 + signal.SIGTERM)
 
