@@ -187,6 +187,71 @@ def test_a_desired_state_without_orientation_is_refused():
         frame.motion_to_action(mr.desired_state, 0, 0.0, 1.0, 5.0, 0.1)
 
 
+@pytest.mark.parametrize("speed, acceleration, steering", [(8.0, 1.5, 0.0), (14.0, -4.0, 0.0), (6.0, 0.0, 0.05),
+                                                          (12.0, 1.0, 0.2)])
+def test_a_trajectory_from_the_ego_now_is_followed_with_its_own_acceleration(speed, acceleration, steering):
+    # the kit's trajectory: where (acceleration, steering) held takes the ego, from its state now
+    from osi3 import osi_motionrequest_pb2
+
+    mr = osi_motionrequest_pb2.MotionRequest()
+    t_ns = wire.ns(2.0)
+    frame.action_to_trajectory(mr, t_ns, 10.0, -3.5, 0.3, speed, 5.0, 0.1, acceleration, steering)
+    a, d = frame.trajectory_to_action(mr.desired_trajectory, t_ns, 10.0, -3.5, 0.3, speed, 5.0, 0.1)
+    assert a == pytest.approx(acceleration, abs=1e-9)
+    if steering == 0.0:
+        assert d == pytest.approx(0.0, abs=1e-12)
+    else:  # on a curve the path-following law (no curvature feed-forward, as highway-env's
+        # lane following) steers the same way, more at low speed: within a factor of 3
+        assert steering < d < 3.0 * steering
+
+
+def test_the_trajectory_controller_steers_back_to_the_path_and_brakes_for_a_stop():
+    from osi3 import osi_motionrequest_pb2
+
+    def trajectory(points):
+        mr = osi_motionrequest_pb2.MotionRequest()
+        for t, x, y in points:
+            p = mr.desired_trajectory.trajectory_point.add()
+            wire.set_timestamp(p.timestamp, wire.ns(t))
+            p.position.x, p.position.y = x, y
+        return mr.desired_trajectory
+
+    along_x = trajectory([(1.0 + k * 0.1, 10.0 + k, 0.0) for k in range(20)])  # 10 m/s along y = 0
+    # 1 m left of the path, heading along it: steer right (negative), keep the speed
+    a, d = frame.trajectory_to_action(along_x, wire.ns(1.0), 10.0, 1.0, 0.0, 10.0, 5.0, 0.1)
+    assert d < -0.01 and abs(a) < 1e-9
+    # 1 m right of it: steer left, the mirror image
+    a2, d2 = frame.trajectory_to_action(along_x, wire.ns(1.0), 10.0, -1.0, 0.0, 10.0, 5.0, 0.1)
+    assert d2 == pytest.approx(-d, abs=1e-12)
+    # 2 m behind where the timestamps say the ego should be: speed up
+    a3, _ = frame.trajectory_to_action(along_x, wire.ns(1.0), 8.0, 0.0, 0.0, 10.0, 5.0, 0.1)
+    assert a3 > 0.5
+    # a trajectory that stands at the ego's place: brake
+    stop = trajectory([(1.0, 10.0, 0.0), (1.5, 10.0, 0.0), (2.0, 10.0, 0.0)])
+    a4, d4 = frame.trajectory_to_action(stop, wire.ns(1.0), 10.0, 0.0, 0.0, 5.0, 5.0, 0.1)
+    assert a4 < -5.0 and d4 == 0.0
+
+
+@pytest.mark.parametrize("points, says", [
+    ([], "desired_trajectory has no trajectory_point"),
+    ([(1.0, 0.0, 0.0), (1.0, 1.0, 0.0)], r"trajectory_point\[1\].timestamp 1000000000 ns is not after trajectory_point\[0\]'s"),
+    ([(0.9, 0.0, 0.0), (1.1, 1.0, 0.0)], r"trajectory_point\[0\].timestamp 900000000 ns \(0.900 s\) is in the past"),
+    ([(1.0, 0.0, 0.0)], "ends at the request's timestamp"),
+    ([(1.1, 0.0, 0.0), (1.2, float("inf"), 0.0)], r"trajectory_point\[1\] has a non-finite position \(x=inf"),
+])
+def test_a_bad_trajectory_is_refused_naming_the_point(points, says):
+    from osi3 import osi_motionrequest_pb2
+
+    mr = osi_motionrequest_pb2.MotionRequest()
+    mr.motion_request_type = mr.MOTION_REQUEST_TYPE_TRAJECTORY
+    for t, x, y in points:
+        p = mr.desired_trajectory.trajectory_point.add()
+        wire.set_timestamp(p.timestamp, wire.ns(t))
+        p.position.x, p.position.y = x, y
+    with pytest.raises(ValueError, match=says):
+        frame.trajectory_to_action(mr.desired_trajectory, wire.ns(1.0), 0.0, 0.0, 0.0, 5.0, 5.0, 0.1)
+
+
 def test_the_stack_is_named_in_the_ini_file_or_by_the_test_itself(pytester):
     pytester.makeini(f"""
         [pytest]

@@ -369,7 +369,11 @@ def trajectory_to_action(traj: Any, t_ns: int, x: float, y: float, heading: floa
         sx, sy = x1 - x0, y1 - y0
         seg = cum[i + 1] - cum[i]
         ex, ey = x - x0, y - y0
-        u = 0.0 if seg <= 1e-9 else min(max((ex * sx + ey * sy) / seg, 0.0), seg)
+        # on the first and last segments the path extends beyond its ends: an ego behind the
+        # first point (or past the last) is that far behind (or ahead), not on it
+        lo = -math.inf if i == 0 else 0.0
+        hi = math.inf if i == n - 2 else seg
+        u = 0.0 if seg <= 1e-9 else min(max((ex * sx + ey * sy) / seg, lo), hi)
         h = seg_heading[i]
         c, s = (math.cos(h), math.sin(h)) if h is not None else (1.0, 0.0)
         px, py = ex - u * c, ey - u * s
