@@ -16,8 +16,10 @@ first, the sentinel appends the row to the error table (``errors.jsonl``, flushe
 fsynced), says on the terminal what happened, asks the process for its Python traceback
 (SIGUSR2, a C-level ``faulthandler`` handler that needs no interpreter) and ends it with
 SIGKILL, and the AV stacks it spawned (``osi+spawn:``) with SIGTERM. The run's status is
-then that of a killed process (-9, 137 to a shell): not zero. An xdist worker has no table: its sentinel only ends it, and the controller gives the
-case its row as for any worker that died (``pytest_handlecrashitem``). The sentinel ends by
+then that of a killed process (-9, 137 to a shell): not zero. An xdist worker has no table:
+its sentinel leaves the row in a folder of the controller's (``workerinput["avs_lastwords"]``),
+where the controller finds it when it handles the worker's crash (``pytest_handlecrashitem``)
+and records it instead of the generic row of a worker that died. The sentinel ends by
 itself when its pytest process does (its pipe closes).
 
 Should the sentinel be gone, ``faulthandler.dump_traceback_later(exit=True)`` takes over:
@@ -120,6 +122,31 @@ class Sentinel:
 
             faulthandler.unregister(signal.SIGUSR2)
             self.dump = False
+
+
+def last_words_path(folder: str, nodeid: str) -> str:
+    """Where an xdist worker's sentinel leaves the row of the stuck case ``nodeid``."""
+    import hashlib
+
+    return os.path.join(folder, hashlib.sha1(nodeid.encode()).hexdigest()[:20] + ".jsonl")
+
+
+def last_words(folder: str | None, nodeid: str) -> Any:
+    """The row (a ``CaseRow``) a worker's sentinel left for ``nodeid`` before it killed the
+    worker, or None."""
+    if folder is None:
+        return None
+    try:
+        with open(last_words_path(folder, nodeid), encoding="utf-8") as fh:
+            line = fh.readline()
+    except OSError:
+        return None
+    from ..outcome import CaseRow
+
+    try:
+        return CaseRow.from_json(json.loads(line))
+    except ValueError:  # a torn write (the sentinel killed meanwhile): the generic row then
+        return None
 
 
 def _stack_groups() -> list[int]:

@@ -72,6 +72,11 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
 
         state = item.config.stash.get(controller_key, None)
         path = state.table_path() if state is not None else None
+        lastwords = getattr(item.config, "workerinput", {}).get("avs_lastwords")
+        if lastwords is not None:  # an xdist worker: the row goes to the controller's folder
+            from .lastresort import last_words_path
+
+            path = last_words_path(lastwords, item.nodeid)
         line = None
         if path is not None:
             message = (f"CaseTimeout: {what} past its time limit of {limit_s:g} s and never returned "
