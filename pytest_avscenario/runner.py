@@ -28,6 +28,9 @@ class CaseTimeout(BaseException):
 
 #: seconds a case may go on past its time limit before ``on_stuck`` ends it the hard way
 GRACE_S = 3.0
+#: seconds after GRACE_S before a case that never returned to Python (one C call holding the
+#: interpreter: no watchdog thread runs) is ended from outside, by ``on_stuck.arm``'s sentinel
+LAST_RESORT_S = 2.0
 #: after the limit, CaseTimeout is raised again this often (a body or driver that swallows it
 #: with a bare ``except:`` meets it again at once)
 RETRY_S = 0.25
@@ -42,7 +45,10 @@ class TimeLimit:
     every :data:`RETRY_S` until the code ends. Code that still does not end (it swallows every
     interrupt, or is stuck in one long C call that no signal handler can enter) is handed to
     ``on_stuck(ran_s)`` from a watchdog thread :data:`GRACE_S` seconds after the limit; the
-    plugin's ``on_stuck`` records the case and ends the process. Elsewhere (no ``seconds``,
+    plugin's ``on_stuck`` records the case and ends the process. Code that holds the
+    interpreter in one C call lets no thread run: an ``on_stuck`` with ``arm(after_s)`` and
+    ``disarm()`` is armed for :data:`LAST_RESORT_S` more at the start and disarmed at the end
+    (the plugin's hands the case's row to a process outside, which ends this one). Elsewhere (no ``seconds``,
     another thread, no SIGALRM) it does nothing: executors that run cases in threads or
     remotely bound them themselves.
 
@@ -84,6 +90,9 @@ class TimeLimit:
             self.watchdog.daemon = True
             self.watchdog.name = "avscenario-case-watchdog"
             self.watchdog.start()
+            arm = getattr(self.on_stuck, "arm", None)
+            if arm is not None:
+                arm(float(self.seconds) + GRACE_S + LAST_RESORT_S)  # type: ignore[arg-type]
 
     def stop(self) -> None:
         if not self.usable:
@@ -98,6 +107,9 @@ class TimeLimit:
         signal.setitimer(signal.ITIMER_REAL, 0)
         if self.watchdog is not None:
             self.watchdog.cancel()
+            disarm = getattr(self.on_stuck, "disarm", None)
+            if disarm is not None:
+                disarm()
         if self.previous is not None:
             signal.signal(signal.SIGALRM, self.previous)
 

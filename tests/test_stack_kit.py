@@ -71,6 +71,23 @@ def test_the_served_autopilot_drives_as_the_autopilot_in_process(served_autopilo
     assert np.array_equal(here.crashed, remote.crashed)
 
 
+def test_served_as_desired_trajectories_the_autopilot_still_drives_as_in_process():
+    # the kit sends where the command held takes the ego (a trajectory from its state now);
+    # the plugin's trajectory controller feeds the trajectory's acceleration forward, so on a
+    # straight road it recovers the command to rounding: the same following, to 1e-6
+    spawn = f"{sys.executable} -m pytest_avscenario.stack.autopilot {{address}} --answer trajectory"
+    args = (30.0, 10.0, 3.0, 2.5, 5.0)
+    try:
+        here = _following("autopilot", *args, seed=11)
+        remote = _following(OSIStack(spawn=spawn, timeout_s=30), *args, seed=11)
+    finally:
+        client.stop_all()
+    assert not here.crashed.any() and not remote.crashed.any()
+    for key in ("x", "y", "speed", "heading"):
+        assert np.nanmax(np.abs(getattr(here, key) - getattr(remote, key))) <= 1e-6, key
+    assert here.speed.min() < 8.0  # the lead braked and the ego followed it down
+
+
 def test_same_seed_same_bits_through_the_stack(served_autopilot):
     runs = [_following(OSIStack(served_autopilot, timeout_s=30), 20.0, 8.0, 2.0, 4.0, 0.0, seed=5)
             for _ in range(2)]

@@ -65,6 +65,34 @@ def test_a_stack_written_from_the_protocol_alone_drives_a_campaign(pytester, ans
     result.assert_outcomes(passed=3)
 
 
+TRAJECTORY_SCENARIO = """
+import numpy as np
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(60, 80), samples=2, monitors=[])
+def test_change_lane(case, world):
+    road = world.straight_road(lanes=2, length=400)
+    world.ego(road.lane(0), s=10.0, speed=8.0)
+    world.car(road.lane(0), s=10.0 + case.gap, speed=5.0)
+    world.run(seconds=6)
+    ego = world.trajectory.agent("ego")
+    # the stack's trajectories lead to lane 1's centre (y = -3.5) at 10 m/s; the plugin's
+    # controller follows them there: moved over, straightened out, at speed
+    assert abs(ego.y[-1] + 3.5) < 0.2 and abs(ego.heading[-1]) < 0.02, (ego.y[-1], ego.heading[-1])
+    assert 9.5 < ego.speed[-1] < 10.3, ego.speed[-1]
+    assert ego.y.min() > -3.5 - 0.3  # no overshoot into the next lane
+    assert np.all(np.diff(ego.x) > 0)
+"""
+
+
+def test_a_stack_answering_desired_trajectories_drives_a_campaign(pytester):
+    pytester.makepyfile(test_traj=TRAJECTORY_SCENARIO)
+    result = pytester.runpytest("--avs-driver", raw_stack("--answer", "trajectory", "--to-y", "-3.5"),
+                                "--avs-db=none", "--avs-report=none", "--avs-shrink-budget=0",
+                                "-p", "no:xdist", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=2)
+
+
 def test_the_driver_spec_is_checked_at_start_up(pytester):
     pytester.makepyfile(test_raw=SCENARIO)
     result = pytester.runpytest("--avs-driver", "osi:udp://127.0.0.1:5", "-p", "no:xdist")
@@ -157,6 +185,71 @@ def test_a_desired_state_without_orientation_is_refused():
     mr.desired_state.velocity.x = 3.0
     with pytest.raises(ValueError, match="no orientation"):
         frame.motion_to_action(mr.desired_state, 0, 0.0, 1.0, 5.0, 0.1)
+
+
+@pytest.mark.parametrize("speed, acceleration, steering", [(8.0, 1.5, 0.0), (14.0, -4.0, 0.0), (6.0, 0.0, 0.05),
+                                                          (12.0, 1.0, 0.2)])
+def test_a_trajectory_from_the_ego_now_is_followed_with_its_own_acceleration(speed, acceleration, steering):
+    # the kit's trajectory: where (acceleration, steering) held takes the ego, from its state now
+    from osi3 import osi_motionrequest_pb2
+
+    mr = osi_motionrequest_pb2.MotionRequest()
+    t_ns = wire.ns(2.0)
+    frame.action_to_trajectory(mr, t_ns, 10.0, -3.5, 0.3, speed, 5.0, 0.1, acceleration, steering)
+    a, d = frame.trajectory_to_action(mr.desired_trajectory, t_ns, 10.0, -3.5, 0.3, speed, 5.0, 0.1)
+    assert a == pytest.approx(acceleration, abs=1e-9)
+    if steering == 0.0:
+        assert d == pytest.approx(0.0, abs=1e-12)
+    else:  # on a curve the path-following law (no curvature feed-forward, as highway-env's
+        # lane following) steers the same way, more at low speed: within a factor of 3
+        assert steering < d < 3.0 * steering
+
+
+def test_the_trajectory_controller_steers_back_to_the_path_and_brakes_for_a_stop():
+    from osi3 import osi_motionrequest_pb2
+
+    def trajectory(points):
+        mr = osi_motionrequest_pb2.MotionRequest()
+        for t, x, y in points:
+            p = mr.desired_trajectory.trajectory_point.add()
+            wire.set_timestamp(p.timestamp, wire.ns(t))
+            p.position.x, p.position.y = x, y
+        return mr.desired_trajectory
+
+    along_x = trajectory([(1.0 + k * 0.1, 10.0 + k, 0.0) for k in range(20)])  # 10 m/s along y = 0
+    # 1 m left of the path, heading along it: steer right (negative), keep the speed
+    a, d = frame.trajectory_to_action(along_x, wire.ns(1.0), 10.0, 1.0, 0.0, 10.0, 5.0, 0.1)
+    assert d < -0.01 and abs(a) < 1e-9
+    # 1 m right of it: steer left, the mirror image
+    a2, d2 = frame.trajectory_to_action(along_x, wire.ns(1.0), 10.0, -1.0, 0.0, 10.0, 5.0, 0.1)
+    assert d2 == pytest.approx(-d, abs=1e-12)
+    # 2 m behind where the timestamps say the ego should be: speed up
+    a3, _ = frame.trajectory_to_action(along_x, wire.ns(1.0), 8.0, 0.0, 0.0, 10.0, 5.0, 0.1)
+    assert a3 > 0.5
+    # a trajectory that stands at the ego's place: brake
+    stop = trajectory([(1.0, 10.0, 0.0), (1.5, 10.0, 0.0), (2.0, 10.0, 0.0)])
+    a4, d4 = frame.trajectory_to_action(stop, wire.ns(1.0), 10.0, 0.0, 0.0, 5.0, 5.0, 0.1)
+    assert a4 < -5.0 and d4 == 0.0
+
+
+@pytest.mark.parametrize("points, says", [
+    ([], "desired_trajectory has no trajectory_point"),
+    ([(1.0, 0.0, 0.0), (1.0, 1.0, 0.0)], r"trajectory_point\[1\].timestamp 1000000000 ns is not after trajectory_point\[0\]'s"),
+    ([(0.9, 0.0, 0.0), (1.1, 1.0, 0.0)], r"trajectory_point\[0\].timestamp 900000000 ns \(0.900 s\) is in the past"),
+    ([(1.0, 0.0, 0.0)], "ends at the request's timestamp"),
+    ([(1.1, 0.0, 0.0), (1.2, float("inf"), 0.0)], r"trajectory_point\[1\] has a non-finite position \(x=inf"),
+])
+def test_a_bad_trajectory_is_refused_naming_the_point(points, says):
+    from osi3 import osi_motionrequest_pb2
+
+    mr = osi_motionrequest_pb2.MotionRequest()
+    mr.motion_request_type = mr.MOTION_REQUEST_TYPE_TRAJECTORY
+    for t, x, y in points:
+        p = mr.desired_trajectory.trajectory_point.add()
+        wire.set_timestamp(p.timestamp, wire.ns(t))
+        p.position.x, p.position.y = x, y
+    with pytest.raises(ValueError, match=says):
+        frame.trajectory_to_action(mr.desired_trajectory, wire.ns(1.0), 0.0, 0.0, 0.0, 5.0, 5.0, 0.1)
 
 
 def test_the_stack_is_named_in_the_ini_file_or_by_the_test_itself(pytester):

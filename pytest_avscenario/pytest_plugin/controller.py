@@ -302,6 +302,25 @@ class RunState:
             # depend on the report); say once what was lost and where
             self.report_failed(exc)
 
+    def table_path(self) -> str | None:
+        """The path of this run's ``errors.jsonl``, the table opened now if it was not yet
+        (None: no report here, or an xdist worker): where a row written from outside this
+        process goes (:mod:`.lastresort`)."""
+        if self.is_worker or os.getpid() != self.pid:
+            return None
+        if self.table is None:
+            folder = self.claim()
+            if folder is None:
+                return None
+            try:
+                from ..report.table import ErrorTable
+
+                self.table = ErrorTable(folder.path, folder=folder)
+            except OSError as exc:
+                self.report_failed(exc)
+                return None
+        return str(self.table.main_path)
+
     def place_pictures(self, test: str, pictures: Mapping[str, str]) -> dict[str, str]:
         """The case pictures of a report, in this run's directory: recorded in its manifest,
         and moved there from the worker's temporary folder that drew them."""

@@ -15,6 +15,7 @@ writes the error table and the report. Settings come from :mod:`.options`, once 
 from __future__ import annotations
 
 import os
+import sys
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -119,6 +120,13 @@ class _XdistHooks:
     def __init__(self, config: pytest.Config):
         self.config = config
         self.snapshot: list[dict] | None = None  # the replay database as the run began
+        self.lastwords: str | None = None  # where workers' sentinels leave stuck cases' rows
+
+    def pytest_unconfigure(self, config: pytest.Config) -> None:
+        if self.lastwords is not None:
+            import shutil
+
+            shutil.rmtree(self.lastwords, ignore_errors=True)  # made by this run (mkdtemp)
 
     def pytest_xdist_node_collection_finished(self, node: Any, ids: Any) -> None:
         node.config.stash[controller_key].note_order(ids)  # the summary lists tests in this order
@@ -129,9 +137,11 @@ class _XdistHooks:
         if any(row.item == crashitem for row in state.rows):
             return  # its row came before the worker died (a case that would not stop)
         from ..samplers.base import available
+        from .lastresort import last_words
         from .stopping import crash_row
 
-        row = crash_row(crashitem, set(available()) | {"replay", "example"})
+        # a case stuck in C left its row with the worker's sentinel; else the generic one
+        row = last_words(self.lastwords, crashitem) or crash_row(crashitem, set(available()) | {"replay", "example"})
         if row is not None:
             state.add(row, state.tests.get(row.test) or unknown_test_info(row.sampler))
 
@@ -161,6 +171,11 @@ class _XdistHooks:
 
     def pytest_configure_node(self, node: Any) -> None:
         node.workerinput["avs_seed"] = node.config.stash[settings_key].seed
+        if self.lastwords is None:
+            import tempfile
+
+            self.lastwords = tempfile.mkdtemp(prefix="avs-lastwords-")
+        node.workerinput["avs_lastwords"] = self.lastwords
         db = node.config.stash[db_key]
         if db is not None:
             # one snapshot for every worker of the run, those that replace a crashed worker
@@ -409,6 +424,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     executor = config.stash.get(executor_key, None)
     if executor is not None:
         executor.close()
+    stacks = sys.modules.get("pytest_avscenario.stack.client")
+    if stacks is not None:  # the run is over: its spawned stacks too (atexit is the backstop)
+        stacks.stop_all()
     state = config.stash.get(controller_key, None)
     if state is not None:
         state.close()

@@ -18,4 +18,5 @@ pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
 result_key = pytest.StashKey[Any]()  # item -> its campaign.ItemResult (set during setup)
 sent_key = pytest.StashKey[bool]()  # item -> its row went out with a report already
 guard_key = pytest.StashKey[Any]()  # the stopping.TermGuard of this process
+sentinel_key = pytest.StashKey[Any]()  # the lastresort.Sentinel of this process (made on first use)
 driver_key = pytest.StashKey[Any]()  # the identity of the --avs-driver driver (a dict)

@@ -5,6 +5,10 @@
   reported through pytest's own report hook — the error table writes and flushes it, an
   xdist worker sends it to the controller — and the process ends. Under pytest-xdist the
   controller replaces the worker and the run goes on; alone, the run ends with status 1.
+  A case stuck in one C call that holds the interpreter lets no watchdog thread run: for
+  it, the row is handed to a sentinel process before the case starts (:mod:`.lastresort`),
+  which writes it and kills the process if the case is still running GRACE_S +
+  LAST_RESORT_S after its limit.
 * :class:`TermGuard` — SIGTERM read as Ctrl-C while scenario work runs (from the first
   scenario item to the last one of a row of them, and the report at the end), so pytest
   finishes the session and the partial report is written; while the report is written, a
@@ -34,6 +38,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import signal
@@ -60,11 +65,42 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
     summary data; ``during`` says which simulation it was when not the item's case itself
     ("while it was being minimized", "while the careful reference driver replayed it")."""
 
+    def arm(after_s: float) -> None:
+        # the last resort (a case stuck in C holding the interpreter): its row, made now
+        from ..outcome import CaseOutcome
+        from .stash import controller_key
+
+        state = item.config.stash.get(controller_key, None)
+        path = state.table_path() if state is not None else None
+        lastwords = getattr(item.config, "workerinput", {}).get("avs_lastwords")
+        if lastwords is not None:  # an xdist worker: the row goes to the controller's folder
+            from .lastresort import last_words_path
+
+            path = last_words_path(lastwords, item.nodeid)
+        line = None
+        if path is not None:
+            message = (f"CaseTimeout: {what} past its time limit of {limit_s:g} s and never returned "
+                       f"to Python (stuck in one C call that holds the interpreter: no interrupt and "
+                       f"no watchdog could run); the process running it was killed after {after_s:g} s")
+            row = make_row(CaseOutcome(params={}, verdict="error", error=message, sim_time_s=after_s))
+            line = json.dumps(row.to_json(), allow_nan=False, ensure_ascii=False) + "\n"
+        where = "this xdist worker" if hasattr(item.config, "workerinput") else "the test run"
+        say = (f"{item.nodeid}: the case ran past its time limit of {limit_s:g} s and did not return "
+               f"to Python within {after_s:g} s (stuck in one C call?): "
+               f"{'its error row is written; ' if line else ''}killing {where}")
+        _sentinel(item.config).arm(after_s, line, path, say)
+
+    def disarm() -> None:
+        _sentinel(item.config).disarm()
+
+    what = f"a simulation {during} ran" if during else "the case ran"
+
     def on_stuck(ran_s: float) -> None:
         from ..outcome import CaseOutcome
         from .stash import row_key
 
-        what = f"a simulation {during} ran" if during else "the case ran"
+        disarm()  # the row goes out from here: the last resort must not write it again
+
         message = (f"CaseTimeout: {what} past its time limit of {limit_s:g} s and did not "
                    f"stop when interrupted (it swallows the interrupt, or is stuck in a long C "
                    f"call); the process running it was ended after {ran_s:.1f} s")
@@ -90,10 +126,26 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
             sys.stderr.write(f"\navscenario: {item.nodeid}: the case ran past its time limit of "
                              f"{limit_s:g} s and would not stop (ran {ran_s:.1f} s): its error "
                              f"row is reported; ending {where}\n")
+            _end_children()
             _flush_streams()
             _REAL_EXIT(1)
 
+    on_stuck.arm = arm  # type: ignore[attr-defined]  (TimeLimit arms and disarms it per case)
+    on_stuck.disarm = disarm  # type: ignore[attr-defined]
     return on_stuck
+
+
+def _sentinel(config: pytest.Config) -> Any:
+    """This process's :class:`.lastresort.Sentinel` (made on first use)."""
+    from .lastresort import Sentinel
+    from .stash import guard_key, sentinel_key
+
+    sentinel = config.stash.get(sentinel_key, None)
+    if sentinel is None:
+        guard = config.stash.get(guard_key, None)
+        sentinel = config.stash[sentinel_key] = Sentinel(getattr(guard, "terminal_fd", None))
+        config.add_cleanup(sentinel.close)
+    return sentinel
 
 
 class ProcessExitCalled(SystemExit):
@@ -408,6 +460,16 @@ def whole_xdist_events(config: pytest.Config) -> Iterator[None]:
         del dsession.loop_once  # the class's own again
 
 
+def _end_children() -> None:
+    """Stop the AV stacks this process spawned (the hard exits below skip atexit)."""
+    stacks = sys.modules.get("pytest_avscenario.stack.client")
+    if stacks is not None:
+        try:
+            stacks.stop_processes()
+        except Exception:  # noqa: BLE001 - on the way out: the process ends regardless
+            pass
+
+
 def _flush_streams() -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
@@ -419,6 +481,7 @@ def _flush_streams() -> None:
 def _die_by_sigterm() -> None:
     """End the process as SIGTERM's default action would (status 143 to a shell); every
     finished row is on disk already (the error table is flushed per row)."""
+    _end_children()
     _flush_streams()
     _REAL_EXIT(128 + signal.SIGTERM)
 

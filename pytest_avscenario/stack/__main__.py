@@ -1,4 +1,4 @@
-"""``python -m pytest_avscenario.stack [ADDRESS] [--driver NAME]``: serve a driver over avs-osi/1.
+"""``python -m pytest_avscenario.stack [ADDRESS] [--driver NAME] [--answer KIND]``: serve a driver over avs-osi/1.
 
 ADDRESS defaults to ``$AVS_OSI_ADDRESS`` (what ``--avs-driver osi+spawn:COMMAND`` sets);
 NAME to the built-in autopilot (any driver name the plugin accepts: ``careful``,
@@ -19,10 +19,13 @@ def main(argv: list[str] | None = None, default_driver: str = "autopilot") -> in
     p.add_argument("address", nargs="?", default=os.environ.get("AVS_OSI_ADDRESS"),
                    help="tcp://HOST:PORT or ipc://PATH to bind (default $AVS_OSI_ADDRESS)")
     p.add_argument("--driver", default=default_driver, help=f"driver to serve (default {default_driver})")
+    p.add_argument("--answer", default="desired_state", choices=["desired_state", "trajectory"],
+                   help="the MotionRequest sent: a desired state one step ahead (default) or a "
+                        "desired trajectory")
     args = p.parse_args(argv)
     if not args.address:
         p.error("give an ADDRESS or set AVS_OSI_ADDRESS")
-    serve(args.driver, args.address)
+    serve(args.driver, args.address, answer=args.answer)
     return 0
 
 

@@ -4,8 +4,8 @@
 ``--avs-driver osi:ADDRESS``, ``--avs-driver osi+spawn:COMMAND``) with its own vehicle
 (:mod:`.vehicle`): at the start of each case it sends a ``Reset`` (the handshake: versions,
 step, ids, the ego's route) and waits for ``Ready``; every step it sends the world as an
-OSI ``SensorView`` and waits for the stack's ``MotionRequest`` (followed by the ego's
-controller) or ``TrafficUpdate`` (the stack moved its vehicle itself; checked against
+OSI ``SensorView`` and waits for the stack's ``MotionRequest`` (a desired state or a
+desired trajectory, followed by the ego's controller) or ``TrafficUpdate`` (the stack moved its vehicle itself; checked against
 :class:`Limits`). Every wait has a timeout. A REQ socket that timed out is closed and a
 fresh one opened for the next request ("lazy pirate"), never reused: its state machine
 would refuse to send again. A stack the plugin spawned is watched while it is awaited, so a
@@ -199,11 +199,20 @@ def stop_all() -> None:
     for ch in _CHANNELS.values():
         ch.drop()
     _CHANNELS.clear()
-    for sp in _SPAWNED.values():
-        sp.stop()
+    stop_processes()
     _SPAWNED.clear()
 
 
+def stop_processes() -> None:
+    """Stop every stack process this process started (their sockets untouched: safe from
+    another thread, e.g. on the way out of a process whose main thread is stuck)."""
+    for sp in list(_SPAWNED.values()):
+        sp.stop()
+
+
+# three ways a spawned stack is stopped: the plugin's pytest_unconfigure (the run is over),
+# this (any interpreter exit, an unhandled exception's included), and the plugin's own hard
+# exits (stopping.py: a case that would not stop, a second SIGTERM) calling stop_processes
 atexit.register(stop_all)
 
 
@@ -328,10 +337,19 @@ class OSIStack:
 
             mr = self._checked(lambda: wire.parse(M.MotionRequest, body, "MotionRequest"), ego, "its answer")
             self._check_timestamp(mr, t_ns, "MotionRequest", ego)
+            if mr.motion_request_type == M.MotionRequest.MOTION_REQUEST_TYPE_TRAJECTORY:
+                a, d = self._checked(lambda: frame.trajectory_to_action(
+                    mr.desired_trajectory, t_ns, float(ego.position[0]), float(ego.position[1]),
+                    float(ego.heading), float(ego.speed), float(ego.LENGTH), w.dt),
+                    ego, "its MotionRequest's desired_trajectory")
+                return "action", (a, d)
             if mr.motion_request_type != M.MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE \
                     or not mr.HasField("desired_state"):
-                self._fail("MotionRequest: only motion_request_type DESIRED_STATE with a "
-                           "desired_state is followed (trajectories are not, yet)", ego)
+                names = dict(M.MotionRequest.MotionRequestType.items())
+                kind_name = next((k for k, v in names.items() if v == mr.motion_request_type),
+                                 str(mr.motion_request_type))
+                self._fail(f"MotionRequest of type {kind_name} has no desired_state (a desired "
+                           "trajectory needs motion_request_type MOTION_REQUEST_TYPE_TRAJECTORY)", ego)
             a, d = self._checked(lambda: frame.motion_to_action(
                 mr.desired_state, t_ns, float(ego.heading), float(ego.speed), float(ego.LENGTH),
                 w.dt), ego, "its MotionRequest")

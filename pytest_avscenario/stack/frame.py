@@ -15,19 +15,24 @@ of ``world.view().lanes`` is ``LANE_ID0 + i`` and its right and left boundaries 
 A MotionRequest's desired state is turned into the ego's (acceleration, steering) by the
 one-step inverse of highway-env's kinematic bicycle model (:func:`motion_to_action`), and
 :func:`action_to_motion` is its exact counterpart for stacks that think in commands; the
-round trip is tested.
+round trip is tested. A desired *trajectory* is followed by a tracking controller in
+highway-env's style (:func:`trajectory_to_action`): proportional steering toward the path
+with its time constants, speed control toward where the trajectory says the ego should be
+at each timestamp, with the trajectory's own acceleration fed forward.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from typing import Any
 
 from . import wire
 
 __all__ = ["LANE_ID0", "BOUNDARY_ID0", "HEIGHT_M", "wrap_yaw", "set_object", "object_state",
            "lane_ground_truth", "sensor_view", "motion_to_action", "action_to_motion",
-           "MIN_TURN_SPEED"]
+           "MIN_TURN_SPEED", "trajectory_to_action", "action_to_trajectory", "TAU_ACC", "TAU_HEADING",
+           "TAU_LATERAL"]
 
 LANE_ID0 = 10_000
 BOUNDARY_ID0 = 20_000
@@ -278,3 +283,175 @@ def action_to_motion(mr: Any, t_ns: int, x: float, y: float, heading: float, spe
     ds.velocity.x, ds.velocity.y = v1 * math.cos(yaw), v1 * math.sin(yaw)
     c, s = math.cos(heading), math.sin(heading)
     ds.acceleration.x, ds.acceleration.y = acceleration * c, acceleration * s
+
+
+# -- desired trajectories ---------------------------------------------------------------------
+#: highway-env's ControlledVehicle time constants [s], used to follow a desired trajectory:
+#: speed error closed in TAU_ACC, heading error in TAU_HEADING, lateral error in TAU_LATERAL
+TAU_ACC = 0.6
+TAU_HEADING = 0.2
+TAU_LATERAL = 0.6
+TAU_PURSUIT = 0.5 * TAU_HEADING  # [s] look-ahead along the path for the heading to follow
+#: [1/s^2] along-track position gain (critically damped with the speed gain 1/TAU_ACC)
+KP_ALONG = 1.0 / (4.0 * TAU_ACC * TAU_ACC)
+MAX_TRAJECTORY_POINTS = 10_000
+
+
+def _trajectory_points(traj: Any, t_ns: int) -> list[tuple[float, float, float, float | None]]:
+    """``(tau [s after now], x, y, yaw or None)`` of each point of an
+    ``osi3.MotionRequest.DesiredTrajectory``; ``ValueError`` naming the first bad point."""
+    pts = traj.trajectory_point
+    if len(pts) == 0:
+        raise ValueError("desired_trajectory has no trajectory_point")
+    if len(pts) > MAX_TRAJECTORY_POINTS:
+        raise ValueError(f"desired_trajectory has {len(pts)} points (at most {MAX_TRAJECTORY_POINTS})")
+    out: list[tuple[float, float, float, float | None]] = []
+    last_ns = None
+    for i, p in enumerate(pts):
+        if not p.HasField("timestamp"):
+            raise ValueError(f"trajectory_point[{i}] has no timestamp")
+        if not p.HasField("position"):
+            raise ValueError(f"trajectory_point[{i}] has no position")
+        p_ns = wire.timestamp_ns(p.timestamp)
+        x, y = p.position.x, p.position.y
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError(f"trajectory_point[{i}] has a non-finite position (x={x!r}, y={y!r})")
+        yaw = p.orientation.yaw if p.HasField("orientation") else None
+        if yaw is not None and not math.isfinite(yaw):
+            raise ValueError(f"trajectory_point[{i}] has a non-finite orientation.yaw ({yaw!r})")
+        if p_ns < t_ns:
+            raise ValueError(f"trajectory_point[{i}].timestamp {p_ns} ns ({p_ns * 1e-9:.3f} s) is in "
+                             f"the past: the request's is {t_ns} ns ({t_ns * 1e-9:.3f} s)")
+        if last_ns is not None and p_ns <= last_ns:
+            raise ValueError(f"trajectory_point[{i}].timestamp {p_ns} ns is not after "
+                             f"trajectory_point[{i - 1}]'s {last_ns} ns (timestamps must increase)")
+        last_ns = p_ns
+        out.append(((p_ns - t_ns) * 1e-9, x, y, yaw))
+    if last_ns is not None and last_ns <= t_ns:
+        raise ValueError(f"desired_trajectory ends at the request's timestamp {t_ns} ns: it needs "
+                         "a point after it")
+    return out
+
+
+def trajectory_to_action(traj: Any, t_ns: int, x: float, y: float, heading: float, speed: float,
+                         length: float, dt: float) -> tuple[float, float]:
+    """(acceleration [m/s^2], steering [rad]) that follow a desired trajectory (an
+    ``osi3.MotionRequest.DesiredTrajectory``: points of position, timestamp and optionally
+    yaw) for one step of ``dt`` [s] from the ego's state now (request time ``t_ns``).
+
+    The points are a path timed by their timestamps (a first point after now is joined to
+    the ego's position now). Steering is highway-env's lane-following law with the path in
+    place of the lane: the lateral offset from the path closed in TAU_LATERAL, the path's
+    heading TAU_PURSUIT·speed ahead reached in TAU_HEADING, through the bicycle model's slip.
+    Acceleration is the path's own (its speed change over the coming step, fed forward),
+    plus the speed error closed in TAU_ACC, plus the along-path position error (where the
+    timestamps say the ego should be now against where it is) with gain KP_ALONG. So a
+    trajectory that starts at the ego's state and accelerates at a constant rate is followed
+    at that rate. ``ValueError`` names a bad point: none, non-finite, missing fields,
+    timestamps in the past or not increasing."""
+    pts = _trajectory_points(traj, t_ns)
+    if pts[0][0] > 0.0:
+        pts.insert(0, (0.0, x, y, None))
+    taus = [p[0] for p in pts]
+    n = len(pts)
+    # arc length at each point, and the path's heading along each segment
+    cum = [0.0]
+    seg_heading: list[float | None] = []
+    for (_, x0, y0, _), (_, x1, y1, _) in zip(pts, pts[1:]):
+        d = math.hypot(x1 - x0, y1 - y0)
+        cum.append(cum[-1] + d)
+        seg_heading.append(math.atan2(y1 - y0, x1 - x0) if d > 1e-9 else None)
+    # the ego's place on the path: the nearest point of the nearest segment
+    best = (math.inf, 0.0, 0.0, 0)  # distance^2, s, lateral, segment
+    for i in range(n - 1):
+        _, x0, y0, _ = pts[i]
+        _, x1, y1, _ = pts[i + 1]
+        sx, sy = x1 - x0, y1 - y0
+        seg = cum[i + 1] - cum[i]
+        ex, ey = x - x0, y - y0
+        # on the first and last segments the path extends beyond its ends: an ego behind the
+        # first point (or past the last) is that far behind (or ahead), not on it
+        lo = -math.inf if i == 0 else 0.0
+        hi = math.inf if i == n - 2 else seg
+        u = 0.0 if seg <= 1e-9 else min(max((ex * sx + ey * sy) / seg, lo), hi)
+        h = seg_heading[i]
+        c, s = (math.cos(h), math.sin(h)) if h is not None else (1.0, 0.0)
+        px, py = ex - u * c, ey - u * s
+        d2 = px * px + py * py
+        if d2 < best[0]:
+            lateral = (ey * c - ex * s) if h is not None else 0.0
+            best = (d2, cum[i] + u, lateral, i)
+    _, s_ego, lateral, _ = best
+
+    def path_heading(s_at: float) -> float:
+        # the heading of the segment at arc length s_at (zero-length ones skipped); a path
+        # of no length (a stop) has its points' yaw, or the ego's heading
+        for i in range(n - 1):
+            if seg_heading[i] is not None and cum[i + 1] >= s_at:
+                return seg_heading[i]  # type: ignore[return-value]
+        moving = [h for h in seg_heading if h is not None]
+        if moving:
+            return moving[-1]
+        yaws = [p[3] for p in pts if p[3] is not None]
+        return yaws[-1] if yaws else heading
+
+    # speeds at the points: central differences inside, linear extrapolation at the ends
+    seg_v = [(cum[i + 1] - cum[i]) / (taus[i + 1] - taus[i]) for i in range(n - 1)]
+    if n == 2:
+        knot_v = [seg_v[0], seg_v[0]]
+    else:
+        knot_v = [0.0] * n
+        for i in range(1, n - 1):
+            knot_v[i] = 0.5 * (seg_v[i - 1] + seg_v[i])
+        knot_v[0] = 2.0 * seg_v[0] - knot_v[1]
+        knot_v[-1] = 2.0 * seg_v[-1] - knot_v[-2]
+
+    def at(tau: float) -> tuple[float, float]:
+        """(arc length [m], speed [m/s]) the trajectory asks for at ``tau`` s from now:
+        standing at its last point once it has ended."""
+        if tau >= taus[-1]:
+            return cum[-1], 0.0
+        i = max(0, bisect_right(taus, tau) - 1)
+        w = (tau - taus[i]) / (taus[i + 1] - taus[i])
+        return cum[i] + w * (cum[i + 1] - cum[i]), knot_v[i] + w * (knot_v[i + 1] - knot_v[i])
+
+    s_now, v_now = at(0.0)
+    _, v_next = at(dt)
+    acceleration = (v_next - v_now) / dt + (v_now - speed) / TAU_ACC + KP_ALONG * (s_now - s_ego)
+    # steering: highway-env's ControlledVehicle.steering_control, the path as its lane
+    v_ref = speed if abs(speed) > 1e-2 else math.copysign(1e-2, speed or 1.0)
+    future = path_heading(s_ego + max(speed, 0.0) * TAU_PURSUIT)
+    lateral_speed = -lateral / TAU_LATERAL
+    heading_cmd = math.asin(max(-1.0, min(1.0, lateral_speed / v_ref)))
+    heading_ref = future + max(-math.pi / 4, min(math.pi / 4, heading_cmd))
+    turn = math.atan2(math.sin(heading_ref - heading), math.cos(heading_ref - heading))
+    slip = math.asin(max(-1.0, min(1.0, 0.5 * length / v_ref * turn / TAU_HEADING)))
+    steering = math.atan(2.0 * math.tan(slip))
+    return acceleration, steering
+
+
+def action_to_trajectory(mr: Any, t_ns: int, x: float, y: float, heading: float, speed: float,
+                         length: float, dt: float, acceleration: float, steering: float,
+                         steps: int = 10) -> None:
+    """Fill ``mr`` with a desired trajectory: where the ego goes in ``steps`` steps of ``dt``
+    holding (acceleration, steering), by the kinematic bicycle model in continuous time
+    (each step at the mean of its speeds, which is how a planner's timed points read; the
+    speed bounded below by 0: a braking vehicle stops and stays). The first point is the ego
+    now."""
+    from osi3 import osi_motionrequest_pb2 as M
+
+    mr.motion_request_type = M.MotionRequest.MOTION_REQUEST_TYPE_TRAJECTORY
+    points = mr.desired_trajectory.trajectory_point
+    step_ns = wire.ns(dt)
+    beta = math.atan(0.5 * math.tan(steering))
+    for k in range(steps + 1):
+        p = points.add()
+        wire.set_timestamp(p.timestamp, t_ns + k * step_ns)
+        p.position.x, p.position.y, p.position.z = x, y, 0.0
+        p.orientation.yaw = wrap_yaw(heading)
+        after = max(speed + acceleration * dt, 0.0) if speed >= 0.0 else speed + acceleration * dt
+        mean = 0.5 * (speed + after)
+        x += mean * math.cos(heading + beta) * dt
+        y += mean * math.sin(heading + beta) * dt
+        heading += mean * math.sin(beta) / (0.5 * length) * dt
+        speed = after

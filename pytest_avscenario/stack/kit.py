@@ -16,7 +16,8 @@ afresh; an object's ``reset()`` hook is called), each ``SensorView`` is turned i
 ego's route from the Reset, its progress along it tracked here as the world tracks it, the
 agents within sensor range nearest first), and the driver's (acceleration, steering) goes
 back as a ``MotionRequest`` whose desired state is where that command takes the ego in one
-step (:func:`~.frame.action_to_motion`). A driver that raises is answered with ``Error``
+step (:func:`~.frame.action_to_motion`), or, with ``answer="trajectory"``, whose desired
+trajectory is where the command held takes it (:func:`~.frame.action_to_trajectory`). A driver that raises is answered with ``Error``
 and its traceback, which the plugin shows as the case's error.
 
 Lanes are rebuilt from the OSI centre lines: a straight lane exactly (two points), a curved
@@ -121,10 +122,11 @@ def _number(value: Any) -> float:
 class Session:
     """One case on the stack's side: the Reset's facts, the route, the driver."""
 
-    def __init__(self, hello: dict, policy: Any) -> None:
+    def __init__(self, hello: dict, policy: Any, answer: str = "desired_state") -> None:
         from ..sim.drivers import resolve
 
         self.hello = hello
+        self.answer_kind = answer
         self.dt = float(hello["dt"])
         self.dt_ns = wire.ns(self.dt)
         self.host = int(hello["host_vehicle_id"])
@@ -233,12 +235,22 @@ class Session:
         wire.set_version(mr.version)
         t_ns = wire.timestamp_ns(sv.timestamp)
         wire.set_timestamp(mr.timestamp, t_ns)
-        frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
-                               self.dt, a, d)
+        if self.answer_kind == "trajectory":
+            frame.action_to_trajectory(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
+                                       self.dt, a, d)
+        else:
+            frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
+                                   self.dt, a, d)
         return mr.SerializeToString()
 
 
-def handle(frames: list[bytes], session: Session | None, policy: Any) -> tuple[list[bytes], Session | None]:
+#: what :func:`serve` answers with: a MotionRequest's desired state one step ahead (the
+#: driver's command, exactly), or its desired trajectory (the command held for one second)
+ANSWERS = ("desired_state", "trajectory")
+
+
+def handle(frames: list[bytes], session: Session | None, policy: Any,
+           answer: str = "desired_state") -> tuple[list[bytes], Session | None]:
     """The answer to one request and the session after it (a step of :func:`serve`)."""
     from osi3 import osi_sensorview_pb2 as S
 
@@ -249,7 +261,7 @@ def handle(frames: list[bytes], session: Session | None, policy: Any) -> tuple[l
             if hello.get("revision") != wire.REVISION:
                 return wire.pack(wire.ERROR, f"this kit speaks revision {wire.REVISION}, "
                                              f"not {hello.get('revision')!r}"), None
-            session = Session(hello, policy)
+            session = Session(hello, policy, answer)
             return wire.pack(wire.READY, {
                 "protocol": wire.PROTOCOL.decode(), "revision": wire.REVISION,
                 "osi_version": ".".join(map(str, wire.osi_version())), "dt": hello["dt"],
@@ -262,12 +274,19 @@ def handle(frames: list[bytes], session: Session | None, policy: Any) -> tuple[l
         return wire.pack(wire.ERROR, f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"), session
 
 
-def serve(policy: Any, address: str, *, requests: int | None = None) -> None:
+def serve(policy: Any, address: str, *, answer: str = "desired_state",
+          requests: int | None = None) -> None:
     """Answer the plugin at ``address`` (``tcp://…`` or ``ipc://…``, bound here) with
     ``policy``: anything ``world.ego(driver=...)`` accepts that answers ``act(observation)``
-    (a name such as ``"autopilot"``, an object with ``act``, a callable). Runs until the
-    process is stopped (or after ``requests`` requests, for tests)."""
+    (a name such as ``"autopilot"``, an object with ``act``, a callable). ``answer`` is the
+    MotionRequest sent: ``"desired_state"`` (one step ahead: the plugin applies the driver's
+    command exactly) or ``"trajectory"`` (where the command held for ten steps takes the ego:
+    the plugin's trajectory controller follows it). Runs until the process is stopped (or
+    after ``requests`` requests, for tests)."""
     import zmq
+
+    if answer not in ANSWERS:
+        raise ValueError(f"serve(answer={answer!r}): use one of {', '.join(ANSWERS)}")
 
     sock = zmq.Context.instance().socket(zmq.REP)
     sock.setsockopt(zmq.LINGER, 0)
@@ -284,7 +303,7 @@ def serve(policy: Any, address: str, *, requests: int | None = None) -> None:
                     if os.getppid() != parent:
                         return
             frames = sock.recv_multipart()
-            reply, session = handle(frames, session, policy)
+            reply, session = handle(frames, session, policy, answer)
             sock.send_multipart(reply)
             n += 1
     finally:

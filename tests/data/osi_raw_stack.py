@@ -1,14 +1,18 @@
 """A stack written from docs/osi-protocol.md alone: pyzmq and osi3, nothing of pytest-avscenario.
 
-    python osi_raw_stack.py ADDRESS [--answer motion|traffic] [--speed V]
+    python osi_raw_stack.py ADDRESS [--answer motion|traffic|trajectory] [--speed V] [--to-y Y]
                             [--fault KIND --case-suffix SUFFIX --at-step N]
 
 It drives the host vehicle straight along its heading towards the speed V [m/s]: with
 ``motion`` it sends MotionRequests (desired state one step ahead), with ``traffic`` it moves
-the vehicle itself and sends TrafficUpdates. ``--fault`` misbehaves on purpose in the case
+the vehicle itself and sends TrafficUpdates. With ``trajectory`` it sends MotionRequests
+with a desired trajectory of 2 s (a point every step) along +x, its speed closing on V, its
+y moving smoothly to Y (default: staying where it is). ``--fault`` misbehaves on purpose in the case
 whose name ends with SUFFIX, at step N: ``hang`` (never answers), ``crash`` (exits with code
 3), ``timestamp`` (answers one step late), ``error`` (an Error answer), ``garbage`` (unparseable bytes), ``type`` (a
-wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position); ``handshake`` answers that case's Reset with revision 2 at dt 0.05.
+wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position); ``handshake`` answers that case's Reset with revision 2 at dt 0.05;
+with ``trajectory``: ``empty`` (no points), ``past`` (the first point one step before the
+request), ``nan`` (a NaN point).
 """
 
 import argparse
@@ -32,8 +36,9 @@ def version() -> str:
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("address")
-    p.add_argument("--answer", default="motion", choices=["motion", "traffic"])
+    p.add_argument("--answer", default="motion", choices=["motion", "traffic", "trajectory"])
     p.add_argument("--speed", type=float, default=10.0)
+    p.add_argument("--to-y", type=float, default=None)
     p.add_argument("--fault", default="")
     p.add_argument("--case-suffix", default="")
     p.add_argument("--at-step", type=int, default=3)
@@ -76,7 +81,28 @@ def main() -> None:
         v = math.hypot(b.velocity.x, b.velocity.y)
         acc = max(-3.0, min(2.0, (args.speed - v) / 1.0))
         v1 = v + acc * dt
-        if args.answer == "motion":
+        if args.answer == "trajectory":
+            out = osi_motionrequest_pb2.MotionRequest()
+            out.timestamp.seconds, out.timestamp.nanos = divmod(ts, 10**9)
+            out.motion_request_type = osi_motionrequest_pb2.MotionRequest.MOTION_REQUEST_TYPE_TRAJECTORY
+            to_y = b.position.y if args.to_y is None else args.to_y
+            x, speed = b.position.x, v
+            step_ns = round(dt * 1e9)
+            for k in range(0 if faulty and args.fault == "empty" else 21):
+                tau = k * dt
+                pt = out.desired_trajectory.trajectory_point.add()
+                pt_ns = ts + k * step_ns - (step_ns if faulty and args.fault == "past" else 0)
+                pt.timestamp.seconds, pt.timestamp.nanos = divmod(pt_ns, 10**9)
+                pt.position.x = x
+                pt.position.y = to_y + (b.position.y - to_y) * math.exp(-tau / 1.5)
+                if faulty and args.fault == "nan" and k == 5:
+                    pt.position.y = float("nan")
+                a_k = max(-3.0, min(2.0, (args.speed - speed) / 1.0))
+                after = speed + a_k * dt
+                x += 0.5 * (speed + after) * dt
+                speed = after
+            name = b"MotionRequest"
+        elif args.answer == "motion":
             out = osi_motionrequest_pb2.MotionRequest()
             out.timestamp.seconds, out.timestamp.nanos = divmod(ts, 10**9)
             out.motion_request_type = osi_motionrequest_pb2.MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
