@@ -1,0 +1,458 @@
+"""Criticality measures under the names CommonRoad-CriMe gives them: enhanced time to
+collision (TTC with accelerations), required deceleration, brake threat number, time to
+brake, time to steer, and post-encroachment time at crossings.
+
+The first five look at the road user ahead of the ego in its lane (same lane id when both
+are known, else overlapping lateral corridors, as :func:`.metrics.headway`), along the ego's
+heading: bumper-to-bumper gap ``g`` [m], speeds ``v_e``, ``v_l`` [m/s] and accelerations
+``a_e``, ``a_l`` [m/s²] (signed; the time derivative of the recorded velocities, projected on
+the ego's heading). Post-encroachment time looks at every road user whose path crosses the
+ego's. All of them are computed with numpy over the whole ``(agents, steps)`` grid; their
+closed forms are in each function's docstring and checked in the tests.
+
+Where CriMe differs (README "Criteria and criticality"): its TTC with accelerations drops
+the sign of the other vehicle's acceleration; its required deceleration works on x
+components in a curvilinear frame that gives 0 on roads heading along +x, and lets a
+braking lead reverse. Here the signs are kept and a lead that brakes stops.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..trajectory import Trajectory
+from .base import (
+    Monitor,
+    MonitorError,
+    MonitorResult,
+    check_name,
+    check_positive,
+    check_present_finite,
+    check_threshold,
+    factory,
+    fmt_t,
+)
+from .metrics import _argmin_2d, _pair_mask, _sat_separation
+
+__all__ = [
+    "LeadKinematics", "lead_kinematics", "ettc_values", "required_deceleration_values",
+    "time_to_brake_values", "time_to_steer_values", "pet_values",
+    "ettc", "required_deceleration", "brake_threat_number", "time_to_brake", "time_to_steer",
+    "post_encroachment_time", "MAX_DECEL_MPS2", "MAX_LAT_ACCEL_MPS2",
+]
+
+#: [m/s²] the ego's default braking capability (dry road, emergency braking)
+MAX_DECEL_MPS2 = 8.0
+#: [m/s²] the ego's default lateral acceleration capability for an evasive steer
+MAX_LAT_ACCEL_MPS2 = 5.0
+#: [s] how far ahead time to brake looks for the moment braking stops being enough
+TTB_HORIZON_S = 10.0
+
+
+@dataclass(frozen=True)
+class LeadKinematics:
+    """``(A-1, T)`` each, NaN where the other agent is not ahead of the ego in its lane: gap
+    [m] bumper to bumper along the ego's heading, lateral offset ``lat`` [m] of its centre
+    from the ego's axis, speeds ``v_e``/``v_l`` [m/s] and accelerations ``a_e``/``a_l``
+    [m/s²] along the ego's heading."""
+
+    gap: np.ndarray
+    lat: np.ndarray
+    v_e: np.ndarray
+    v_l: np.ndarray
+    a_e: np.ndarray
+    a_l: np.ndarray
+
+
+_CACHE: "weakref.WeakKeyDictionary[Trajectory, LeadKinematics]" = weakref.WeakKeyDictionary()
+
+
+def _accel(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, T)`` x and y acceleration [m/s²]: the time derivative of the recorded velocity
+    (second-order differences inside, first-order at the ends)."""
+    if traj.n_steps < 2:
+        z = np.zeros_like(traj.vx)
+        return z, z
+    with np.errstate(invalid="ignore"):
+        return np.gradient(traj.vx, traj.t, axis=1), np.gradient(traj.vy, traj.t, axis=1)
+
+
+def lead_kinematics(traj: Trajectory) -> LeadKinematics:
+    """The :class:`LeadKinematics` of ``traj`` (computed once per trajectory)."""
+    got = _CACHE.get(traj)
+    if got is not None:
+        return got
+    h = traj.heading[0]
+    c, s = np.cos(h), np.sin(h)
+    dx = traj.x[1:] - traj.x[0]
+    dy = traj.y[1:] - traj.y[0]
+    lon = dx * c + dy * s
+    lat = -dx * s + dy * c
+    lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
+    same_lane = traj.lane[1:] == traj.lane[0][None, :]
+    corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
+    ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
+    gap = lon - (traj.length[0] + traj.length[1:, None]) / 2
+    ax, ay = _accel(traj)
+    v_e = traj.vx[0] * c + traj.vy[0] * s
+    a_e = ax[0] * c + ay[0] * s
+    v_l = traj.vx[1:] * c + traj.vy[1:] * s
+    a_l = ax[1:] * c + ay[1:] * s
+    nan = np.nan
+    got = LeadKinematics(
+        gap=np.where(ahead, gap, nan), lat=np.where(ahead, lat, nan),
+        v_e=np.where(ahead, v_e[None, :], nan), v_l=np.where(ahead, v_l, nan),
+        a_e=np.where(ahead, a_e[None, :], nan), a_l=np.where(ahead, a_l, nan))
+    _CACHE[traj] = got
+    return got
+
+
+# -- closed forms -----------------------------------------------------------------------------
+
+def ettc_values(gap, v_e, v_l, a_e, a_l):
+    """Enhanced time to collision [s]: the first ``t > 0`` with
+    ``gap - (v_e - v_l) t - ½ (a_e - a_l) t² = 0`` (both keep their accelerations), i.e.
+    ``2 g / (u + sqrt(u² + 2 α g))`` with closing speed ``u = v_e - v_l`` and closing
+    acceleration ``α = a_e - a_l``, where ``u² + 2 α g >= 0`` and ``u + sqrt(...) > 0``;
+    +inf where the gap never closes; 0 where it is already closed. NaN stays NaN."""
+    g = np.asarray(gap, dtype=float)
+    u = np.asarray(v_e, dtype=float) - v_l
+    alpha = np.asarray(a_e, dtype=float) - a_l
+    # differentiated velocities carry rounding noise: a relative acceleration of 1e-9 m/s²
+    # would turn a receding pair into a collision in 1e15 s
+    alpha = np.where(np.abs(alpha) < 1e-9, 0.0, alpha)
+    disc = u * u + 2.0 * alpha * g
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        root = np.sqrt(np.where(disc >= 0, disc, 0.0))
+        den = u + root
+        out = np.where((disc >= 0) & (den > 1e-9), 2.0 * g / den, np.inf)
+    out = np.where(g <= 0, 0.0, out)
+    return np.where(np.isnan(g) | np.isnan(u) | np.isnan(alpha), np.nan, out)
+
+
+def required_deceleration_values(gap, v_e, v_l, a_l):
+    """Required deceleration [m/s², >= 0]: the smallest constant braking ``b`` of the ego,
+    from now to a stop, that keeps the gap open while the lead keeps its acceleration
+    ``a_l`` until it stands (no one reverses).
+
+    The gap is smallest when the speeds match: ``b1 = max(0, u²/(2g) - a_l)`` with closing
+    speed ``u = v_e - v_l > 0``, when that moment ``u / (a_l + b1)`` comes before a braking
+    lead stands (``v_l / -a_l``). Otherwise the ego must stop behind where the lead stops:
+    ``b2 = v_e² / (2 (g + d_l))``, ``d_l = v_l² / (2 (-a_l))`` (0 for a standing lead; a lead
+    that does not brake never stops, and an ego not closing in needs 0). +inf where the gap
+    is already closed."""
+    g = np.asarray(gap, dtype=float)
+    v_e = np.maximum(np.asarray(v_e, dtype=float), 0.0)
+    v_l = np.maximum(np.asarray(v_l, dtype=float), 0.0)
+    a_l = np.asarray(a_l, dtype=float)
+    u = v_e - v_l
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
+        lead_stops = (a_l < 0) | (v_l <= 0)
+        t_lead = np.where(v_l <= 0, 0.0, v_l / np.where(a_l < 0, -a_l, 1.0))
+        d_lead = np.where(v_l <= 0, 0.0, v_l * v_l / (2.0 * np.where(a_l < 0, -a_l, 1.0)))
+        t_match = u / (a_l + b1)
+        b2 = v_e * v_e / (2.0 * (g + d_lead))
+    match_first = (u > 0) & (a_l + b1 > 0) & (~lead_stops | (t_match <= t_lead))
+    out = np.where(match_first, b1, np.where(lead_stops, b2, 0.0))
+    out = np.where(u <= 0, np.where(lead_stops, b2, 0.0), out)
+    out = np.where(g <= 0, np.inf, out)
+    return np.where(np.isnan(g) | np.isnan(u) | np.isnan(a_l), np.nan, out)
+
+
+def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance [m] and speed [m/s] after ``tau`` [s] at constant ``a``, stopping at 0."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_stop = np.where(a < 0, v / np.where(a < 0, -a, 1.0), np.inf)
+    t = np.minimum(tau, t_stop)
+    return v * t + 0.5 * a * t * t, np.maximum(v + a * t, 0.0)
+
+
+def time_to_brake_values(k: LeadKinematics, max_decel: float,
+                         horizon: float = TTB_HORIZON_S, iters: int = 30) -> np.ndarray:
+    """Time to brake [s]: how long the ego can keep its acceleration before braking at
+    ``max_decel`` is no longer enough (the required deceleration of the state it then
+    reaches exceeds ``max_decel``); both keep their accelerations meanwhile, no one reverses.
+    0 when it is already too late, +inf when braking is still enough after ``horizon``.
+    Found by bisection on that moment, all agents and steps at once."""
+    v_e = np.maximum(k.v_e, 0.0)
+    v_l = np.maximum(k.v_l, 0.0)
+
+    def need(tau):
+        de, ve = _advance(v_e, k.a_e, tau)
+        dl, vl = _advance(v_l, k.a_l, tau)
+        g = k.gap + dl - de
+        al = np.where(vl <= 0, 0.0, k.a_l)
+        return required_deceleration_values(g, ve, vl, al)
+
+    now = need(np.zeros_like(v_e))
+    late = need(np.full_like(v_e, horizon))
+    lo, hi = np.zeros_like(v_e), np.full_like(v_e, horizon)
+    for _ in range(iters):
+        mid = (lo + hi) / 2
+        ok = need(mid) <= max_decel
+        lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+    out = np.where(now > max_decel, 0.0, np.where(late <= max_decel, np.inf, lo))
+    return np.where(np.isnan(k.gap), np.nan, out)
+
+
+def time_to_steer_values(k: LeadKinematics, width_e: float, width_l: np.ndarray,
+                         max_lat_accel: float) -> np.ndarray:
+    """Time to steer [s]: the enhanced time to collision minus the time an evasive steer at
+    ``max_lat_accel`` [m/s²] (from no lateral speed) takes to move the ego sideways clear of
+    the lead, ``sqrt(2 d / a_lat)`` with ``d = (w_e + w_l)/2 - |lat|``. Negative: too late."""
+    ttc = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
+    d = np.maximum((width_e + np.asarray(width_l)[:, None]) / 2 - np.abs(k.lat), 0.0)
+    return ttc - np.sqrt(2.0 * d / max_lat_accel)
+
+
+# -- monitors of the vehicle ahead ------------------------------------------------------------
+
+class _LeadMeasure(Monitor):
+    """ρ = min over steps and agents ahead of ``sign * (value - threshold)``."""
+
+    invariant = True
+    _what = ""
+    _unit = ""
+    _upper = False  # True: the value must stay <= threshold
+
+    def _values(self, traj: Trajectory) -> np.ndarray:
+        raise NotImplementedError
+
+    def _margins(self, traj: Trajectory) -> np.ndarray:
+        v = self._values(traj)
+        m = (self.threshold - v) if self._upper else (v - self.threshold)
+        return np.where(np.isnan(v), np.inf, m)
+
+    def series(self, traj: Trajectory) -> np.ndarray:
+        m = self._margins(traj)
+        return m.min(axis=0) if m.shape[0] else np.full(traj.n_steps, np.inf)
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y", "vx", "vy", "heading"))
+        m = self._margins(traj)
+        if m.size == 0 or not (m < np.inf).any():
+            return MonitorResult(self.name, math.inf, self.threshold, None, None,
+                                 f"nothing ahead of the ego that makes {self._what} finite")
+        row, step = _argmin_2d(m)
+        v = self._values(traj)[row, step]
+        who = traj.names[row + 1]
+        bound = "<=" if self._upper else ">="
+        return MonitorResult(
+            self.name, float(m[row, step]), self.threshold, fmt_t(traj, step), who,
+            f"{self._what} {v:.3g}{' ' + self._unit if self._unit else ''} behind {who} at "
+            f"t={traj.t[step]:.2f} s (required {bound} {self.threshold:g} {self._unit})".rstrip())
+
+
+class ETTCMonitor(_LeadMeasure):
+    _what, _unit = "enhanced TTC", "s"
+
+    def __init__(self, threshold: float = 2.0, *, name: str = "ettc"):
+        self.threshold = check_threshold(name, threshold)
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        k = lead_kinematics(traj)
+        return ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
+
+
+class RequiredDecelerationMonitor(_LeadMeasure):
+    _what, _unit, _upper = "required deceleration", "m/s²", True
+
+    def __init__(self, max: float = 4.0, *, name: str = "required_deceleration"):
+        self.threshold = check_positive(name, max, "max", allow_zero=True)
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        k = lead_kinematics(traj)
+        return required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l)
+
+
+class BrakeThreatMonitor(_LeadMeasure):
+    _what, _unit, _upper = "brake threat number", "", True
+
+    def __init__(self, max: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                 name: str = "brake_threat_number"):
+        self.threshold = check_positive(name, max, "max", allow_zero=True)
+        self.max_decel = check_positive(name, max_decel, "max_decel")
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        k = lead_kinematics(traj)
+        return required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l) / self.max_decel
+
+
+class TimeToBrakeMonitor(_LeadMeasure):
+    _what, _unit = "time to brake", "s"
+
+    def __init__(self, threshold: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                 name: str = "time_to_brake"):
+        self.threshold = check_threshold(name, threshold)
+        self.max_decel = check_positive(name, max_decel, "max_decel")
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return time_to_brake_values(lead_kinematics(traj), self.max_decel)
+
+
+class TimeToSteerMonitor(_LeadMeasure):
+    _what, _unit = "time to steer", "s"
+
+    def __init__(self, threshold: float = 0.5, *, max_lat_accel: float = MAX_LAT_ACCEL_MPS2,
+                 name: str = "time_to_steer"):
+        self.threshold = check_threshold(name, threshold)
+        self.max_lat_accel = check_positive(name, max_lat_accel, "max_lat_accel")
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return time_to_steer_values(lead_kinematics(traj), float(traj.width[0]),
+                                    traj.width[1:], self.max_lat_accel)
+
+
+@factory
+def ettc(threshold: float = 2.0, *, name: str = "ettc") -> Monitor:
+    """CriMe's ETTC (TTC with accelerations): rho = min over steps of (enhanced TTC -
+    ``threshold``) [s] toward the road user ahead in the ego's lane, both keeping their
+    accelerations (see :func:`ettc_values`); +inf when the gap never closes. The paper's
+    :func:`ttc` (constant velocities, any direction, a circle) is CriMe's TTC."""
+    return ETTCMonitor(threshold, name=name)
+
+
+@factory
+def required_deceleration(max: float = 4.0, *,
+                          name: str = "required_deceleration") -> Monitor:
+    """CriMe's a_req: the ego never needs to brake harder than ``max`` [m/s²] to avoid the
+    road user ahead (see :func:`required_deceleration_values`). rho = ``max`` - the largest
+    required deceleration [m/s²]."""
+    return RequiredDecelerationMonitor(max, name=name)
+
+
+@factory
+def brake_threat_number(max: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                        name: str = "brake_threat_number") -> Monitor:
+    """CriMe's BTN: required deceleration / the ego's braking capability ``max_decel``
+    [m/s²] stays <= ``max`` (above 1 braking alone cannot avoid the collision). rho = ``max``
+    - the largest BTN."""
+    return BrakeThreatMonitor(max, max_decel=max_decel, name=name)
+
+
+@factory
+def time_to_brake(threshold: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                  name: str = "time_to_brake") -> Monitor:
+    """CriMe's TTB: the ego can always wait at least ``threshold`` [s] before braking at
+    ``max_decel`` [m/s²] must begin (see :func:`time_to_brake_values`). rho = min over steps
+    of (TTB - ``threshold``) [s]."""
+    return TimeToBrakeMonitor(threshold, max_decel=max_decel, name=name)
+
+
+@factory
+def time_to_steer(threshold: float = 0.5, *, max_lat_accel: float = MAX_LAT_ACCEL_MPS2,
+                  name: str = "time_to_steer") -> Monitor:
+    """CriMe's TTS: an evasive steer at ``max_lat_accel`` [m/s²] can always wait at least
+    ``threshold`` [s] (see :func:`time_to_steer_values`). rho = min over steps of (TTS -
+    ``threshold``) [s]."""
+    return TimeToSteerMonitor(threshold, max_lat_accel=max_lat_accel, name=name)
+
+
+# -- post-encroachment time -------------------------------------------------------------------
+
+#: [deg] paths that meet at a smaller angle (following, oncoming) do not cross
+CROSSING_MIN_ANGLE_DEG = 30.0
+
+
+def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Post-encroachment time of the ego with each other agent: ``(pet [s], t_first_leaves,
+    t_second_enters)`` each ``(A-1,)``, +inf / NaN where their paths do not cross.
+
+    PET is the time from the first road user leaving the ground both paths cover to the
+    second reaching it: the smallest ``|t_i - t_j|`` over pairs of samples at which the ego's
+    footprint at ``t_i`` overlaps the other's at ``t_j`` (0 when they meet at once: a
+    collision), counting only pairs whose headings differ by at least ``min_angle_deg`` (a
+    crossing, not following or oncoming traffic). Exact to the sampling step."""
+    A1 = traj.n_agents - 1
+    pet = np.full(A1, np.inf)
+    t1 = np.full(A1, np.nan)
+    t2 = np.full(A1, np.nan)
+    ok = traj.present & np.isfinite(traj.x) & np.isfinite(traj.y)
+    ie = np.flatnonzero(ok[0])
+    if A1 < 1 or ie.size == 0:
+        return pet, t1, t2
+    R = np.hypot(traj.length / 2, traj.width / 2)
+    xe, ye, he = traj.x[0, ie], traj.y[0, ie], traj.heading[0, ie]
+    sin_min = math.sin(math.radians(min_angle_deg))
+    for a in range(1, traj.n_agents):
+        io = np.flatnonzero(ok[a])
+        if io.size == 0:
+            continue
+        reach = R[0] + R[a]
+        xo, yo = traj.x[a, io], traj.y[a, io]
+        # samples of each path within reach of the other path's bounding box
+        ne = ((xe >= xo.min() - reach) & (xe <= xo.max() + reach)
+              & (ye >= yo.min() - reach) & (ye <= yo.max() + reach))
+        no = ((xo >= xe.min() - reach) & (xo <= xe.max() + reach)
+              & (yo >= ye.min() - reach) & (yo <= ye.max() + reach))
+        if not ne.any() or not no.any():
+            continue
+        i, j = ie[ne], io[no]
+        dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
+        dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
+        near = dx * dx + dy * dy <= reach * reach
+        cross = np.abs(np.sin(traj.heading[a, j][None, :] - traj.heading[0, i][:, None])) >= sin_min
+        ii, jj = np.nonzero(near & cross)
+        if ii.size == 0:
+            continue
+        si, sj = i[ii], j[jj]
+        sep = _sat_separation(traj.x[0, si], traj.y[0, si], traj.heading[0, si],
+                              traj.length[0] / 2, traj.width[0] / 2,
+                              traj.x[a, sj], traj.y[a, sj], traj.heading[a, sj],
+                              traj.length[a] / 2, traj.width[a] / 2)
+        hit = sep <= 1e-9
+        if not hit.any():
+            continue
+        ti, tj = traj.t[si[hit]], traj.t[sj[hit]]
+        gap = np.abs(ti - tj)
+        b = int(np.argmin(gap))
+        pet[a - 1] = float(gap[b])
+        t1[a - 1], t2[a - 1] = float(min(ti[b], tj[b])), float(max(ti[b], tj[b]))
+    return pet, t1, t2
+
+
+class PETMonitor(Monitor):
+    invariant = False  # a later sample can lower the PET of an earlier pass
+
+    def __init__(self, min_s: float = 1.0, *, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG,
+                 name: str = "post_encroachment_time"):
+        self.threshold = check_positive(name, min_s, "min_s", allow_zero=True)
+        self.min_angle = check_positive(name, min_angle_deg, "min_angle_deg")
+        if not self.min_angle <= 90:
+            raise MonitorError(f"{name}: min_angle_deg must be <= 90, got {min_angle_deg!r}")
+        self.name = check_name(name)
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y", "heading"))
+        pet, t1, t2 = pet_values(traj, self.min_angle)
+        if pet.size == 0 or not np.isfinite(pet).any():
+            return MonitorResult(self.name, math.inf, self.threshold, None, None,
+                                 "no road user's path crosses the ego's")
+        a = int(np.argmin(pet))
+        who = traj.names[a + 1]
+        return MonitorResult(
+            self.name, float(pet[a]) - self.threshold, self.threshold, float(t2[a]), who,
+            f"post-encroachment time {pet[a]:.3g} s with {who}: the first left the crossing "
+            f"at t={t1[a]:.2f} s, the second reached it at t={t2[a]:.2f} s (required >= "
+            f"{self.threshold:g} s)")
+
+
+@factory
+def post_encroachment_time(min_s: float = 1.0, *, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG,
+                           name: str = "post_encroachment_time") -> Monitor:
+    """CriMe's PET at crossings: every road user whose path crosses the ego's (at
+    ``min_angle_deg`` or more) reaches the shared ground at least ``min_s`` [s] after the
+    other left it (see :func:`pet_values`). rho = min PET - ``min_s`` [s]; the result's
+    ``t`` is when the second reached it; +inf when no path crosses."""
+    return PETMonitor(min_s, min_angle_deg=min_angle_deg, name=name)
