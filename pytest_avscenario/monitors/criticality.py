@@ -67,6 +67,19 @@ class LeadKinematics:
     a_e: np.ndarray
     a_l: np.ndarray
 
+    def live(self) -> tuple[np.ndarray, "LeadKinematics"]:
+        """The flat indices of the pairs that are ahead, and the kinematics of those alone
+        (1-D): the measures are computed on these few and scattered back."""
+        idx = np.flatnonzero(~np.isnan(self.gap))
+        return idx, LeadKinematics(*(a.ravel()[idx] for a in (self.gap, self.lat, self.v_e,
+                                                               self.v_l, self.a_e, self.a_l)))
+
+    def scatter(self, idx: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """``values`` of the pairs ``idx`` back on the ``(A-1, T)`` grid, NaN elsewhere."""
+        out = np.full(self.gap.shape, np.nan)
+        out.ravel()[idx] = values
+        return out
+
 
 _CACHE: "weakref.WeakKeyDictionary[Trajectory, LeadKinematics]" = weakref.WeakKeyDictionary()
 
@@ -150,16 +163,16 @@ def required_deceleration_values(gap, v_e, v_l, a_l):
     v_l = np.maximum(np.asarray(v_l, dtype=float), 0.0)
     a_l = np.asarray(a_l, dtype=float)
     u = v_e - v_l
+    moving = v_l > 0
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
-        lead_stops = (a_l < 0) | (v_l <= 0)
-        t_lead = np.where(v_l <= 0, 0.0, v_l / np.where(a_l < 0, -a_l, 1.0))
-        d_lead = np.where(v_l <= 0, 0.0, v_l * v_l / (2.0 * np.where(a_l < 0, -a_l, 1.0)))
-        t_match = u / (a_l + b1)
+        # when and where a braking lead stands (0 for a standing one, inf for one that never does)
+        t_lead = np.where(moving, np.where(a_l < 0, v_l / -a_l, np.inf), 0.0)
+        d_lead = np.where(moving, v_l * t_lead / 2.0, 0.0)
         b2 = v_e * v_e / (2.0 * (g + d_lead))
-    match_first = (u > 0) & (a_l + b1 > 0) & (~lead_stops | (t_match <= t_lead))
-    out = np.where(match_first, b1, np.where(lead_stops, b2, 0.0))
-    out = np.where(u <= 0, np.where(lead_stops, b2, 0.0), out)
+        # closing in (u > 0) gives a_l + b1 >= u²/2g > 0: the speeds match at u / (a_l + b1)
+        match_first = (u > 0) & (u <= (a_l + b1) * t_lead)
+    out = np.where(match_first, b1, np.where(t_lead < np.inf, b2, 0.0))
     out = np.where(g <= 0, np.inf, out)
     return np.where(np.isnan(g) | np.isnan(u) | np.isnan(a_l), np.nan, out)
 
@@ -173,39 +186,61 @@ def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray,
 
 
 def time_to_brake_values(k: LeadKinematics, max_decel: float,
-                         horizon: float = TTB_HORIZON_S, iters: int = 30) -> np.ndarray:
+                         horizon: float = TTB_HORIZON_S, grid_s: float = 0.5,
+                         fine: int = 64) -> np.ndarray:
     """Time to brake [s]: how long the ego can keep its acceleration before braking at
     ``max_decel`` is no longer enough (the required deceleration of the state it then
     reaches exceeds ``max_decel``); both keep their accelerations meanwhile, no one reverses.
     0 when it is already too late, +inf when braking is still enough after ``horizon``.
-    Found by bisection on that moment, all agents and steps at once."""
-    v_e = np.maximum(k.v_e, 0.0)
-    v_l = np.maximum(k.v_l, 0.0)
+    The first moment on a ``grid_s`` grid, refined twice on ``fine`` points within the
+    bracket (to ``grid_s / fine²``, 0.12 ms by default), for every agent ahead and step at
+    once."""
+    out = np.full(k.gap.shape, np.nan)
+    live = ~np.isnan(k.gap)
+    if not live.any():
+        return out
+    g0, a_e, a_l = k.gap[live], k.a_e[live], k.a_l[live]
+    v_e, v_l = np.maximum(k.v_e[live], 0.0), np.maximum(k.v_l[live], 0.0)
 
     def need(tau):
-        de, ve = _advance(v_e, k.a_e, tau)
-        dl, vl = _advance(v_l, k.a_l, tau)
-        g = k.gap + dl - de
-        al = np.where(vl <= 0, 0.0, k.a_l)
+        de, ve = _advance(v_e[..., None] if tau.ndim > v_e.ndim else v_e,
+                          a_e[..., None] if tau.ndim > a_e.ndim else a_e, tau)
+        dl, vl = _advance(v_l[..., None] if tau.ndim > v_l.ndim else v_l,
+                          a_l[..., None] if tau.ndim > a_l.ndim else a_l, tau)
+        g = (g0[..., None] if tau.ndim > g0.ndim else g0) + dl - de
+        al = np.where(vl <= 0, 0.0, a_l[..., None] if tau.ndim > a_l.ndim else a_l)
         return required_deceleration_values(g, ve, vl, al)
 
-    now = need(np.zeros_like(v_e))
-    late = need(np.full_like(v_e, horizon))
-    lo, hi = np.zeros_like(v_e), np.full_like(v_e, horizon)
-    for _ in range(iters):
-        mid = (lo + hi) / 2
-        ok = need(mid) <= max_decel
-        lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
-    out = np.where(now > max_decel, 0.0, np.where(late <= max_decel, np.inf, lo))
-    return np.where(np.isnan(k.gap), np.nan, out)
+    grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
+    too_hard = need(np.broadcast_to(grid, (g0.size, grid.size))) > max_decel
+    first = np.argmax(too_hard, axis=1)
+    # too late already (the first grid point, now) or still enough at the horizon (never)
+    res = np.where(too_hard[:, 0], 0.0, np.inf)
+    todo = np.flatnonzero(too_hard.any(axis=1) & ~too_hard[:, 0])
+    if todo.size:
+        g0, a_e, a_l, v_e, v_l = g0[todo], a_e[todo], a_l[todo], v_e[todo], v_l[todo]
+        lo, step = grid[first[todo] - 1], grid_s
+        # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
+        # calls, which is what costs on a handful of pairs)
+        frac = np.arange(1, fine + 1) / fine
+        for _ in range(2):
+            pts = lo[:, None] + step * frac[None, :]
+            bad = need(pts) > max_decel
+            j = np.argmax(bad, axis=1)  # the first too-late point; the one before is fine
+            lo = lo + step * np.where(j > 0, frac[np.maximum(j - 1, 0)], 0.0)
+            step = step / fine
+        res[todo] = lo
+    out[live] = res
+    return out
 
 
 def time_to_steer_values(k: LeadKinematics, width_e: float, width_l: np.ndarray,
-                         max_lat_accel: float) -> np.ndarray:
+                         max_lat_accel: float, ttc: np.ndarray | None = None) -> np.ndarray:
     """Time to steer [s]: the enhanced time to collision minus the time an evasive steer at
     ``max_lat_accel`` [m/s²] (from no lateral speed) takes to move the ego sideways clear of
     the lead, ``sqrt(2 d / a_lat)`` with ``d = (w_e + w_l)/2 - |lat|``. Negative: too late."""
-    ttc = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
+    if ttc is None:
+        ttc = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
     d = np.maximum((width_e + np.asarray(width_l)[:, None]) / 2 - np.abs(k.lat), 0.0)
     return ttc - np.sqrt(2.0 * d / max_lat_accel)
 
@@ -223,29 +258,57 @@ class _LeadMeasure(Monitor):
     def _values(self, traj: Trajectory) -> np.ndarray:
         raise NotImplementedError
 
-    def _margins(self, traj: Trajectory) -> np.ndarray:
-        v = self._values(traj)
+    def _margins(self, v: np.ndarray) -> np.ndarray:
         m = (self.threshold - v) if self._upper else (v - self.threshold)
         return np.where(np.isnan(v), np.inf, m)
 
     def series(self, traj: Trajectory) -> np.ndarray:
-        m = self._margins(traj)
+        m = self._margins(self._values(traj))
         return m.min(axis=0) if m.shape[0] else np.full(traj.n_steps, np.inf)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "vx", "vy", "heading"))
-        m = self._margins(traj)
+        values = self._values(traj)
+        m = self._margins(values)
         if m.size == 0 or not (m < np.inf).any():
             return MonitorResult(self.name, math.inf, self.threshold, None, None,
                                  f"nothing ahead of the ego that makes {self._what} finite")
         row, step = _argmin_2d(m)
-        v = self._values(traj)[row, step]
+        v = values[row, step]
         who = traj.names[row + 1]
         bound = "<=" if self._upper else ">="
         return MonitorResult(
             self.name, float(m[row, step]), self.threshold, fmt_t(traj, step), who,
             f"{self._what} {v:.3g}{' ' + self._unit if self._unit else ''} behind {who} at "
             f"t={traj.t[step]:.2f} s (required {bound} {self.threshold:g} {self._unit})".rstrip())
+
+
+_REQUIRED: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _required(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)`` required deceleration toward each agent ahead (shared by a_req and BTN)."""
+    got = _REQUIRED.get(traj)
+    if got is None:
+        k = lead_kinematics(traj)
+        idx, c = k.live()
+        got = k.scatter(idx, required_deceleration_values(c.gap, c.v_e, c.v_l, c.a_l))
+        _REQUIRED[traj] = got
+    return got
+
+
+_ETTC: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _ettc(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)`` enhanced TTC toward each agent ahead (shared by ETTC and TTS)."""
+    got = _ETTC.get(traj)
+    if got is None:
+        k = lead_kinematics(traj)
+        idx, c = k.live()
+        got = k.scatter(idx, ettc_values(c.gap, c.v_e, c.v_l, c.a_e, c.a_l))
+        _ETTC[traj] = got
+    return got
 
 
 class ETTCMonitor(_LeadMeasure):
@@ -256,8 +319,7 @@ class ETTCMonitor(_LeadMeasure):
         self.name = check_name(name)
 
     def _values(self, traj):
-        k = lead_kinematics(traj)
-        return ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
+        return _ettc(traj)
 
 
 class RequiredDecelerationMonitor(_LeadMeasure):
@@ -268,8 +330,7 @@ class RequiredDecelerationMonitor(_LeadMeasure):
         self.name = check_name(name)
 
     def _values(self, traj):
-        k = lead_kinematics(traj)
-        return required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l)
+        return _required(traj)
 
 
 class BrakeThreatMonitor(_LeadMeasure):
@@ -282,8 +343,7 @@ class BrakeThreatMonitor(_LeadMeasure):
         self.name = check_name(name)
 
     def _values(self, traj):
-        k = lead_kinematics(traj)
-        return required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l) / self.max_decel
+        return _required(traj) / self.max_decel
 
 
 class TimeToBrakeMonitor(_LeadMeasure):
@@ -296,7 +356,9 @@ class TimeToBrakeMonitor(_LeadMeasure):
         self.name = check_name(name)
 
     def _values(self, traj):
-        return time_to_brake_values(lead_kinematics(traj), self.max_decel)
+        k = lead_kinematics(traj)
+        idx, c = k.live()
+        return k.scatter(idx, time_to_brake_values(c, self.max_decel))
 
 
 class TimeToSteerMonitor(_LeadMeasure):
@@ -310,7 +372,7 @@ class TimeToSteerMonitor(_LeadMeasure):
 
     def _values(self, traj):
         return time_to_steer_values(lead_kinematics(traj), float(traj.width[0]),
-                                    traj.width[1:], self.max_lat_accel)
+                                    traj.width[1:], self.max_lat_accel, ttc=_ettc(traj))
 
 
 @factory
@@ -364,6 +426,26 @@ def time_to_steer(threshold: float = 0.5, *, max_lat_accel: float = MAX_LAT_ACCE
 CROSSING_MIN_ANGLE_DEG = 30.0
 
 
+#: heading bins over half a turn (|sin| of a heading difference repeats every pi)
+_NBINS = 36
+
+
+def _heading_bins(h: np.ndarray) -> np.ndarray:
+    return (np.mod(h, np.pi) / (np.pi / _NBINS)).astype(int) % _NBINS
+
+
+def _can_cross(min_angle_deg: float) -> np.ndarray:
+    """``(bins, bins)``: whether two headings in these bins can differ by at least
+    ``min_angle_deg`` (modulo a half turn); conservative by one bin."""
+    b = np.arange(_NBINS)
+    d = np.abs(b[:, None] - b[None, :])
+    d = np.minimum(d, _NBINS - d)  # 0 .. NBINS/2 bins: 0 .. 90 degrees
+    return (d + 1) * (180.0 / _NBINS) >= min_angle_deg
+
+
+_CAN_CROSS = {CROSSING_MIN_ANGLE_DEG: _can_cross(CROSSING_MIN_ANGLE_DEG)}
+
+
 def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Post-encroachment time of the ego with each other agent: ``(pet [s], t_first_leaves,
@@ -383,12 +465,22 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
     if A1 < 1 or ie.size == 0:
         return pet, t1, t2
     R = np.hypot(traj.length / 2, traj.width / 2)
-    xe, ye, he = traj.x[0, ie], traj.y[0, ie], traj.heading[0, ie]
     sin_min = math.sin(math.radians(min_angle_deg))
+    ebins = _heading_bins(traj.heading[0, ie])
     for a in range(1, traj.n_agents):
         io = np.flatnonzero(ok[a])
         if io.size == 0:
             continue
+        # keep only samples whose heading can cross one of the other path's (traffic along
+        # the ego's lane never can, and is dropped here at O(T) cost)
+        obins = _heading_bins(traj.heading[a, io])
+        can = _CAN_CROSS[min_angle_deg] if min_angle_deg in _CAN_CROSS else _can_cross(min_angle_deg)
+        o_ok = can[obins][:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)
+        e_ok = can[ebins][:, np.bincount(obins[o_ok], minlength=_NBINS) > 0].any(axis=1)
+        if not o_ok.any() or not e_ok.any():
+            continue
+        io, ie_a = io[o_ok], ie[e_ok]
+        xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
         reach = R[0] + R[a]
         xo, yo = traj.x[a, io], traj.y[a, io]
         # samples of each path within reach of the other path's bounding box
@@ -398,7 +490,7 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
               & (yo >= ye.min() - reach) & (yo <= ye.max() + reach))
         if not ne.any() or not no.any():
             continue
-        i, j = ie[ne], io[no]
+        i, j = ie_a[ne], io[no]
         dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
         dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
         near = dx * dx + dy * dy <= reach * reach

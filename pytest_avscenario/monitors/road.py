@@ -11,6 +11,8 @@ lane of any origin (built roads, OpenDRIVE maps) is a polyline there, so the mon
 nothing but these four facts per lane: the closest lane (the recorded ``lane``), its heading
 and width where the agent is, and whether the agent is on the drivable area (the recorded
 ``on_road``). A trajectory built by hand gives the same ``meta`` to use these monitors.
+Map lanes plug in by being written the same way: the monitors never ask where a lane came
+from.
 
 Projections are computed once per trajectory and shared by every monitor that needs them.
 """
@@ -114,9 +116,10 @@ def lanes_of(traj: Trajectory, monitor: str = "") -> dict[str, LanePolyline]:
 
 @dataclass(frozen=True)
 class LaneFrame:
-    """Every agent's place on its recorded lane, ``(A, T)`` each: ``s`` [m] along it, ``r``
-    [m] left of its centre line, the lane's ``heading`` [rad] and ``width`` [m] there; NaN
-    where the agent is absent or on no known lane."""
+    """The ego's place on its recorded lane, ``(T,)`` each: ``s`` [m] along it, ``r`` [m]
+    left of its centre line, the lane's ``heading`` [rad] and ``width`` [m] there; NaN where
+    the ego is absent or on no known lane. (The rules judge the ego; projecting only its row
+    keeps them cheap.)"""
 
     s: np.ndarray
     r: np.ndarray
@@ -125,26 +128,28 @@ class LaneFrame:
 
 
 def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
-    """The :class:`LaneFrame` of ``traj`` (computed once per trajectory, one vectorized
-    projection per lane)."""
+    """The ego's :class:`LaneFrame` in ``traj`` (computed once per trajectory, one vectorized
+    projection per lane it was on)."""
     got = _FRAMES.get(traj)
     if got is not None:
         return got
     lanes = lanes_of(traj, monitor)
-    shape = traj.x.shape
-    s, r, h, w = (np.full(shape, np.nan) for _ in range(4))
-    ids, inv = np.unique(traj.lane, return_inverse=True)
-    inv = inv.reshape(shape)
-    ok = traj.present & np.isfinite(traj.x) & np.isfinite(traj.y)
-    for code, lid in enumerate(ids.tolist()):
-        lane = lanes.get(lid)
-        if lane is None:
+    T = traj.n_steps
+    s, r, h, w = (np.full(T, np.nan) for _ in range(4))
+    lane = traj.lane[0]
+    ok = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+    # the ego changes lanes a few times a run: runs of one lane id, not a sort of every sample
+    change = np.flatnonzero(lane[1:] != lane[:-1]) + 1
+    ids = set(lane[np.concatenate([[0], change])].tolist()) if T else set()
+    for lid in ids:
+        poly = lanes.get(lid)
+        if poly is None:
             continue
-        sel = (inv == code) & ok
+        sel = ok & (lane == lid)
         if not sel.any():
             continue
-        s[sel], r[sel], h[sel] = lane.project(traj.x[sel], traj.y[sel])
-        w[sel] = lane.width
+        s[sel], r[sel], h[sel] = poly.project(traj.x[0, sel], traj.y[0, sel])
+        w[sel] = poly.width
     got = LaneFrame(s, r, h, w)
     _FRAMES[traj] = got
     return got

@@ -97,7 +97,7 @@ class OnSidewalkMonitor(Monitor):
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         present = _ego_present(traj, self.name)
         f = lane_frame(traj, self.name)
-        beyond = np.abs(f.r[0]) - f.width[0] / 2  # metres beyond the edge of its lane
+        beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
         bad = present & ~traj.on_road[0] & (beyond > 0) & (beyond <= self.width)
         return _infringement(self.name, traj, bad, "drove on the sidewalk")
 
@@ -128,9 +128,9 @@ class WrongWayMonitor(Monitor):
         lanes = lanes_of(traj, self.name)
         parking = np.isin(traj.lane[0], [k for k, v in lanes.items() if v.kind == "parking"])
         travel = np.arctan2(traj.vy[0], traj.vx[0])  # direction of motion, also when reversing
-        err = np.abs(np.mod(travel - f.heading[0] + np.pi, 2 * np.pi) - np.pi)
+        err = np.abs(np.mod(travel - f.heading + np.pi, 2 * np.pi) - np.pi)
         moving = np.hypot(traj.vx[0], traj.vy[0]) > MOVING_MPS
-        return traj.present[0] & moving & ~parking & np.isfinite(f.heading[0]) & (err > self.max_angle)
+        return traj.present[0] & moving & ~parking & np.isfinite(f.heading) & (err > self.max_angle)
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         _ego_present(traj, self.name)
@@ -209,7 +209,7 @@ def stop_crossings(traj: Trajectory, name: str = "ran_stop", *, standing: float 
     if not lines:
         return []
     f = lane_frame(traj, name)
-    front = f.s[0] + traj.length[0] / 2
+    front = f.s + traj.length[0] / 2
     speed = np.hypot(traj.vx[0], traj.vy[0])
     out = []
     for lane_id, s_line in lines:
