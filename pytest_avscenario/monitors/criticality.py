@@ -10,10 +10,11 @@ the ego's heading). Post-encroachment time looks at every road user whose path c
 ego's. All of them are computed with numpy over the whole ``(agents, steps)`` grid; their
 closed forms are in each function's docstring and checked in the tests.
 
-Where CriMe differs (README "Criteria and criticality"): its TTC with accelerations drops
-the sign of the other vehicle's acceleration; its required deceleration works on x
-components in a curvilinear frame that gives 0 on roads heading along +x, and lets a
-braking lead reverse. Here the signs are kept and a lead that brakes stops.
+Where CriMe differs (README, "Rules of the road, criticality and the driving score"): its
+TTC (constant accelerations, our :func:`ettc`) and required deceleration use the magnitude
+of the other vehicle's acceleration, dropping its sign, project on a lanelet's orientation,
+and let a braking lead reverse. Here the signs are kept, everything is along the ego's
+heading, and a lead that brakes stops.
 """
 
 from __future__ import annotations
@@ -377,10 +378,10 @@ class TimeToSteerMonitor(_LeadMeasure):
 
 @factory
 def ettc(threshold: float = 2.0, *, name: str = "ettc") -> Monitor:
-    """CriMe's ETTC (TTC with accelerations): rho = min over steps of (enhanced TTC -
-    ``threshold``) [s] toward the road user ahead in the ego's lane, both keeping their
+    """CriMe's TTC (constant accelerations, often called ETTC): rho = min over steps of
+    (enhanced TTC - ``threshold``) [s] toward the road user ahead in the ego's lane, both keeping their
     accelerations (see :func:`ettc_values`); +inf when the gap never closes. The paper's
-    :func:`ttc` (constant velocities, any direction, a circle) is CriMe's TTC."""
+    :func:`ttc` (constant velocities, any direction, a circle) is not CriMe's."""
     return ETTCMonitor(threshold, name=name)
 
 
