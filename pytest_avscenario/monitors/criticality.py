@@ -37,7 +37,7 @@ from .base import (
     factory,
     fmt_t,
 )
-from .metrics import _argmin_2d, _pair_mask, _sat_separation
+from .metrics import _pair_mask, _sat_separation
 
 __all__ = [
     "LeadKinematics", "lead_kinematics", "ettc_values", "required_deceleration_values",
@@ -56,10 +56,12 @@ TTB_HORIZON_S = 10.0
 
 @dataclass(frozen=True)
 class LeadKinematics:
-    """``(A-1, T)`` each, NaN where the other agent is not ahead of the ego in its lane: gap
-    [m] bumper to bumper along the ego's heading, lateral offset ``lat`` [m] of its centre
-    from the ego's axis, speeds ``v_e``/``v_l`` [m/s] and accelerations ``a_e``/``a_l``
-    [m/s²] along the ego's heading."""
+    """The pairs (ego, other agent) in which the other is ahead of the ego in its lane, as
+    1-D arrays over those pairs: gap [m] bumper to bumper along the ego's heading, lateral
+    offset ``lat`` [m] of its centre from the ego's axis, speeds ``v_e``/``v_l`` [m/s] and
+    accelerations ``a_e``/``a_l`` [m/s²] along the ego's heading, the other's width
+    ``width_l`` [m]; ``idx`` their flat indices in the ``(A-1, T)`` grid (``shape``). The
+    measures are computed on these few pairs and put back with :meth:`scatter`."""
 
     gap: np.ndarray
     lat: np.ndarray
@@ -67,32 +69,31 @@ class LeadKinematics:
     v_l: np.ndarray
     a_e: np.ndarray
     a_l: np.ndarray
+    width_l: np.ndarray
+    idx: np.ndarray
+    shape: tuple[int, int]
 
-    def live(self) -> tuple[np.ndarray, "LeadKinematics"]:
-        """The flat indices of the pairs that are ahead, and the kinematics of those alone
-        (1-D): the measures are computed on these few and scattered back."""
-        idx = np.flatnonzero(~np.isnan(self.gap))
-        return idx, LeadKinematics(*(a.ravel()[idx] for a in (self.gap, self.lat, self.v_e,
-                                                               self.v_l, self.a_e, self.a_l)))
-
-    def scatter(self, idx: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """``values`` of the pairs ``idx`` back on the ``(A-1, T)`` grid, NaN elsewhere."""
-        out = np.full(self.gap.shape, np.nan)
-        out.ravel()[idx] = values
+    def scatter(self, values: np.ndarray) -> np.ndarray:
+        """``values`` of the pairs back on the ``(A-1, T)`` grid, NaN elsewhere."""
+        out = np.full(self.shape, np.nan)
+        out.ravel()[self.idx] = values
         return out
 
 
 _CACHE: "weakref.WeakKeyDictionary[Trajectory, LeadKinematics]" = weakref.WeakKeyDictionary()
 
 
-def _accel(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
-    """``(A, T)`` x and y acceleration [m/s²]: the time derivative of the recorded velocity
-    (second-order differences inside, first-order at the ends)."""
-    if traj.n_steps < 2:
-        z = np.zeros_like(traj.vx)
-        return z, z
-    with np.errstate(invalid="ignore"):
-        return np.gradient(traj.vx, traj.t, axis=1), np.gradient(traj.vy, traj.t, axis=1)
+def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``d v / d t`` along the last axis: central differences inside, one-sided at the ends
+    (exact for a velocity linear in time)."""
+    out = np.empty_like(v)
+    if v.shape[-1] < 2:
+        out[...] = 0.0
+        return out
+    out[..., 1:-1] = (v[..., 2:] - v[..., :-2]) / (t[2:] - t[:-2])
+    out[..., 0] = (v[..., 1] - v[..., 0]) / (t[1] - t[0])
+    out[..., -1] = (v[..., -1] - v[..., -2]) / (t[-1] - t[-2])
+    return out
 
 
 def lead_kinematics(traj: Trajectory) -> LeadKinematics:
@@ -106,21 +107,26 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     dy = traj.y[1:] - traj.y[0]
     lon = dx * c + dy * s
     lat = -dx * s + dy * c
-    lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
-    same_lane = traj.lane[1:] == traj.lane[0][None, :]
-    corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
-    ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
-    gap = lon - (traj.length[0] + traj.length[1:, None]) / 2
-    ax, ay = _accel(traj)
-    v_e = traj.vx[0] * c + traj.vy[0] * s
-    a_e = ax[0] * c + ay[0] * s
-    v_l = traj.vx[1:] * c + traj.vy[1:] * s
-    a_l = ax[1:] * c + ay[1:] * s
-    nan = np.nan
+    with np.errstate(invalid="ignore"):
+        lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
+        same_lane = traj.lane[1:] == traj.lane[0][None, :]
+        corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
+        ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
+    idx = np.flatnonzero(ahead)
+    rows, cols = np.divmod(idx, traj.n_steps)
+    o = rows + 1  # the other agent's row in the trajectory
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ax = _derivative(traj.vx, traj.t)
+        ay = _derivative(traj.vy, traj.t)
+    ce, se = c[cols], s[cols]
     got = LeadKinematics(
-        gap=np.where(ahead, gap, nan), lat=np.where(ahead, lat, nan),
-        v_e=np.where(ahead, v_e[None, :], nan), v_l=np.where(ahead, v_l, nan),
-        a_e=np.where(ahead, a_e[None, :], nan), a_l=np.where(ahead, a_l, nan))
+        gap=lon[rows, cols] - (traj.length[0] + traj.length[o]) / 2,
+        lat=lat[rows, cols],
+        v_e=traj.vx[0, cols] * ce + traj.vy[0, cols] * se,
+        v_l=traj.vx[o, cols] * ce + traj.vy[o, cols] * se,
+        a_e=ax[0, cols] * ce + ay[0, cols] * se,
+        a_l=ax[o, cols] * ce + ay[o, cols] * se,
+        width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps))
     _CACHE[traj] = got
     return got
 
@@ -192,16 +198,15 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
     """Time to brake [s]: how long the ego can keep its acceleration before braking at
     ``max_decel`` is no longer enough (the required deceleration of the state it then
     reaches exceeds ``max_decel``); both keep their accelerations meanwhile, no one reverses.
-    0 when it is already too late, +inf when braking is still enough after ``horizon``.
+    0 when it is already too late, +inf when braking is still enough after ``horizon``
+    (1-D over the pairs of ``k``).
     The first moment on a ``grid_s`` grid, refined twice on ``fine`` points within the
     bracket (to ``grid_s / fine²``, 0.12 ms by default), for every agent ahead and step at
     once."""
-    out = np.full(k.gap.shape, np.nan)
-    live = ~np.isnan(k.gap)
-    if not live.any():
-        return out
-    g0, a_e, a_l = k.gap[live], k.a_e[live], k.a_l[live]
-    v_e, v_l = np.maximum(k.v_e[live], 0.0), np.maximum(k.v_l[live], 0.0)
+    if k.gap.size == 0:
+        return np.zeros(0)
+    g0, a_e, a_l = k.gap, k.a_e, k.a_l
+    v_e, v_l = np.maximum(k.v_e, 0.0), np.maximum(k.v_l, 0.0)
 
     def need(tau):
         de, ve = _advance(v_e[..., None] if tau.ndim > v_e.ndim else v_e,
@@ -231,18 +236,18 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
             lo = lo + step * np.where(j > 0, frac[np.maximum(j - 1, 0)], 0.0)
             step = step / fine
         res[todo] = lo
-    out[live] = res
-    return out
+    return res
 
 
-def time_to_steer_values(k: LeadKinematics, width_e: float, width_l: np.ndarray,
-                         max_lat_accel: float, ttc: np.ndarray | None = None) -> np.ndarray:
+def time_to_steer_values(k: LeadKinematics, width_e: float, max_lat_accel: float,
+                         ttc: np.ndarray | None = None) -> np.ndarray:
     """Time to steer [s]: the enhanced time to collision minus the time an evasive steer at
     ``max_lat_accel`` [m/s²] (from no lateral speed) takes to move the ego sideways clear of
-    the lead, ``sqrt(2 d / a_lat)`` with ``d = (w_e + w_l)/2 - |lat|``. Negative: too late."""
+    the lead, ``sqrt(2 d / a_lat)`` with ``d = (w_e + w_l)/2 - |lat|``. Negative: too late.
+    ``ttc``: the pairs' enhanced TTC when the caller has it (1-D over the pairs of ``k``)."""
     if ttc is None:
         ttc = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
-    d = np.maximum((width_e + np.asarray(width_l)[:, None]) / 2 - np.abs(k.lat), 0.0)
+    d = np.maximum((width_e + k.width_l) / 2 - np.abs(k.lat), 0.0)
     return ttc - np.sqrt(2.0 * d / max_lat_accel)
 
 
@@ -257,6 +262,7 @@ class _LeadMeasure(Monitor):
     _upper = False  # True: the value must stay <= threshold
 
     def _values(self, traj: Trajectory) -> np.ndarray:
+        """The measure over the pairs of :func:`lead_kinematics` (1-D)."""
         raise NotImplementedError
 
     def _margins(self, v: np.ndarray) -> np.ndarray:
@@ -264,22 +270,30 @@ class _LeadMeasure(Monitor):
         return np.where(np.isnan(v), np.inf, m)
 
     def series(self, traj: Trajectory) -> np.ndarray:
-        m = self._margins(self._values(traj))
-        return m.min(axis=0) if m.shape[0] else np.full(traj.n_steps, np.inf)
+        """ρ(t): the margin toward the most critical agent ahead at each step; +inf where
+        nothing is ahead."""
+        k = lead_kinematics(traj)
+        out = np.full(traj.n_steps, np.inf)
+        np.minimum.at(out, k.idx % traj.n_steps, self._margins(self._values(traj)))
+        return out
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "vx", "vy", "heading"))
+        k = lead_kinematics(traj)
         values = self._values(traj)
         m = self._margins(values)
         if m.size == 0 or not (m < np.inf).any():
             return MonitorResult(self.name, math.inf, self.threshold, None, None,
                                  f"nothing ahead of the ego that makes {self._what} finite")
-        row, step = _argmin_2d(m)
-        v = values[row, step]
+        # the smallest margin, earliest step first on ties (as the pairwise metrics)
+        order = np.lexsort((k.idx // traj.n_steps, k.idx % traj.n_steps, m))
+        j = int(order[0])
+        row, step = divmod(int(k.idx[j]), traj.n_steps)
+        v = values[j]
         who = traj.names[row + 1]
         bound = "<=" if self._upper else ">="
         return MonitorResult(
-            self.name, float(m[row, step]), self.threshold, fmt_t(traj, step), who,
+            self.name, float(m[j]), self.threshold, fmt_t(traj, step), who,
             f"{self._what} {v:.3g}{' ' + self._unit if self._unit else ''} behind {who} at "
             f"t={traj.t[step]:.2f} s (required {bound} {self.threshold:g} {self._unit})".rstrip())
 
@@ -288,12 +302,12 @@ _REQUIRED: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKey
 
 
 def _required(traj: Trajectory) -> np.ndarray:
-    """``(A-1, T)`` required deceleration toward each agent ahead (shared by a_req and BTN)."""
+    """Required deceleration toward each agent ahead, over the pairs of
+    :func:`lead_kinematics` (shared by a_req and BTN)."""
     got = _REQUIRED.get(traj)
     if got is None:
         k = lead_kinematics(traj)
-        idx, c = k.live()
-        got = k.scatter(idx, required_deceleration_values(c.gap, c.v_e, c.v_l, c.a_l))
+        got = required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l)
         _REQUIRED[traj] = got
     return got
 
@@ -302,12 +316,12 @@ _ETTC: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDict
 
 
 def _ettc(traj: Trajectory) -> np.ndarray:
-    """``(A-1, T)`` enhanced TTC toward each agent ahead (shared by ETTC and TTS)."""
+    """Enhanced TTC toward each agent ahead, over the pairs of :func:`lead_kinematics`
+    (shared by ETTC and TTS)."""
     got = _ETTC.get(traj)
     if got is None:
         k = lead_kinematics(traj)
-        idx, c = k.live()
-        got = k.scatter(idx, ettc_values(c.gap, c.v_e, c.v_l, c.a_e, c.a_l))
+        got = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
         _ETTC[traj] = got
     return got
 
@@ -357,9 +371,7 @@ class TimeToBrakeMonitor(_LeadMeasure):
         self.name = check_name(name)
 
     def _values(self, traj):
-        k = lead_kinematics(traj)
-        idx, c = k.live()
-        return k.scatter(idx, time_to_brake_values(c, self.max_decel))
+        return time_to_brake_values(lead_kinematics(traj), self.max_decel)
 
 
 class TimeToSteerMonitor(_LeadMeasure):
@@ -373,7 +385,7 @@ class TimeToSteerMonitor(_LeadMeasure):
 
     def _values(self, traj):
         return time_to_steer_values(lead_kinematics(traj), float(traj.width[0]),
-                                    traj.width[1:], self.max_lat_accel, ttc=_ettc(traj))
+                                    self.max_lat_accel, ttc=_ettc(traj))
 
 
 @factory
