@@ -307,6 +307,10 @@ def test_a_scenario_judges_ran_stop_and_shows_the_driving_score(pytester):
     assert test["violations"] == {"ran_stop": 5, "post_encroachment_time": 6}
     # 99 m of the 200-m route, a stop sign charged in 5 of the 6 cases: about 0.25 x 0.8
     assert 0.15 < test["driving_score"] < 0.25 and test["scored"] == 6
+    cards = list((pytester.path / "avs-report" / "cases").glob("*.html"))
+    ran = [c for c in cards if c.name.endswith("halton-000.html")]  # stop_speed 1.5 m/s
+    assert len(ran) == 1 and "Driving score" in ran[0].read_text()
+    assert "<td>stop</td>" in ran[0].read_text()
     xml = (pytester.path / "out.xml").read_text()
     assert xml.count("name=\"avs.driving_score\"") == 6 and "name=\"avs.infractions\" value=\"stop\"" in xml
 
