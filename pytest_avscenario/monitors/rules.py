@@ -33,7 +33,7 @@ from .base import (
     factory,
     fmt_t,
 )
-from .road import lane_frame, lanes_of, route_of
+from .road import LanePolyline, lane_frame, lanes_of, route_of
 
 __all__ = [
     "on_sidewalk", "wrong_way", "outside_route_lanes", "ran_stop", "route_completion",
@@ -197,7 +197,7 @@ def outside_route_lanes(*, name: str = "outside_route_lanes") -> Monitor:
 
 # -- stop lines -------------------------------------------------------------------------------
 
-def stop_crossings(traj: Trajectory, name: str = "ran_stop", *, standing: float = STANDING_MPS,
+def stop_crossings(traj: Trajectory, name: str = "ran_stop", *,
                    before: float = STOP_ZONE_BEFORE_M,
                    past: float = STOP_ZONE_PAST_M) -> list[tuple[str, int, float]]:
     """Every stop line the ego drove over: ``(lane id, step it passed the line by more than
@@ -246,8 +246,7 @@ class RanStopMonitor(Monitor):
         _ego_present(traj, self.name)
         check_present_finite(traj, self.name, ("vx", "vy"), [0])
         lanes_of(traj, self.name)
-        got = stop_crossings(traj, self.name, standing=self.threshold, before=self.before,
-                             past=self.past)
+        got = stop_crossings(traj, self.name, before=self.before, past=self.past)
         if not got:
             return MonitorResult(self.name, math.inf, self.threshold, None, traj.names[0],
                                  "ego passed no stop line")
@@ -286,8 +285,6 @@ def route_fraction(traj: Trajectory, name: str = "route_completion") -> tuple[fl
     ok = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
     xy = xy[ok]
     cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    from .road import LanePolyline
-
     path = LanePolyline("route", xy, cum, 0.0)
     present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
     idx = np.flatnonzero(present)
