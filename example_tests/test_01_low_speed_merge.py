@@ -18,7 +18,7 @@ did not get round the corner (progress), left its lane centre, or collided.
 """
 
 from pytest_avscenario import Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ttc
+from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ran_stop, ttc
 
 from subscenarios import crossing_traffic
 
@@ -31,7 +31,7 @@ from subscenarios import crossing_traffic
     platoon_speed=Uniform(5.0, 12.0, nominal=9.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
-    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],
+    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(), ran_stop()],
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_low_speed_merge(case, world):

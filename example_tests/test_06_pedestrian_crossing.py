@@ -17,7 +17,7 @@ go on), left its lane centre, or touched anyone (collision).
 """
 
 from pytest_avscenario import Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ttc
+from pytest_avscenario.monitors import collision, distance, lane_keeping, post_encroachment_time, progress, ttc
 
 from subscenarios import pedestrian_crossing
 
@@ -33,7 +33,7 @@ CROSSWALK_W = 5.0  # [m]
     ego_speed=Uniform(8.0, 14.0, nominal=11.0, unit="m/s"),
     samples=60,
     sampler=["halton", "mab"],
-    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],
+    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(), post_encroachment_time(1.0)],
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_pedestrian_crossing(case, world):

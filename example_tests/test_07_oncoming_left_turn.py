@@ -19,7 +19,7 @@ within 5 m in under 2 s, did not get through (progress), left its lane centre, o
 """
 
 from pytest_avscenario import Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ttc
+from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ran_stop, ttc
 from pytest_avscenario.sim import behaviors as b
 
 
@@ -31,7 +31,7 @@ from pytest_avscenario.sim import behaviors as b
     adv_go_within=Uniform(8.0, 40.0, nominal=35.0, unit="m"),  # ego-to-centre distance that releases it
     samples=60,
     sampler=["halton", "mab"],
-    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],
+    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(), ran_stop()],
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_oncoming_left_turn(case, world):

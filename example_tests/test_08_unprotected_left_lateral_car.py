@@ -20,7 +20,7 @@ in under 2 s, did not complete enough of its turn (progress), left its lane cent
 """
 
 from pytest_avscenario import Choice, Uniform, scenario
-from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ttc
+from pytest_avscenario.monitors import collision, distance, lane_keeping, progress, ran_stop, ttc
 from pytest_avscenario.sim import behaviors as b
 
 from subscenarios import crossing_traffic
@@ -35,7 +35,7 @@ from subscenarios import crossing_traffic
     d_oncoming=Uniform(10.0, 60.0, nominal=40.0, unit="m"),  # oncoming car before its stop line
     samples=60,
     sampler=["halton", "mab"],
-    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision()],
+    monitors=[progress(11.0), distance(5.0), ttc(2.0), lane_keeping(0.5), collision(), ran_stop()],
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )
 def test_unprotected_left_lateral_car(case, world):

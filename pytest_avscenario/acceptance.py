@@ -17,12 +17,16 @@ otherwise, with any combination of:
   the whole campaign's sampled cases: the one-sided Clopper–Pearson upper bound of the
   violation rate must not exceed ``at_most`` (needs a passive sampler: an active one's cases
   are not a random sample, so their rate is biased);
+* :func:`min_score`, e.g. ``min_score(0.8)`` — the campaign's driving score (the CARLA
+  Leaderboard's: the mean over its judged cases of route completion × infraction penalties,
+  :mod:`pytest_avscenario.monitors.score`) must be at least that; the cases need a road in
+  their recording (every simulated one has it);
 * and, with ``--avs-baseline PATH`` (an earlier run's ``summary.json``), a campaign whose
   violation rate of a metric is significantly higher than in the baseline (one-sided Fisher
   exact test at ``alpha``) is rejected.
 
 On the command line and in the ini file the same terms are written as text, separated by
-commas: ``any``, ``regressions``, a metric name, ``rate:collision<=1%@95%``.
+commas: ``any``, ``regressions``, a metric name, ``rate:collision<=1%@95%``, ``score>=0.8``.
 Nothing here imports pytest; scipy is imported when a rate or a baseline is judged.
 """
 
@@ -36,7 +40,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 from .outcome import CaseRow
 
-__all__ = ["Criteria", "RateBound", "rate", "parse_accept", "Baseline", "load_baseline",
+__all__ = ["Criteria", "RateBound", "rate", "ScoreBound", "min_score", "parse_accept", "Baseline", "load_baseline",
            "case_verdict", "campaign_verdict", "clopper_pearson_upper"]
 
 KEYWORDS = ("any", "regressions", "avoidable")
@@ -68,6 +72,31 @@ def rate(metric: str, at_most: float, confidence: float = 0.95) -> RateBound:
 
 
 @dataclass(frozen=True)
+class ScoreBound:
+    """The campaign's driving score is at least ``at_least`` (0..1)."""
+
+    at_least: float
+
+    def __post_init__(self) -> None:
+        v = self.at_least
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+            raise ValueError(f"min_score(): the driving score bound must be a number in [0, 1], "
+                             f"got {v!r}")
+
+    def text(self) -> str:
+        return f"score>={self.at_least:g}"
+
+
+def min_score(at_least: float) -> ScoreBound:
+    """An acceptance criterion: the campaign's driving score (CARLA Leaderboard: the mean of
+    its cases' route completion × infraction penalties) is at least ``at_least`` (0..1)."""
+    return ScoreBound(at_least)
+
+
+_SCORE = re.compile(r"^score\s*>=\s*([0-9.eE+-]+%?)$")
+
+
+@dataclass(frozen=True)
 class Criteria:
     """A campaign's acceptance criteria, combined (each one can reject it)."""
 
@@ -76,23 +105,28 @@ class Criteria:
     regressions: bool = False
     rates: tuple[RateBound, ...] = field(default=())
     avoidable: bool = False  # violations the reference driver commits too do not count
+    score: ScoreBound | None = None  # the campaign's driving score bound
 
     def text(self) -> str:
         terms = (["any"] if self.any else []) + list(self.metrics) + \
             (["regressions"] if self.regressions else []) + [r.text() for r in self.rates] + \
-            (["avoidable"] if self.avoidable else [])
+            (["avoidable"] if self.avoidable else []) + \
+            ([self.score.text()] if self.score is not None else [])
         return ",".join(terms)
 
     def to_json(self) -> dict[str, Any]:
         return {"any": self.any, "metrics": list(self.metrics), "regressions": self.regressions,
                 "rates": [[r.metric, r.at_most, r.confidence] for r in self.rates],
-                "avoidable": self.avoidable}
+                "avoidable": self.avoidable,
+                "min_score": None if self.score is None else self.score.at_least}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> "Criteria":
+        score = data.get("min_score")
         return cls(bool(data["any"]), tuple(data["metrics"]), bool(data["regressions"]),
                    tuple(RateBound(m, a, c) for m, a, c in data["rates"]),
-                   bool(data.get("avoidable", False)))
+                   bool(data.get("avoidable", False)),
+                   None if score is None else ScoreBound(float(score)))
 
     def check(self, metrics: Sequence[str], active: bool) -> None:
         """ValueError when a criterion names an undeclared metric, or bounds the rate of an
@@ -127,19 +161,29 @@ def parse_accept(value: Any) -> Criteria:
         return value
     if isinstance(value, str):
         terms: list[Any] = [t.strip() for t in value.split(",") if t.strip()]
-    elif isinstance(value, RateBound):
+    elif isinstance(value, (RateBound, ScoreBound)):
         terms = [value]
     elif isinstance(value, (list, tuple)):
         terms = list(value)
     else:
-        raise ValueError(f"must be 'any', 'regressions', 'avoidable', metric names or rate(...) "
-                         f"bounds, got {value!r}")
+        raise ValueError(f"must be 'any', 'regressions', 'avoidable', metric names, rate(...) "
+                         f"or min_score(...) bounds, got {value!r}")
     if not terms:
         raise ValueError(f"must name at least one criterion, got {value!r}")
     any_, regressions, avoidable, metrics, rates = False, False, False, [], []
+    score: ScoreBound | None = None
     for term in terms:
         if isinstance(term, RateBound):
             rates.append(term)
+        elif isinstance(term, ScoreBound) or (isinstance(term, str) and term.startswith("score")):
+            if isinstance(term, str):
+                m = _SCORE.match(term)
+                if m is None:
+                    raise ValueError(f"cannot read {term!r}: write score>=LIMIT, e.g. score>=0.8")
+                term = ScoreBound(_fraction(m.group(1)))
+            if score is not None and score != term:
+                raise ValueError(f"two driving score bounds: {score.text()} and {term.text()}")
+            score = term
         elif isinstance(term, str) and term.startswith("rate:"):
             m = _RATE.match(term)
             if m is None:
@@ -157,13 +201,14 @@ def parse_accept(value: Any) -> Criteria:
             metrics.append(term)
         else:
             raise ValueError(f"unknown criterion {term!r}: use 'any', 'regressions', "
-                             "'avoidable', a metric name or rate(...)")
+                             "'avoidable', a metric name, rate(...) or min_score(...)")
     if avoidable and not (any_ or metrics or regressions):
-        if rates:
+        if rates or score is not None:
             raise ValueError("'avoidable' qualifies 'any', 'regressions' or metric names; a rate "
                              "bound counts every violation: add 'any' or a metric name to it")
         any_ = True  # "avoidable" alone: every avoidable counterexample rejects
-    return Criteria(any_, tuple(dict.fromkeys(metrics)), regressions, tuple(rates), avoidable)
+    return Criteria(any_, tuple(dict.fromkeys(metrics)), regressions, tuple(rates), avoidable,
+                    score)
 
 
 DEFAULT = Criteria()
@@ -311,6 +356,19 @@ def campaign_verdict(criteria: Criteria, rows: Sequence[CaseRow], rejected_cases
         if upper > bound.at_most:
             reasons.append(f"{bound.metric} rate {k}/{n}: upper {_pct(bound.confidence)} bound "
                            f"{upper:.1%} > {bound.at_most:.1%}")
+    if criteria.score is not None:
+        from .monitors.score import campaign_score
+
+        scores = [r.driving_score for r in rows if r.verdict != "error"]
+        mean = campaign_score(scores)
+        scored = sum(1 for x in scores if x is not None)
+        if mean is None:
+            reasons.append(f"no case has a driving score to hold to {criteria.score.text()} (its "
+                           "recording has no road: simulate it with the world, or give the "
+                           "trajectory meta['lanes'] and meta['ego_route'])")
+        elif mean < criteria.score.at_least:
+            reasons.append(f"driving score {mean:.3f} < {criteria.score.at_least:g} (mean of "
+                           f"{scored} case{'s' if scored != 1 else ''})")
     if baseline is not None and (test, sampler) in baseline.campaigns and n:
         n0, before = baseline.campaigns[(test, sampler)]
         from scipy.stats import fisher_exact

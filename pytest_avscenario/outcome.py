@@ -55,6 +55,8 @@ class CaseOutcome:
     drawn: dict[str, Any] | None = None  # the case.rng draws (RecordingGenerator.log())
     #: violated metric -> (time [s], agent) of its first violation (monitors.first_violation)
     first: dict[str, Any] = field(default_factory=dict)
+    #: the run's driving score (``DrivingScore.to_json()``); None without a road to score on
+    score: dict[str, Any] | None = None
 
     @property
     def signature(self) -> tuple[Any, ...]:
@@ -186,6 +188,10 @@ class CaseRow:
     #: the driver under test that drove the ego ({"name", "kind", "file", "sha256", "from",
     #: ...}: :mod:`pytest_avscenario.sim.drivers.identity`); None for a test without one
     driver: Mapping[str, Any] | None = None
+    #: the CARLA Leaderboard's driving score of the run ({"score", "route_completion",
+    #: "penalty", "infractions": [{"kind", "factor", "t", "agent"}, ...]}, all 0..1):
+    #: :mod:`pytest_avscenario.monitors.score`; None when the recording has no road
+    score: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -228,6 +234,8 @@ class CaseRow:
             out["drawn"] = jsonable(dict(self.drawn))
         if self.driver is not None:
             out["driver"] = jsonable(dict(self.driver))
+        if self.score is not None:
+            out["score"] = jsonable(dict(self.score))
         return out
 
     @classmethod
@@ -262,7 +270,13 @@ class CaseRow:
             violations=_violations(data.get("violations")),
             drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
             driver=dict(data["driver"]) if isinstance(data.get("driver"), Mapping) else None,
+            score=dict(data["score"]) if isinstance(data.get("score"), Mapping) else None,
         )
+
+    @property
+    def driving_score(self) -> float | None:
+        """The run's driving score (0..1), None when it has none."""
+        return None if self.score is None else float(self.score["score"])
 
     @property
     def unavoidable(self) -> bool:

@@ -188,6 +188,8 @@ def run_case(
     traj = ret if isinstance(ret, Trajectory) else getattr(world, "trajectory", None)
     outcome.trajectory = traj
     outcome.world = world
+    if traj is not None:
+        outcome.score = _driving_score(traj)
     if monitor_set is None or not monitor_set.names:
         return outcome
     if traj is None:
@@ -222,6 +224,18 @@ def run_case(
     if outcome.verdict == "pass" and outcome.violated:
         outcome.verdict = "fail"
     return outcome
+
+
+def _driving_score(traj: Any) -> dict[str, Any] | None:
+    """The run's driving score as JSON data; a convenience of the report, never the
+    verdict's business (a recording it cannot score has none)."""
+    from .monitors.score import driving_score
+
+    try:
+        got = driving_score(traj)
+    except Exception:  # noqa: BLE001 - a hand-built trajectory may carry anything in meta
+        return None
+    return None if got is None else got.to_json()
 
 
 def _pytest_outcome(exc: BaseException) -> str | None:

@@ -18,6 +18,13 @@ the simulator, and are vectorized over steps and agents.
   entered an RSS-unsafe state by their own responsibility first; the paper's formulas
   :func:`safe_longitudinal_distance`, :func:`safe_opposite_distance`,
   :func:`safe_lateral_distance` with their :class:`RSSParams`;
+* the rules of the road under CARLA ScenarioRunner's names (:mod:`.rules`):
+  :func:`off_road`, :func:`on_sidewalk`, :func:`wrong_way`, :func:`outside_route_lanes`,
+  :func:`ran_stop`, :func:`route_completion`, :func:`blocked`, :func:`min_speed_route`; and
+  the Leaderboard's :func:`driving_score` (:mod:`.score`);
+* criticality measures under CommonRoad-CriMe's names (:mod:`.criticality`): :func:`ettc`
+  (TTC with accelerations), :func:`required_deceleration`, :func:`brake_threat_number`,
+  :func:`time_to_brake`, :func:`time_to_steer`, :func:`post_encroachment_time`;
 * :func:`as_monitor` makes a plain function ``trajectory -> float`` a monitor;
 * :class:`MonitorSet` evaluates several into a :class:`Verdict` and carries their priority;
 * :func:`rho_to_json` / :func:`rho_from_json` / :func:`rho_to_str` / :func:`rho_from_str`
@@ -80,6 +87,24 @@ from .rss import (
     safe_longitudinal_distance,
     safe_opposite_distance,
 )
+from .rules import (
+    blocked,
+    min_speed_route,
+    on_sidewalk,
+    outside_route_lanes,
+    ran_stop,
+    route_completion,
+    wrong_way,
+)
+from .criticality import (
+    brake_threat_number,
+    ettc,
+    post_encroachment_time,
+    required_deceleration,
+    time_to_brake,
+    time_to_steer,
+)
+from .score import DrivingScore, driving_score
 from ..codec import rho_from_json, rho_from_str, rho_to_json, rho_to_str
 from .sets import MonitorSet, Verdict
 
@@ -92,6 +117,10 @@ __all__ = [
     "Formula", "Signal", "always", "eventually", "until", "and_", "or_", "not_", "implies",
     "ego_speed", "ego_acceleration", "lane_offset", "gap", "ttc_to", "headway_to", "signal",
     "predicate",
+    "on_sidewalk", "wrong_way", "outside_route_lanes", "ran_stop", "route_completion",
+    "blocked", "min_speed_route",
+    "ettc", "required_deceleration", "brake_threat_number", "time_to_brake", "time_to_steer",
+    "post_encroachment_time", "DrivingScore", "driving_score",
     "MonitorSet", "Verdict",
     "rho_to_json", "rho_from_json", "rho_to_str", "rho_from_str",
 ]

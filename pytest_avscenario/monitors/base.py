@@ -15,6 +15,7 @@ import copy
 import inspect
 import math
 import numbers
+import weakref
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -248,6 +249,11 @@ def check_positive(name: str, value: Any, what: str, *, allow_zero: bool = False
     return value
 
 
+#: fields already found finite per trajectory (a run's monitors check the same ones; a
+#: trajectory is immutable, so once is enough)
+_CHECKED: "weakref.WeakKeyDictionary[Trajectory, set]" = weakref.WeakKeyDictionary()
+
+
 def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...],
                          agents: slice | list[int] | None = None) -> None:
     """Raise MonitorError when a field is NaN/inf at a step where its agent is present.
@@ -255,9 +261,14 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
     Absent steps are NaN by contract and are ignored; a non-finite value while present is a
     broken recording, and the message says which agent, field and time.
     """
+    key = "all" if agents is None else repr(agents)
+    done = _CHECKED.setdefault(traj, set())
+    todo = [f for f in fields if (f, key) not in done]
+    if not todo:
+        return
     sel = slice(None) if agents is None else agents
     present = traj.present[sel]
-    for f in fields:
+    for f in todo:
         arr = getattr(traj, f)[sel]
         bad = present & ~np.isfinite(arr)
         if bad.any():
@@ -267,6 +278,7 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
                 f"monitor {monitor!r}: {f} of agent {traj.names[idx]!r} is "
                 f"{arr[a, k]} at t={traj.t[k]:.3f} s while the agent is present"
             )
+        done.add((f, key))
 
 
 def fmt_t(traj: Trajectory, step: int | None) -> float | None:

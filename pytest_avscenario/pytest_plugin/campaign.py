@@ -902,4 +902,4 @@ def make_row(item: pytest.Item, case: Case, outcome: CaseOutcome, *,
         unsafe_first=unsafe_first, violations=violations_of(outcome.results, outcome.first), drawn=outcome.drawn,
         conflicts=conflicts, minimized_violations=minimized_violations,
         minimized_avoidable=minimized_avoidable, minimized_conflicts=minimized_conflicts,
-        driver=driver_identity(item))
+        driver=driver_identity(item), score=outcome.score)

@@ -287,6 +287,25 @@ def _draws_table(drawn: Mapping[str, Any] | None) -> str:
     return "\n".join(out)
 
 
+def _score_block(score: Mapping[str, Any]) -> str:
+    """The run's driving score with its route completion and each infraction's factor."""
+    inf = list(score.get("infractions") or ())
+    lines = [f"<h2>Driving score {float(score['score']):.2f}</h2>",
+             f"<p class='meta'>CARLA Leaderboard: route completion {float(score['route_completion']):.2f} "
+             f"× infraction penalty {float(score['penalty']):.3g}"
+             + ("" if inf else " (no infraction)") + ".</p>"]
+    if inf:
+        lines.append("<table><thead><tr><th>infraction</th><th>factor</th><th>t [s]</th>"
+                     "<th>agent</th><th>detail</th></tr></thead><tbody>")
+        for i in inf:
+            t = i.get("t")
+            lines.append(f"<tr><td>{e(i.get('kind'))}</td><td class='num'>{float(i.get('factor', 1)):.3g}</td>"
+                         f"<td class='num'>{'' if t is None else f'{float(t):.2f}'}</td>"
+                         f"<td>{e(i.get('agent') or '')}</td><td>{e(i.get('detail') or '')}</td></tr>")
+        lines.append("</tbody></table>")
+    return "\n".join(lines)
+
+
 def render_card(
     directory: Path,
     row: CaseRow,
@@ -338,6 +357,8 @@ def render_card(
     parts.append("<p class='meta'>ρ: robustness in the metric's unit (≥ 0 holds, &lt; 0 violated by that much); "
                  "first violation: the first moment the requirement was already violated; agent: the other "
                  "road user involved.</p>")
+    if row.score is not None:
+        parts.append(_score_block(row.score))
     parts.append("<h2>Parameters</h2>")
     parts.append(_parameter_table(row, space))
     if row.minimized is not None:

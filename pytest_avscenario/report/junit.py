@@ -76,7 +76,9 @@ def case_properties(
     ``avs.avoidable.<metric>`` (``true``/``false``/``unknown``) for a counterexample judged
     against the reference driver, ``avs.conflict.<metric>`` (the other agent of the conflict
     it was judged on, ``agent@seconds``), ``avs.minimized_avoidable.<metric>`` for the
-    minimized case's own judgement, and ``avs.unsafe_first`` (``agent@seconds``).
+    minimized case's own judgement, and ``avs.unsafe_first`` (``agent@seconds``);
+    ``avs.driving_score``, ``avs.route_completion`` (0..1) and ``avs.infractions`` (the
+    Leaderboard infraction kinds, comma-separated) when the run has a driving score.
     """
     r = CaseRow.coerce(row)
     minimized = r.minimized if minimized is None else minimized
@@ -90,6 +92,12 @@ def case_properties(
     ]
     props += [(f"avs.rho.{m}", _num(v)) for m, v in r.rho.items()]
     props += [("avs.verdict", r.verdict), ("avs.sim_time_s", f"{r.sim_time_s:.4f}")]
+    if r.score is not None:
+        props.append(("avs.driving_score", f"{r.driving_score:.6g}"))
+        props.append(("avs.route_completion", f"{float(r.score['route_completion']):.6g}"))
+        kinds = [i.get("kind") for i in r.score.get("infractions", ())]
+        if kinds:
+            props.append(("avs.infractions", ",".join(str(k) for k in kinds)))
     if minimized is not None:
         props.append(("avs.minimized", json.dumps(jsonable(dict(minimized)), ensure_ascii=False)))
     if shrink_sims is not None:

@@ -104,6 +104,10 @@ class SummaryRow:
     #: the failure modes could not be computed (summary.json then says ``"modes": null``,
     #: "not recorded", so a comparison does not call every earlier mode gone)
     modes_failed: bool = False
+    #: the campaign's driving score (the CARLA Leaderboard's: the mean of its cases' scores,
+    #: 0..1) and how many cases had one; None when none had
+    driving_score: float | None = None
+    scored: int = 0
 
     @property
     def verdict(self) -> str | None:
@@ -169,6 +173,7 @@ def summarize(
     into failure modes (:mod:`.modes`; False leaves ``SummaryRow.modes`` empty).
     """
     from . import coverage
+    from ..monitors.score import campaign_score
 
     tests = dict(tests or {})
     groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
@@ -257,6 +262,8 @@ def summarize(
                 unavoidable=sum(1 for r in failing if r.unavoidable),
                 modes=found,
                 modes_failed=modes_failed,
+                driving_score=campaign_score(r.driving_score for r in main),
+                scored=sum(1 for r in main if r.driving_score is not None),
             )
         )
     return out
@@ -310,8 +317,9 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     header = ["test", "sampler", "samples", *(_metric_title(m) for m in metrics), "ε"]
     judged = any(s.verdict is not None for s in summary)
     show_unavoidable = any(s.judged for s in summary)
+    show_score = any(s.driving_score is not None for s in summary)
     header += ["cex", "min"] + (["unavoid"] if show_unavoidable else []) + ["modes"] \
-        + (["errors"] if show_errors else []) + ["sim s"]
+        + (["errors"] if show_errors else []) + (["score"] if show_score else []) + ["sim s"]
     header += ["verdict"] if judged else []
     body = []
     for s in summary:
@@ -321,6 +329,7 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
         line += [str(s.unavoidable) if s.judged else DASH] if show_unavoidable else []
         line += [str(len(s.modes)) if s.modes else DASH]
         line += [str(s.errors)] if show_errors else []
+        line += [DASH if s.driving_score is None else f"{s.driving_score:.2f}"] if show_score else []
         line += [_fmt_time(s.sim_time_s)]
         line += [{"rejected": "REJECTED", None: DASH}.get(s.verdict, s.verdict)] if judged else []
         body.append(line)
@@ -330,13 +339,16 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
 LEGEND = "ε: coverage of the continuous parameters (smaller: better) · cex: counterexamples · min: minimized"
 #: added when a column "modes" is shown
 LEGEND_MODES = " · modes: failure modes (kinds of counterexample, in the report)"
+#: added when a column "score" is shown
+LEGEND_SCORE = " · score: driving score (CARLA Leaderboard: route completion × infraction penalties, mean of the cases)"
 #: added when a column "unavoid" is shown
 LEGEND_UNAVOIDABLE = " · unavoid: counterexamples the reference driver fails too, in the same conflict"
 
 
 def _legend(header: Sequence[str]) -> str:
     return LEGEND + (LEGEND_UNAVOIDABLE if "unavoid" in header else "") \
-        + (LEGEND_MODES if "modes" in header else "")
+        + (LEGEND_MODES if "modes" in header else "") \
+        + (LEGEND_SCORE if "score" in header else "")
 
 
 def short_names(tests: Sequence[str]) -> dict[str, str]:
@@ -375,7 +387,8 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
         return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), _legend(header)])
     # too wide: the figures on one line, the violations per metric on the next
     metrics = [h for h in header if h not in ("test", "sampler", "samples", "ε", "cex", "min",
-                                              "unavoid", "modes", "errors", "sim s", "verdict")]
+                                              "unavoid", "modes", "errors", "score", "sim s",
+                                              "verdict")]
     fixed = [i for i, h in enumerate(header) if h not in metrics]
     fheader = [header[i] for i in fixed]
     fbody = [[r[i] for i in fixed] for r in body]
@@ -423,7 +436,8 @@ def suite_properties(
     ``avs.seed``, ``avs.version.<package>`` for each entry of ``versions`` (e.g.
     ``{"pytest-avscenario": "0.1.0", "highway-env": "1.12.1"}``), then per test and sampler
     ``avs.test[<test>][<sampler>].samples`` / ``.violations.<metric>`` / ``.epsilon`` /
-    ``.counterexamples`` / ``.minimized`` / ``.modes`` (failure modes) / ``.sim_time_s`` /
+    ``.counterexamples`` / ``.minimized`` / ``.modes`` (failure modes) / ``.driving_score``
+    (when the cases had one) / ``.sim_time_s`` /
     ``.verdict`` (``accepted``, or
     ``rejected; <reason>; …``). Brackets delimit the ids because
     node ids themselves contain dots and colons.
@@ -444,6 +458,8 @@ def suite_properties(
         props[f"{key}.modes"] = str(len(s.modes))
         if s.judged:
             props[f"{key}.unavoidable"] = str(s.unavoidable)
+        if s.driving_score is not None:
+            props[f"{key}.driving_score"] = f"{s.driving_score:.6g}"
         props[f"{key}.sim_time_s"] = f"{s.sim_time_s:.3f}"
         if s.verdict is not None:
             props[f"{key}.verdict"] = s.verdict + "".join(f"; {r}" for r in s.reasons)

@@ -168,6 +168,8 @@ def _csv_cells(row: CaseRow) -> dict[str, Any]:
         cells[f"param.{name}"] = _csv_cell(jsonable(value))
     for name, value in row.rho.items():
         cells[f"rho.{name}"] = _csv_cell(value)
+    if row.score is not None:  # the Leaderboard's driving score of the run, after the rho
+        cells["driving_score"] = _csv_cell(row.driving_score)
     return cells
 
 

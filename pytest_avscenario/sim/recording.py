@@ -24,7 +24,7 @@ import numpy as np
 from ..trajectory import Trajectory
 from .geometry import wrap_to_pi
 
-__all__ = ["Recorder", "action_label"]
+__all__ = ["Recorder", "action_label", "road_meta"]
 
 _ABSENT = (math.nan,) * 7 + (-1,)
 
@@ -109,6 +109,7 @@ class Recorder:
             "crosswalks": [c.name for c in getattr(w.road, "crosswalks", [])],
             **({"intersections": list(w.road.intersections)} if w.road.kind == "network" else {}),
         }
+        meta.update(road_meta(w.lane_index, set(lane.ravel().tolist()) | set(meta["ego_route"])))
         decisions = _decisions(ego, self.reasons, float(t[-1]) if n else 0.0)
         if decisions is not None:
             meta["decisions"] = decisions
@@ -125,6 +126,39 @@ class Recorder:
             on_road=np.ascontiguousarray(flags[:, :, 1]),
             signals=signals, meta=meta,
         )
+
+
+#: [m] spacing of the points that describe a curved lane's centre line in the recording
+LANE_POINT_SPACING_M = 1.0
+
+
+def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
+    """The road as the rule monitors read it, for the lanes named in ``ids`` (the lanes any
+    agent was on, and the ego's route): ``{"lanes": {id: {"kind", "group", "width" [m],
+    "xy": centre line points [m]}}, "stops": [{"lane", "s" [m], "kind"}]}``.
+
+    Any lane geometry with ``position(s, r)``, ``heading_at(s)``, ``length`` and
+    ``width_at(s)`` is written the same way (a straight lane as its two ends, anything else
+    as points every :data:`LANE_POINT_SPACING_M`), so lanes of a map need nothing more."""
+    lanes: dict[str, Any] = {}
+    stops: list[dict[str, Any]] = []
+    for lane in index.order:
+        if lane.id not in ids:
+            continue
+        g = lane.geometry
+        L = float(g.length)
+        ends = np.array([g.position(0.0, 0.0), g.position(L, 0.0)], dtype=float)
+        mid = np.asarray(g.position(L / 2, 0.0), dtype=float)
+        straight = (abs(wrap_to_pi(g.heading_at(L) - g.heading_at(0.0))) < 1e-9
+                    and float(np.hypot(*(mid - ends.mean(axis=0)))) < 1e-6)
+        n = 2 if straight else int(min(max(math.ceil(L / LANE_POINT_SPACING_M) + 1, 3), 2000))
+        xy = ends if straight else np.array([g.position(s, 0.0) for s in np.linspace(0.0, L, n)])
+        lanes[lane.id] = {"kind": lane.kind, "group": lane.group,
+                          "width": round(float(g.width_at(0.0)), 6),
+                          "xy": np.round(xy, 4).tolist()}
+        for s, kind in index.stop_marks.get(lane.index, ()):
+            stops.append({"lane": lane.id, "s": round(float(s), 6), "kind": kind})
+    return {"lanes": lanes, "stops": stops}
 
 
 def _decisions(ego: Any, reasons: list[list[Any]], t_end: float) -> dict[str, Any] | None:

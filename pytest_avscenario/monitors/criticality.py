@@ -1,0 +1,563 @@
+"""Criticality measures under the names CommonRoad-CriMe gives them: enhanced time to
+collision (TTC with accelerations), required deceleration, brake threat number, time to
+brake, time to steer, and post-encroachment time at crossings.
+
+The first five look at the road user ahead of the ego in its lane (same lane id when both
+are known, else overlapping lateral corridors, as :func:`.metrics.headway`), along the ego's
+heading: bumper-to-bumper gap ``g`` [m], speeds ``v_e``, ``v_l`` [m/s] and accelerations
+``a_e``, ``a_l`` [m/s²] (signed; the time derivative of the recorded velocities, projected on
+the ego's heading). Post-encroachment time looks at every road user whose path crosses the
+ego's. All of them are computed with numpy over the whole ``(agents, steps)`` grid; their
+closed forms are in each function's docstring and checked in the tests.
+
+Where CriMe differs (README, "Rules of the road, criticality and the driving score"): its
+TTC (constant accelerations, our :func:`ettc`) and required deceleration use the magnitude
+of the other vehicle's acceleration, dropping its sign, project on a lanelet's orientation,
+and let a braking lead reverse. Here the signs are kept, everything is along the ego's
+heading, and a lead that brakes stops.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..trajectory import Trajectory
+from .base import (
+    Monitor,
+    MonitorError,
+    MonitorResult,
+    check_name,
+    check_positive,
+    check_present_finite,
+    check_threshold,
+    factory,
+    fmt_t,
+)
+from .metrics import _pair_mask, _sat_separation
+
+__all__ = [
+    "LeadKinematics", "lead_kinematics", "ettc_values", "required_deceleration_values",
+    "time_to_brake_values", "time_to_steer_values", "pet_values",
+    "ettc", "required_deceleration", "brake_threat_number", "time_to_brake", "time_to_steer",
+    "post_encroachment_time", "MAX_DECEL_MPS2", "MAX_LAT_ACCEL_MPS2",
+]
+
+#: [m/s²] the ego's default braking capability (dry road, emergency braking)
+MAX_DECEL_MPS2 = 8.0
+#: [m/s²] the ego's default lateral acceleration capability for an evasive steer
+MAX_LAT_ACCEL_MPS2 = 5.0
+#: [s] how far ahead time to brake looks for the moment braking stops being enough
+TTB_HORIZON_S = 10.0
+
+
+@dataclass(frozen=True)
+class LeadKinematics:
+    """The pairs (ego, other agent) in which the other is ahead of the ego in its lane, as
+    1-D arrays over those pairs: gap [m] bumper to bumper along the ego's heading, lateral
+    offset ``lat`` [m] of its centre from the ego's axis, speeds ``v_e``/``v_l`` [m/s] and
+    accelerations ``a_e``/``a_l`` [m/s²] along the ego's heading, the other's width
+    ``width_l`` [m]; ``idx`` their flat indices in the ``(A-1, T)`` grid (``shape``). The
+    measures are computed on these few pairs and put back with :meth:`scatter`."""
+
+    gap: np.ndarray
+    lat: np.ndarray
+    v_e: np.ndarray
+    v_l: np.ndarray
+    a_e: np.ndarray
+    a_l: np.ndarray
+    width_l: np.ndarray
+    idx: np.ndarray
+    shape: tuple[int, int]
+
+    def scatter(self, values: np.ndarray) -> np.ndarray:
+        """``values`` of the pairs back on the ``(A-1, T)`` grid, NaN elsewhere."""
+        out = np.full(self.shape, np.nan)
+        out.ravel()[self.idx] = values
+        return out
+
+
+_CACHE: "weakref.WeakKeyDictionary[Trajectory, LeadKinematics]" = weakref.WeakKeyDictionary()
+
+
+def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``d v / d t`` along the last axis: central differences inside, one-sided at the ends
+    (exact for a velocity linear in time)."""
+    out = np.empty_like(v)
+    if v.shape[-1] < 2:
+        out[...] = 0.0
+        return out
+    out[..., 1:-1] = (v[..., 2:] - v[..., :-2]) / (t[2:] - t[:-2])
+    out[..., 0] = (v[..., 1] - v[..., 0]) / (t[1] - t[0])
+    out[..., -1] = (v[..., -1] - v[..., -2]) / (t[-1] - t[-2])
+    return out
+
+
+def lead_kinematics(traj: Trajectory) -> LeadKinematics:
+    """The :class:`LeadKinematics` of ``traj`` (computed once per trajectory)."""
+    got = _CACHE.get(traj)
+    if got is not None:
+        return got
+    h = traj.heading[0]
+    c, s = np.cos(h), np.sin(h)
+    dx = traj.x[1:] - traj.x[0]
+    dy = traj.y[1:] - traj.y[0]
+    lon = dx * c + dy * s
+    lat = -dx * s + dy * c
+    with np.errstate(invalid="ignore"):
+        lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
+        same_lane = traj.lane[1:] == traj.lane[0][None, :]
+        corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
+        ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
+    idx = np.flatnonzero(ahead)
+    rows, cols = np.divmod(idx, traj.n_steps)
+    o = rows + 1  # the other agent's row in the trajectory
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ax = _derivative(traj.vx, traj.t)
+        ay = _derivative(traj.vy, traj.t)
+    ce, se = c[cols], s[cols]
+    got = LeadKinematics(
+        gap=lon[rows, cols] - (traj.length[0] + traj.length[o]) / 2,
+        lat=lat[rows, cols],
+        v_e=traj.vx[0, cols] * ce + traj.vy[0, cols] * se,
+        v_l=traj.vx[o, cols] * ce + traj.vy[o, cols] * se,
+        a_e=ax[0, cols] * ce + ay[0, cols] * se,
+        a_l=ax[o, cols] * ce + ay[o, cols] * se,
+        width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps))
+    _CACHE[traj] = got
+    return got
+
+
+# -- closed forms -----------------------------------------------------------------------------
+
+def ettc_values(gap, v_e, v_l, a_e, a_l):
+    """Enhanced time to collision [s]: the first ``t > 0`` with
+    ``gap - (v_e - v_l) t - ½ (a_e - a_l) t² = 0`` (both keep their accelerations), i.e.
+    ``2 g / (u + sqrt(u² + 2 α g))`` with closing speed ``u = v_e - v_l`` and closing
+    acceleration ``α = a_e - a_l``, where ``u² + 2 α g >= 0`` and ``u + sqrt(...) > 0``;
+    +inf where the gap never closes; 0 where it is already closed. NaN stays NaN."""
+    g = np.asarray(gap, dtype=float)
+    u = np.asarray(v_e, dtype=float) - v_l
+    alpha = np.asarray(a_e, dtype=float) - a_l
+    # differentiated velocities carry rounding noise: a relative acceleration of 1e-9 m/s²
+    # would turn a receding pair into a collision in 1e15 s
+    alpha = np.where(np.abs(alpha) < 1e-9, 0.0, alpha)
+    disc = u * u + 2.0 * alpha * g
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        root = np.sqrt(np.where(disc >= 0, disc, 0.0))
+        den = u + root
+        out = np.where((disc >= 0) & (den > 1e-9), 2.0 * g / den, np.inf)
+    out = np.where(g <= 0, 0.0, out)
+    return np.where(np.isnan(g) | np.isnan(u) | np.isnan(alpha), np.nan, out)
+
+
+def required_deceleration_values(gap, v_e, v_l, a_l):
+    """Required deceleration [m/s², >= 0]: the smallest constant braking ``b`` of the ego,
+    from now to a stop, that keeps the gap open while the lead keeps its acceleration
+    ``a_l`` until it stands (no one reverses).
+
+    The gap is smallest when the speeds match: ``b1 = max(0, u²/(2g) - a_l)`` with closing
+    speed ``u = v_e - v_l > 0``, when that moment ``u / (a_l + b1)`` comes before a braking
+    lead stands (``v_l / -a_l``). Otherwise the ego must stop behind where the lead stops:
+    ``b2 = v_e² / (2 (g + d_l))``, ``d_l = v_l² / (2 (-a_l))`` (0 for a standing lead; a lead
+    that does not brake never stops, and an ego not closing in needs 0). +inf where the gap
+    is already closed."""
+    g = np.asarray(gap, dtype=float)
+    v_e = np.maximum(np.asarray(v_e, dtype=float), 0.0)
+    v_l = np.maximum(np.asarray(v_l, dtype=float), 0.0)
+    a_l = np.asarray(a_l, dtype=float)
+    u = v_e - v_l
+    moving = v_l > 0
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
+        # when and where a braking lead stands (0 for a standing one, inf for one that never does)
+        t_lead = np.where(moving, np.where(a_l < 0, v_l / -a_l, np.inf), 0.0)
+        d_lead = np.where(moving, v_l * t_lead / 2.0, 0.0)
+        b2 = v_e * v_e / (2.0 * (g + d_lead))
+        # closing in (u > 0) gives a_l + b1 >= u²/2g > 0: the speeds match at u / (a_l + b1)
+        match_first = (u > 0) & (u <= (a_l + b1) * t_lead)
+    out = np.where(match_first, b1, np.where(t_lead < np.inf, b2, 0.0))
+    out = np.where(g <= 0, np.inf, out)
+    return np.where(np.isnan(g) | np.isnan(u) | np.isnan(a_l), np.nan, out)
+
+
+def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance [m] and speed [m/s] after ``tau`` [s] at constant ``a``, stopping at 0."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_stop = np.where(a < 0, v / np.where(a < 0, -a, 1.0), np.inf)
+    t = np.minimum(tau, t_stop)
+    return v * t + 0.5 * a * t * t, np.maximum(v + a * t, 0.0)
+
+
+def time_to_brake_values(k: LeadKinematics, max_decel: float,
+                         horizon: float = TTB_HORIZON_S, grid_s: float = 0.5,
+                         fine: int = 64) -> np.ndarray:
+    """Time to brake [s]: how long the ego can keep its acceleration before braking at
+    ``max_decel`` is no longer enough (the required deceleration of the state it then
+    reaches exceeds ``max_decel``); both keep their accelerations meanwhile, no one reverses.
+    0 when it is already too late, +inf when braking is still enough after ``horizon``
+    (1-D over the pairs of ``k``).
+    The first moment on a ``grid_s`` grid, refined twice on ``fine`` points within the
+    bracket (to ``grid_s / fine²``, 0.12 ms by default), for every agent ahead and step at
+    once."""
+    if k.gap.size == 0:
+        return np.zeros(0)
+    g0, a_e, a_l = k.gap, k.a_e, k.a_l
+    v_e, v_l = np.maximum(k.v_e, 0.0), np.maximum(k.v_l, 0.0)
+
+    def need(tau):
+        de, ve = _advance(v_e[..., None] if tau.ndim > v_e.ndim else v_e,
+                          a_e[..., None] if tau.ndim > a_e.ndim else a_e, tau)
+        dl, vl = _advance(v_l[..., None] if tau.ndim > v_l.ndim else v_l,
+                          a_l[..., None] if tau.ndim > a_l.ndim else a_l, tau)
+        g = (g0[..., None] if tau.ndim > g0.ndim else g0) + dl - de
+        al = np.where(vl <= 0, 0.0, a_l[..., None] if tau.ndim > a_l.ndim else a_l)
+        return required_deceleration_values(g, ve, vl, al)
+
+    grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
+    too_hard = need(np.broadcast_to(grid, (g0.size, grid.size))) > max_decel
+    first = np.argmax(too_hard, axis=1)
+    # too late already (the first grid point, now) or still enough at the horizon (never)
+    res = np.where(too_hard[:, 0], 0.0, np.inf)
+    todo = np.flatnonzero(too_hard.any(axis=1) & ~too_hard[:, 0])
+    if todo.size:
+        g0, a_e, a_l, v_e, v_l = g0[todo], a_e[todo], a_l[todo], v_e[todo], v_l[todo]
+        lo, step = grid[first[todo] - 1], grid_s
+        # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
+        # calls, which is what costs on a handful of pairs)
+        frac = np.arange(1, fine + 1) / fine
+        for _ in range(2):
+            pts = lo[:, None] + step * frac[None, :]
+            bad = need(pts) > max_decel
+            j = np.argmax(bad, axis=1)  # the first too-late point; the one before is fine
+            lo = lo + step * np.where(j > 0, frac[np.maximum(j - 1, 0)], 0.0)
+            step = step / fine
+        res[todo] = lo
+    return res
+
+
+def time_to_steer_values(k: LeadKinematics, width_e: float, max_lat_accel: float,
+                         ttc: np.ndarray | None = None) -> np.ndarray:
+    """Time to steer [s]: the enhanced time to collision minus the time an evasive steer at
+    ``max_lat_accel`` [m/s²] (from no lateral speed) takes to move the ego sideways clear of
+    the lead, ``sqrt(2 d / a_lat)`` with ``d = (w_e + w_l)/2 - |lat|``. Negative: too late.
+    ``ttc``: the pairs' enhanced TTC when the caller has it (1-D over the pairs of ``k``)."""
+    if ttc is None:
+        ttc = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
+    d = np.maximum((width_e + k.width_l) / 2 - np.abs(k.lat), 0.0)
+    return ttc - np.sqrt(2.0 * d / max_lat_accel)
+
+
+# -- monitors of the vehicle ahead ------------------------------------------------------------
+
+class _LeadMeasure(Monitor):
+    """ρ = min over steps and agents ahead of ``sign * (value - threshold)``."""
+
+    invariant = True
+    _what = ""
+    _unit = ""
+    _upper = False  # True: the value must stay <= threshold
+
+    def _values(self, traj: Trajectory) -> np.ndarray:
+        """The measure over the pairs of :func:`lead_kinematics` (1-D)."""
+        raise NotImplementedError
+
+    def _margins(self, v: np.ndarray) -> np.ndarray:
+        m = (self.threshold - v) if self._upper else (v - self.threshold)
+        return np.where(np.isnan(v), np.inf, m)
+
+    def series(self, traj: Trajectory) -> np.ndarray:
+        """ρ(t): the margin toward the most critical agent ahead at each step; +inf where
+        nothing is ahead."""
+        k = lead_kinematics(traj)
+        out = np.full(traj.n_steps, np.inf)
+        np.minimum.at(out, k.idx % traj.n_steps, self._margins(self._values(traj)))
+        return out
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y", "vx", "vy", "heading"))
+        k = lead_kinematics(traj)
+        values = self._values(traj)
+        m = self._margins(values)
+        if m.size == 0 or not (m < np.inf).any():
+            return MonitorResult(self.name, math.inf, self.threshold, None, None,
+                                 f"nothing ahead of the ego that makes {self._what} finite")
+        # the smallest margin, earliest step first on ties (as the pairwise metrics)
+        order = np.lexsort((k.idx // traj.n_steps, k.idx % traj.n_steps, m))
+        j = int(order[0])
+        row, step = divmod(int(k.idx[j]), traj.n_steps)
+        v = values[j]
+        who = traj.names[row + 1]
+        bound = "<=" if self._upper else ">="
+        return MonitorResult(
+            self.name, float(m[j]), self.threshold, fmt_t(traj, step), who,
+            f"{self._what} {v:.3g}{' ' + self._unit if self._unit else ''} behind {who} at "
+            f"t={traj.t[step]:.2f} s (required {bound} {self.threshold:g} {self._unit})".rstrip())
+
+
+_REQUIRED: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _required(traj: Trajectory) -> np.ndarray:
+    """Required deceleration toward each agent ahead, over the pairs of
+    :func:`lead_kinematics` (shared by a_req and BTN)."""
+    got = _REQUIRED.get(traj)
+    if got is None:
+        k = lead_kinematics(traj)
+        got = required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l)
+        _REQUIRED[traj] = got
+    return got
+
+
+_ETTC: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def _ettc(traj: Trajectory) -> np.ndarray:
+    """Enhanced TTC toward each agent ahead, over the pairs of :func:`lead_kinematics`
+    (shared by ETTC and TTS)."""
+    got = _ETTC.get(traj)
+    if got is None:
+        k = lead_kinematics(traj)
+        got = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
+        _ETTC[traj] = got
+    return got
+
+
+class ETTCMonitor(_LeadMeasure):
+    _what, _unit = "enhanced TTC", "s"
+
+    def __init__(self, threshold: float = 2.0, *, name: str = "ettc"):
+        self.threshold = check_threshold(name, threshold)
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return _ettc(traj)
+
+
+class RequiredDecelerationMonitor(_LeadMeasure):
+    _what, _unit, _upper = "required deceleration", "m/s²", True
+
+    def __init__(self, max: float = 4.0, *, name: str = "required_deceleration"):
+        self.threshold = check_positive(name, max, "max", allow_zero=True)
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return _required(traj)
+
+
+class BrakeThreatMonitor(_LeadMeasure):
+    _what, _unit, _upper = "brake threat number", "", True
+
+    def __init__(self, max: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                 name: str = "brake_threat_number"):
+        self.threshold = check_positive(name, max, "max", allow_zero=True)
+        self.max_decel = check_positive(name, max_decel, "max_decel")
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return _required(traj) / self.max_decel
+
+
+class TimeToBrakeMonitor(_LeadMeasure):
+    _what, _unit = "time to brake", "s"
+
+    def __init__(self, threshold: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                 name: str = "time_to_brake"):
+        self.threshold = check_threshold(name, threshold)
+        self.max_decel = check_positive(name, max_decel, "max_decel")
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return time_to_brake_values(lead_kinematics(traj), self.max_decel)
+
+
+class TimeToSteerMonitor(_LeadMeasure):
+    _what, _unit = "time to steer", "s"
+
+    def __init__(self, threshold: float = 0.5, *, max_lat_accel: float = MAX_LAT_ACCEL_MPS2,
+                 name: str = "time_to_steer"):
+        self.threshold = check_threshold(name, threshold)
+        self.max_lat_accel = check_positive(name, max_lat_accel, "max_lat_accel")
+        self.name = check_name(name)
+
+    def _values(self, traj):
+        return time_to_steer_values(lead_kinematics(traj), float(traj.width[0]),
+                                    self.max_lat_accel, ttc=_ettc(traj))
+
+
+@factory
+def ettc(threshold: float = 2.0, *, name: str = "ettc") -> Monitor:
+    """CriMe's TTC (constant accelerations, often called ETTC): rho = min over steps of
+    (enhanced TTC - ``threshold``) [s] toward the road user ahead in the ego's lane, both keeping their
+    accelerations (see :func:`ettc_values`); +inf when the gap never closes. The paper's
+    :func:`ttc` (constant velocities, any direction, a circle) is not CriMe's."""
+    return ETTCMonitor(threshold, name=name)
+
+
+@factory
+def required_deceleration(max: float = 4.0, *,
+                          name: str = "required_deceleration") -> Monitor:
+    """CriMe's a_req: the ego never needs to brake harder than ``max`` [m/s²] to avoid the
+    road user ahead (see :func:`required_deceleration_values`). rho = ``max`` - the largest
+    required deceleration [m/s²]."""
+    return RequiredDecelerationMonitor(max, name=name)
+
+
+@factory
+def brake_threat_number(max: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                        name: str = "brake_threat_number") -> Monitor:
+    """CriMe's BTN: required deceleration / the ego's braking capability ``max_decel``
+    [m/s²] stays <= ``max`` (above 1 braking alone cannot avoid the collision). rho = ``max``
+    - the largest BTN."""
+    return BrakeThreatMonitor(max, max_decel=max_decel, name=name)
+
+
+@factory
+def time_to_brake(threshold: float = 1.0, *, max_decel: float = MAX_DECEL_MPS2,
+                  name: str = "time_to_brake") -> Monitor:
+    """CriMe's TTB: the ego can always wait at least ``threshold`` [s] before braking at
+    ``max_decel`` [m/s²] must begin (see :func:`time_to_brake_values`). rho = min over steps
+    of (TTB - ``threshold``) [s]."""
+    return TimeToBrakeMonitor(threshold, max_decel=max_decel, name=name)
+
+
+@factory
+def time_to_steer(threshold: float = 0.5, *, max_lat_accel: float = MAX_LAT_ACCEL_MPS2,
+                  name: str = "time_to_steer") -> Monitor:
+    """CriMe's TTS: an evasive steer at ``max_lat_accel`` [m/s²] can always wait at least
+    ``threshold`` [s] (see :func:`time_to_steer_values`). rho = min over steps of (TTS -
+    ``threshold``) [s]."""
+    return TimeToSteerMonitor(threshold, max_lat_accel=max_lat_accel, name=name)
+
+
+# -- post-encroachment time -------------------------------------------------------------------
+
+#: [deg] paths that meet at a smaller angle (following, oncoming) do not cross
+CROSSING_MIN_ANGLE_DEG = 30.0
+
+
+#: heading bins over half a turn (|sin| of a heading difference repeats every pi)
+_NBINS = 36
+
+
+def _heading_bins(h: np.ndarray) -> np.ndarray:
+    return (np.mod(h, np.pi) / (np.pi / _NBINS)).astype(int) % _NBINS
+
+
+def _can_cross(min_angle_deg: float) -> np.ndarray:
+    """``(bins, bins)``: whether two headings in these bins can differ by at least
+    ``min_angle_deg`` (modulo a half turn); conservative by one bin."""
+    b = np.arange(_NBINS)
+    d = np.abs(b[:, None] - b[None, :])
+    d = np.minimum(d, _NBINS - d)  # 0 .. NBINS/2 bins: 0 .. 90 degrees
+    return (d + 1) * (180.0 / _NBINS) >= min_angle_deg
+
+
+_CAN_CROSS = {CROSSING_MIN_ANGLE_DEG: _can_cross(CROSSING_MIN_ANGLE_DEG)}
+
+
+def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Post-encroachment time of the ego with each other agent: ``(pet [s], t_first_leaves,
+    t_second_enters)`` each ``(A-1,)``, +inf / NaN where their paths do not cross.
+
+    PET is the time from the first road user leaving the ground both paths cover to the
+    second reaching it: the smallest ``|t_i - t_j|`` over pairs of samples at which the ego's
+    footprint at ``t_i`` overlaps the other's at ``t_j`` (0 when they meet at once: a
+    collision), counting only pairs whose headings differ by at least ``min_angle_deg`` (a
+    crossing, not following or oncoming traffic). Exact to the sampling step."""
+    A1 = traj.n_agents - 1
+    pet = np.full(A1, np.inf)
+    t1 = np.full(A1, np.nan)
+    t2 = np.full(A1, np.nan)
+    ok = traj.present & np.isfinite(traj.x) & np.isfinite(traj.y)
+    ie = np.flatnonzero(ok[0])
+    if A1 < 1 or ie.size == 0:
+        return pet, t1, t2
+    R = np.hypot(traj.length / 2, traj.width / 2)
+    sin_min = math.sin(math.radians(min_angle_deg))
+    ebins = _heading_bins(traj.heading[0, ie])
+    for a in range(1, traj.n_agents):
+        io = np.flatnonzero(ok[a])
+        if io.size == 0:
+            continue
+        # keep only samples whose heading can cross one of the other path's (traffic along
+        # the ego's lane never can, and is dropped here at O(T) cost)
+        obins = _heading_bins(traj.heading[a, io])
+        can = _CAN_CROSS[min_angle_deg] if min_angle_deg in _CAN_CROSS else _can_cross(min_angle_deg)
+        o_ok = can[obins][:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)
+        e_ok = can[ebins][:, np.bincount(obins[o_ok], minlength=_NBINS) > 0].any(axis=1)
+        if not o_ok.any() or not e_ok.any():
+            continue
+        io, ie_a = io[o_ok], ie[e_ok]
+        xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
+        reach = R[0] + R[a]
+        xo, yo = traj.x[a, io], traj.y[a, io]
+        # samples of each path within reach of the other path's bounding box
+        ne = ((xe >= xo.min() - reach) & (xe <= xo.max() + reach)
+              & (ye >= yo.min() - reach) & (ye <= yo.max() + reach))
+        no = ((xo >= xe.min() - reach) & (xo <= xe.max() + reach)
+              & (yo >= ye.min() - reach) & (yo <= ye.max() + reach))
+        if not ne.any() or not no.any():
+            continue
+        i, j = ie_a[ne], io[no]
+        dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
+        dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
+        near = dx * dx + dy * dy <= reach * reach
+        cross = np.abs(np.sin(traj.heading[a, j][None, :] - traj.heading[0, i][:, None])) >= sin_min
+        ii, jj = np.nonzero(near & cross)
+        if ii.size == 0:
+            continue
+        si, sj = i[ii], j[jj]
+        sep = _sat_separation(traj.x[0, si], traj.y[0, si], traj.heading[0, si],
+                              traj.length[0] / 2, traj.width[0] / 2,
+                              traj.x[a, sj], traj.y[a, sj], traj.heading[a, sj],
+                              traj.length[a] / 2, traj.width[a] / 2)
+        hit = sep <= 1e-9
+        if not hit.any():
+            continue
+        ti, tj = traj.t[si[hit]], traj.t[sj[hit]]
+        gap = np.abs(ti - tj)
+        b = int(np.argmin(gap))
+        pet[a - 1] = float(gap[b])
+        t1[a - 1], t2[a - 1] = float(min(ti[b], tj[b])), float(max(ti[b], tj[b]))
+    return pet, t1, t2
+
+
+class PETMonitor(Monitor):
+    invariant = False  # a later sample can lower the PET of an earlier pass
+
+    def __init__(self, min_s: float = 1.0, *, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG,
+                 name: str = "post_encroachment_time"):
+        self.threshold = check_positive(name, min_s, "min_s", allow_zero=True)
+        self.min_angle = check_positive(name, min_angle_deg, "min_angle_deg")
+        if not self.min_angle <= 90:
+            raise MonitorError(f"{name}: min_angle_deg must be <= 90, got {min_angle_deg!r}")
+        self.name = check_name(name)
+
+    def _evaluate(self, traj: Trajectory) -> MonitorResult:
+        check_present_finite(traj, self.name, ("x", "y", "heading"))
+        pet, t1, t2 = pet_values(traj, self.min_angle)
+        if pet.size == 0 or not np.isfinite(pet).any():
+            return MonitorResult(self.name, math.inf, self.threshold, None, None,
+                                 "no road user's path crosses the ego's")
+        a = int(np.argmin(pet))
+        who = traj.names[a + 1]
+        return MonitorResult(
+            self.name, float(pet[a]) - self.threshold, self.threshold, float(t2[a]), who,
+            f"post-encroachment time {pet[a]:.3g} s with {who}: the first left the crossing "
+            f"at t={t1[a]:.2f} s, the second reached it at t={t2[a]:.2f} s (required >= "
+            f"{self.threshold:g} s)")
+
+
+@factory
+def post_encroachment_time(min_s: float = 1.0, *, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG,
+                           name: str = "post_encroachment_time") -> Monitor:
+    """CriMe's PET at crossings: every road user whose path crosses the ego's (at
+    ``min_angle_deg`` or more) reaches the shared ground at least ``min_s`` [s] after the
+    other left it (see :func:`pet_values`). rho = min PET - ``min_s`` [s]; the result's
+    ``t`` is when the second reached it; +inf when no path crosses."""
+    return PETMonitor(min_s, min_angle_deg=min_angle_deg, name=name)

@@ -1,0 +1,169 @@
+"""The road as the rule monitors see it: lane centre lines, widths, kinds and stop marks,
+read from the recording, and where each agent is on its lane.
+
+The simulator writes the lanes any agent was on and the ego's route into the trajectory's
+``meta`` (``sim/recording.py``, :func:`road_meta`): ``meta["lanes"]`` maps a lane id (the id
+in ``Trajectory.lane``) to ``{"kind": "travel" | "connector" | "parking" | ..., "group": the
+carriageway (lanes side by side with one direction share it), "width": [m], "xy": centre line
+points [m] in the direction of travel}``, ``meta["stops"]`` lists ``{"lane", "s" [m along
+it], "kind": "stop" | "crosswalk"}`` and ``meta["ego_route"]`` the ego's route lane ids. A
+lane of any origin (built roads, OpenDRIVE maps) is a polyline there, so the monitors need
+nothing but these four facts per lane: the closest lane (the recorded ``lane``), its heading
+and width where the agent is, and whether the agent is on the drivable area (the recorded
+``on_road``). A trajectory built by hand gives the same ``meta`` to use these monitors.
+Map lanes plug in by being written the same way: the monitors never ask where a lane came
+from.
+
+Projections are computed once per trajectory and shared by every monitor that needs them.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..trajectory import Trajectory
+from .base import MonitorError
+
+__all__ = ["LanePolyline", "LaneFrame", "lanes_of", "lane_frame", "route_of"]
+
+
+@dataclass(frozen=True)
+class LanePolyline:
+    """One lane's centre line ``xy`` ``(N, 2)`` [m], its arc length ``cum`` ``(N,)`` [m],
+    width [m], kind and carriageway group."""
+
+    id: str
+    xy: np.ndarray
+    cum: np.ndarray
+    width: float
+    kind: str = "travel"
+    group: str = ""
+
+    @property
+    def length(self) -> float:
+        return float(self.cum[-1])
+
+    def project(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Arc length ``s`` [m] (extended linearly before the start and past the end), signed
+        offset ``r`` [m] (positive left of travel) and the lane heading [rad] at the closest
+        point of each of the points ``x``, ``y``."""
+        a = self.xy[:-1]
+        d = self.xy[1:] - a
+        dd = np.einsum("ij,ij->i", d, d)
+        px = x[:, None] - a[None, :, 0]
+        py = y[:, None] - a[None, :, 1]
+        u = (px * d[None, :, 0] + py * d[None, :, 1]) / dd[None, :]
+        # the first and last segments extend beyond the lane's ends (s < 0, s > length)
+        lo = np.where(np.arange(d.shape[0]) == 0, -np.inf, 0.0)
+        hi = np.where(np.arange(d.shape[0]) == d.shape[0] - 1, np.inf, 1.0)
+        uc = np.clip(u, lo[None, :], hi[None, :])
+        ex = px - uc * d[None, :, 0]
+        ey = py - uc * d[None, :, 1]
+        k = np.argmin(ex * ex + ey * ey, axis=1) if d.shape[0] > 1 else np.zeros(x.shape, int)
+        rows = np.arange(x.shape[0])
+        seg = np.sqrt(dd[k])
+        uk = uc[rows, k]
+        s = self.cum[k] + uk * seg
+        dxk, dyk = d[k, 0] / seg, d[k, 1] / seg
+        r = dxk * py[rows, k] - dyk * px[rows, k]
+        return s, r, np.arctan2(dyk, dxk)
+
+
+def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
+    try:
+        xy = np.asarray(data["xy"], dtype=float).reshape(-1, 2)
+        width = float(data["width"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise MonitorError(
+            f"lane {lane_id!r} in the trajectory's meta['lanes'] needs 'xy' (centre line points "
+            f"[m]) and 'width' [m]: {exc}") from None
+    if xy.shape[0] < 2 or not np.isfinite(xy).all():
+        raise MonitorError(f"lane {lane_id!r} in meta['lanes'] needs >= 2 finite points")
+    seg = np.hypot(*np.diff(xy, axis=0).T)
+    keep = np.concatenate([[True], seg > 1e-9])  # repeated points have no direction
+    xy = xy[keep]
+    if xy.shape[0] < 2:
+        raise MonitorError(f"lane {lane_id!r} in meta['lanes'] has zero length")
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    return LanePolyline(lane_id, xy, cum, width, str(data.get("kind", "travel")),
+                        str(data.get("group", "")))
+
+
+_LANES: "weakref.WeakKeyDictionary[Trajectory, dict[str, LanePolyline]]" = weakref.WeakKeyDictionary()
+_FRAMES: "weakref.WeakKeyDictionary[Trajectory, LaneFrame]" = weakref.WeakKeyDictionary()
+
+
+def lanes_of(traj: Trajectory, monitor: str = "") -> dict[str, LanePolyline]:
+    """The lanes recorded in ``traj.meta["lanes"]`` as polylines (cached per trajectory);
+    a :class:`MonitorError` naming ``monitor`` when the recording has none."""
+    got = _LANES.get(traj)
+    if got is not None:
+        return got
+    raw = traj.meta.get("lanes")
+    if not isinstance(raw, Mapping) or not raw:
+        raise MonitorError(
+            f"monitor {monitor!r} needs the road: the trajectory's meta has no 'lanes' (the "
+            "simulator records them; by hand give meta={'lanes': {id: {'xy': [[x, y], ...], "
+            "'width': w}}, ...})")
+    got = {str(k): _polyline(str(k), v) for k, v in raw.items()}
+    _LANES[traj] = got
+    return got
+
+
+@dataclass(frozen=True)
+class LaneFrame:
+    """The ego's place on its recorded lane, ``(T,)`` each: ``s`` [m] along it, ``r`` [m]
+    left of its centre line, the lane's ``heading`` [rad] and ``width`` [m] there; NaN where
+    the ego is absent or on no known lane. (The rules judge the ego; projecting only its row
+    keeps them cheap.)"""
+
+    s: np.ndarray
+    r: np.ndarray
+    heading: np.ndarray
+    width: np.ndarray
+
+
+def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
+    """The ego's :class:`LaneFrame` in ``traj`` (computed once per trajectory, one vectorized
+    projection per lane it was on)."""
+    got = _FRAMES.get(traj)
+    if got is not None:
+        return got
+    lanes = lanes_of(traj, monitor)
+    T = traj.n_steps
+    s, r, h, w = (np.full(T, np.nan) for _ in range(4))
+    lane = traj.lane[0]
+    ok = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+    # the ego changes lanes a few times a run: runs of one lane id, not a sort of every sample
+    change = np.flatnonzero(lane[1:] != lane[:-1]) + 1
+    ids = set(lane[np.concatenate([[0], change])].tolist()) if T else set()
+    for lid in ids:
+        poly = lanes.get(lid)
+        if poly is None:
+            continue
+        sel = ok & (lane == lid)
+        if not sel.any():
+            continue
+        s[sel], r[sel], h[sel] = poly.project(traj.x[0, sel], traj.y[0, sel])
+        w[sel] = poly.width
+    got = LaneFrame(s, r, h, w)
+    _FRAMES[traj] = got
+    return got
+
+
+def route_of(traj: Trajectory, monitor: str = "") -> list[LanePolyline]:
+    """The ego's route lanes in order (``meta["ego_route"]``), as recorded polylines."""
+    ids = traj.meta.get("ego_route")
+    if not ids:
+        raise MonitorError(
+            f"monitor {monitor!r} needs the ego's route: the trajectory's meta has no "
+            "'ego_route' (the simulator records it; by hand give meta={'ego_route': [lane ids]})")
+    lanes = lanes_of(traj, monitor)
+    missing = [i for i in ids if i not in lanes]
+    if missing:
+        raise MonitorError(f"monitor {monitor!r}: route lanes {missing} are not in meta['lanes']")
+    return [lanes[i] for i in ids]
