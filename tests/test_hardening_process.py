@@ -38,19 +38,61 @@ def test_os_exit_in_a_body_stops_the_run_as_interrupted_with_its_row_and_report(
     assert summary["tests"][0]["samples"] == 2
 
 
-def test_a_forked_child_that_returns_into_pytest_writes_no_rows_and_runs_nothing_more(pytester):
-    # a body that forks and lets the child return gave 7 rows for 4 items
+MIXED = """
+import os
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=3, sampler="halton")
+def test_a(case):
+    pass
+
+def test_plain():
+    {body}
+
+@scenario(y=Uniform(0, 1), samples=3, sampler="halton")
+def test_b(case):
+    pass
+"""
+
+
+def test_os_exit_in_a_plain_test_beside_scenario_tests_stops_the_run_as_interrupted(pytester):
+    # serially, os._exit(0) in a plain test ended the process: exit 0, 3 of 6 rows, no JUnit file
+    pytester.makepyfile(MIXED.format(body="os._exit(0)"))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           "--junitxml=out.xml", timeout=120)
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert [r["item"].rpartition("::")[2] for r in rows_of(pytester.path)] == [
+        "test_a[halton-000]", "test_a[halton-001]", "test_a[halton-002]"]
+    assert junit_cases(pytester.path / "out.xml") == 4  # the plain test's failure included
+    result.stdout.fnmatch_lines(["*os._exit(0) called while the test ran*",
+                                 "*Interrupted: os._exit(0) called in test_*.py::test_plain*"])
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["interrupted"] is True and "os._exit" in summary["stopped"]
+
+
+def test_without_scenario_tests_os_exit_is_left_alone(pytester):
+    pytester.makepyfile("import os\n\ndef test_plain():\n    os._exit(5)\n")
+    result = pytester.runpytest_subprocess("-p", "no:xdist", "-p", "no:cacheprovider", timeout=120)
+    assert result.ret == 5
+
+
+@pytest.mark.parametrize("xdist", [False, True], ids=["serial", "xdist"])
+def test_a_forked_child_that_returns_into_pytest_writes_no_rows_and_runs_nothing_more(pytester, xdist):
+    # a body that forks and lets the child return gave 7 rows for 4 items; under -n 2, 5 rows
+    # and 5 "passed" (the child sent its item's setup report through the worker's channel)
     pytester.makepyfile(FOUR.format(body="""if case.index == 1:
         pid = os.fork()
         if pid:
             os.waitpid(pid, 0)"""))
-    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
-                                           "--junitxml=out.xml", timeout=120)
+    result = pytester.runpytest_subprocess("--avs-db=none", *(("-n", "2") if xdist else ("-p", "no:xdist")),
+                                           "-p", "no:cacheprovider", "--junitxml=out.xml", timeout=120)
     assert result.ret == pytest.ExitCode.OK
+    result.assert_outcomes(passed=4)
     rows = rows_of(pytester.path)
     assert sorted(r["index"] for r in rows) == [0, 1, 2, 3]
     assert junit_cases(pytester.path / "out.xml") == 4
-    assert "returned into pytest; it is ended here" in result.stderr.str()
+    if not xdist:  # an xdist worker's stderr is its own
+        assert "returned into pytest; it is ended here" in result.stderr.str()
 
 
 def test_a_forked_child_may_still_end_itself_with_os_exit(pytester):

@@ -18,7 +18,8 @@
   it ends, so the error table and the JUnit file never hold different parts of a run.
 * :func:`end_workers` — an interrupted xdist controller ends its workers and reports what they
   sent until they ended.
-* :class:`ExitGuard` — ``os._exit()`` in a scenario item of a serial run: a process that
+* :class:`ExitGuard` — ``os._exit()`` in an item of a serial run with scenario items (in a
+  scenario item or a plain test beside them): a process that
   ends that way writes nothing afterwards (no JUnit file, no summary) and its status is the
   one the body chose (0: "all passed"). While a scenario item runs in the process that started
   the run, ``os._exit`` raises :class:`ProcessExitCalled` instead (a ``SystemExit``: the case is
@@ -99,14 +100,15 @@ def stuck_case_handler(item: pytest.Item, limit_s: float | None, make_row: Calla
 class ProcessExitCalled(SystemExit):
     """``os._exit(status)`` called by a scenario item in the process that runs the session."""
 
-    def __init__(self, status: Any):
+    def __init__(self, status: Any, what: str = "case"):
         super().__init__(status)
         self.status = status
+        self.what = what
 
     def __str__(self) -> str:
-        return (f"os._exit({self.status!r}) called while the case ran; the process was not ended "
-                "(it would have lost the JUnit file and the report) and the run stops after this "
-                "case as interrupted")
+        return (f"os._exit({self.status!r}) called while the {self.what} ran; the process was not "
+                "ended (it would have lost the JUnit file and the report) and the run stops after "
+                f"this {self.what} as interrupted")
 
 
 class ExitGuard:
@@ -118,7 +120,9 @@ class ExitGuard:
         self.real_exit = os._exit
         self.called: Any = None  # the status of the first os._exit a scenario item called
         self.item: str | None = None
+        self.what = "case"
         self.session: pytest.Session | None = None
+        self.scenarios = False  # the session holds scenario items: then every item is guarded
 
     def _exit(self, status: int = 0) -> None:
         if os.getpid() != self.pid or self.item is None:
@@ -133,15 +137,22 @@ class ExitGuard:
             self.called = status
         if self.session is not None:
             self.session.shouldstop = f"os._exit({status!r}) called in {self.item}"
-        raise ProcessExitCalled(status)
+        raise ProcessExitCalled(status, self.what)
+
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        # a plain test's os._exit ends the scenario items' run as surely as a case's: in a
+        # session with scenario items every item is guarded (a run without any is left alone)
+        self.scenarios = any(i.get_closest_marker("scenario") is not None for i in session.items)
 
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
-        if item.get_closest_marker("scenario") is None or os.getpid() != self.pid:
+        scenario = item.get_closest_marker("scenario") is not None
+        if not (scenario or self.scenarios) or os.getpid() != self.pid:
             return (yield)
         wrap = not hasattr(item.config, "workerinput")  # xdist gives a dead worker's case its row
         if wrap:
             self.session, self.item, os._exit = item.session, item.nodeid, self._exit
+            self.what = "case" if scenario else "test"
         try:
             return (yield)
         finally:
@@ -149,15 +160,41 @@ class ExitGuard:
                 os._exit = self.real_exit
                 self.item = None
             if os.getpid() != self.pid:
-                # the body forked and the child returned into pytest instead of ending: it
-                # must not run the rest of the session a second time, nor write its reports
-                try:
-                    sys.stderr.write(f"\navscenario: {item.nodeid}: a process the test forked "
-                                     f"(pid {os.getpid()}) returned into pytest; it is ended here\n")
-                except Exception:  # noqa: BLE001 - a closed stream: nothing left to say
-                    pass
-                _flush_streams()
-                self.real_exit(0)
+                self._end_child(item)
+
+    # The earliest the child of a body that forked is back in pytest: at the end of the phase
+    # it forked in, before that phase's report is made (a scenario's case runs as the last
+    # step of the setup). An xdist worker's child would otherwise send that report through
+    # the worker's channel: a second row and a second "passed" for one item.
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_setup(self, item: pytest.Item) -> Any:
+        return (yield from self._phase(item))
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_call(self, item: pytest.Item) -> Any:
+        return (yield from self._phase(item))
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_teardown(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+        return (yield from self._phase(item))
+
+    def _phase(self, item: pytest.Item) -> Any:
+        try:
+            return (yield)
+        finally:
+            if os.getpid() != self.pid and (self.scenarios or item.get_closest_marker("scenario") is not None):
+                self._end_child(item)
+
+    def _end_child(self, item: pytest.Item) -> None:
+        # the body forked and the child returned into pytest instead of ending: it must not
+        # run the rest of the session a second time, nor write or send its reports
+        try:
+            sys.stderr.write(f"\navscenario: {item.nodeid}: a process the test forked "
+                             f"(pid {os.getpid()}) returned into pytest; it is ended here\n")
+        except Exception:  # noqa: BLE001 - a closed stream: nothing left to say
+            pass
+        _flush_streams()
+        self.real_exit(0)
 
     @pytest.hookimpl(trylast=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
