@@ -5,11 +5,15 @@ a real subprocess, bounded in time, and leaves no process behind."""
 from __future__ import annotations
 
 import json
+import os
+import re
 import signal
+import subprocess
+import sys
 
 import pytest
 
-from test_stopping import junit_cases, rows_of, start, wait_for_rows
+from test_stopping import ctrl_c_as_at_a_terminal, junit_cases, rows_of, start, wait_for_rows
 
 FOUR = """
 import os
@@ -204,3 +208,46 @@ def test_the_space_plot_scales_its_axis_once_not_per_value(monkeypatch):
     assert len(calls) == 1 and labels is None and values[500] == 0.5
     values, labels = plots._axis_values(rows, "w")
     assert labels == ["c0", "c1", "c2"] and [round(v) for v in values[:3]] == [0, 1, 2]
+
+
+def test_ctrl_c_under_xdist_says_one_line_per_worker_and_keeps_every_row(pytester):
+    # #33 item 6: Ctrl-C at a terminal reaches the controller and both workers; before, pytest
+    # rendered the whole traceback of the interrupt in every process (the time it took), and
+    # nothing said where the workers stopped
+    pytester.makepyfile("""
+import time
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=300, sampler="halton")
+def test_many(case):
+    time.sleep(0.05)
+""")
+
+    def own_group_with_ctrl_c():
+        ctrl_c_as_at_a_terminal()
+        os.setsid()  # a terminal's Ctrl-C goes to the whole foreground process group
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "2", "--avs-db=none",
+         "--junitxml=out.xml"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        preexec_fn=own_group_with_ctrl_c)
+    try:
+        wait_for_rows(pytester, proc, 10)
+        os.killpg(proc.pid, signal.SIGINT)
+        out = proc.communicate(timeout=120)[0].decode()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    workers = sorted(line for line in out.splitlines() if line.startswith("avscenario: worker gw")
+                     or "avscenario: worker gw" in line)
+    assert len(workers) == 2, out
+    assert all(re.search(r"worker gw[01] interrupted (at test_\S+\.py::test_many\[halton-\d+\]|between tests)", w)
+               for w in workers), workers
+    assert "Traceback" not in out and "node down" not in out, out
+    assert len(out.splitlines()) < 40, out  # the header, the table, the summary: no tracebacks
+    rows = rows_of(pytester.path)
+    assert 10 <= len(rows) < 300
+    assert junit_cases(pytester.path / "out.xml") == len(rows)
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["tests"][0]["samples"] == len(rows)

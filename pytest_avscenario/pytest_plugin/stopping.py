@@ -16,8 +16,10 @@
 * :func:`signals_held` — one piece of work (one report's handling by every plugin, one event
   of an xdist controller) happens whole: a SIGTERM or Ctrl-C arriving meanwhile is raised when
   it ends, so the error table and the JUnit file never hold different parts of a run.
-* :func:`end_workers` — an interrupted xdist controller ends its workers and reports what they
-  sent until they ended.
+* :func:`end_workers` — an interrupted xdist controller ends its workers, says in one line per
+  worker where it stopped, and reports what they sent until they ended.
+* :func:`shorten_interrupt` — a Ctrl-C's traceback cut to its last frame before pytest renders
+  it (unless ``--full-trace``), in the controller and each worker.
 * :class:`ExitGuard` — ``os._exit()`` in an item of a serial run with scenario items (in a
   scenario item or a plain test beside them): a process that
   ends that way writes nothing afterwards (no JUnit file, no summary) and its status is the
@@ -460,6 +462,43 @@ def _die_by_sigterm() -> None:
     _REAL_EXIT(128 + signal.SIGTERM)
 
 
+def shorten_interrupt(config: pytest.Config, excinfo: Any) -> None:
+    """A Ctrl-C's traceback, cut to the frame it landed in, unless ``--full-trace``.
+
+    pytest's terminal renders the whole traceback of an interrupt (each frame's source, found
+    by parsing its whole file, and its arguments) only to print the last frame's location
+    without ``--full-trace``: 60-odd frames deep in pytest, pluggy and xdist that took seconds
+    in the controller and in every worker at once — most of the ~12 s a Ctrl-C under ``-n 2``
+    took to stop."""
+    if getattr(config.option, "fulltrace", False):
+        return
+    try:
+        traceback = excinfo.traceback
+        if len(traceback) > 1:
+            excinfo.traceback = traceback[-1:]
+    except Exception:  # noqa: BLE001 - an ExceptionInfo of another shape: render it as it is
+        pass
+
+
+def _running_items(dsession: Any, nodes: list[Any]) -> dict[Any, str]:
+    """The item each worker runs (the first of those the scheduler sent it and it has not
+    finished), where the scheduler says so (``--dist load``/``worksteal``/``each``)."""
+    sched = getattr(dsession, "sched", None)
+    pending = getattr(sched, "node2pending", None)
+    collection = getattr(sched, "collection", None)
+    if not isinstance(pending, dict):
+        return {}
+    out = {}
+    for node in nodes:
+        try:
+            first = pending.get(node)
+            if first:
+                out[node] = collection[first[0]] if collection is not None else ""
+        except Exception:  # noqa: BLE001 - a scheduler of another shape: say less
+            pass
+    return out
+
+
 def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
     """An interrupted xdist controller ends its workers at once — SIGTERM reaches each as it
     reaches a run of its own, so none goes on running, and storing counterexamples for, cases
@@ -475,6 +514,7 @@ def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
     dsession = config.pluginmanager.getplugin("dsession")
     # the workers whose end the controller has not handled yet
     nodes = list(getattr(dsession, "_active_nodes", ()) or ())
+    _say_where_workers_stopped(config, nodes, _running_items(dsession, nodes))
     for node in nodes:
         popen = getattr(getattr(getattr(node, "gateway", None), "_io", None), "popen", None)
         if popen is not None and popen.poll() is None:
@@ -501,6 +541,21 @@ def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
                 report(**kwargs)
             except Exception:  # noqa: BLE001 - one report we cannot read: the others still count
                 pass
+
+
+def _say_where_workers_stopped(config: pytest.Config, nodes: list[Any], running: dict[Any, str]) -> None:
+    """One line per worker (their own tracebacks are not shown: a worker's Ctrl-C is the
+    run's, not a fault of the worker)."""
+    terminal = config.pluginmanager.getplugin("terminalreporter")
+    if terminal is None:
+        return
+    for node in nodes:
+        name = getattr(getattr(node, "gateway", None), "id", None) or str(node)
+        at = running.get(node)
+        try:
+            terminal.write_line(f"avscenario: worker {name} interrupted " + (f"at {at}" if at else "between tests"))
+        except Exception:  # noqa: BLE001 - a closed terminal: nothing left to say
+            return
 
 
 _CASE_ID = re.compile(r"(?:^|-)([A-Za-z_][A-Za-z0-9_]*)-(\d+)(?=-|$)")
