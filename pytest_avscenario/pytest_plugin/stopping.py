@@ -470,6 +470,15 @@ def shorten_interrupt(config: pytest.Config, excinfo: Any) -> None:
     without ``--full-trace``: 60-odd frames deep in pytest, pluggy and xdist that took seconds
     in the controller and in every worker at once — most of the ~12 s a Ctrl-C under ``-n 2``
     took to stop."""
+    if hasattr(config, "workerinput"):
+        # an xdist worker's terminal is nobody's (the controller prints the run): its summary
+        # is skipped, and with it the imports other plugins' summary hooks make — hypothesis's
+        # imports Hypothesis whole — which the controller would wait for, as it waits for each
+        # worker's end to be sure no report of the stopped run is still on its way
+        try:
+            config.pluginmanager.unregister(name="terminalreporter")
+        except Exception:  # noqa: BLE001 - already gone, or never there
+            pass
     if getattr(config.option, "fulltrace", False):
         return
     try:
