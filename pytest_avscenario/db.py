@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from .codec import rho_from_json, rho_to_json
-from .files import atomic_write_bytes
+from .files import atomic_write_bytes, read_regular, unlink_file
 
 if TYPE_CHECKING:
     from .space import FeatureSpace
@@ -182,8 +182,7 @@ class ReplayDB:
                 raise _Invalid("is not a regular file (symlinks are not followed)")
             if st.st_size > _MAX_BYTES:
                 raise _Invalid(f"is {st.st_size} bytes, too large to be an entry")
-            with open(path, "rb") as f:
-                raw = f.read(_MAX_BYTES + 1)
+            raw = read_regular(path, _MAX_BYTES)  # never a link, never blocks on a FIFO
             entry = _parse(raw, path)
         except _Invalid as exc:
             self._warn(path, str(exc))
@@ -234,8 +233,7 @@ class ReplayDB:
 
     def _read_existing(self, path: Path) -> Entry | None:
         try:
-            with open(path, "rb") as f:
-                return _parse(f.read(_MAX_BYTES + 1), path)
+            return _parse(read_regular(path, _MAX_BYTES), path)
         except (OSError, _Invalid):
             return None
 
@@ -256,7 +254,7 @@ class ReplayDB:
         name = entry_name(entry.test, entry.params)
         path = self.directory / name  # recomputed: an Entry's path field is never trusted
         try:
-            os.unlink(path)
+            unlink_file(path)  # an entry of ours: never a link or a FIFO the user put there
         except FileNotFoundError:
             pass
         except OSError as exc:

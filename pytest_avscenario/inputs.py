@@ -19,6 +19,8 @@ import os
 import stat
 from typing import Any, Callable
 
+from .files import UnsafePath, read_regular
+
 __all__ = ["InputError", "parse_json", "read_json_file", "Fields", "MAX_DEPTH", "MAX_INT_DIGITS"]
 
 #: deeper than any file the plugin writes or reads (a summary is 6 levels deep)
@@ -111,12 +113,11 @@ def read_json_file(path: str | os.PathLike, max_bytes: int = MAX_FILE_BYTES, fin
     if info.st_size > max_bytes:
         raise InputError(f"is {info.st_size} bytes, larger than any file this reads ({max_bytes})")
     try:
-        # O_NONBLOCK: a FIFO swapped in after the stat must not block the run
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-        with open(fd, "rb", closefd=True) as fh:
-            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-                raise InputError("is not a regular file")
-            raw = fh.read(max_bytes + 1)
+        # the package's one opener: non-blocking and fstat-checked, so a FIFO swapped in
+        # after the stat does not block the run either (a link the user named is followed)
+        raw = read_regular(path, max_bytes, follow=True)
+    except UnsafePath:
+        raise InputError("is not a regular file") from None
     except OSError as exc:
         raise InputError(f"cannot be read: {exc.strerror or exc}") from None
     if len(raw) > max_bytes:

@@ -5,11 +5,15 @@ a real subprocess, bounded in time, and leaves no process behind."""
 from __future__ import annotations
 
 import json
+import os
+import re
 import signal
+import subprocess
+import sys
 
 import pytest
 
-from test_stopping import junit_cases, rows_of, start, wait_for_rows
+from test_stopping import ctrl_c_as_at_a_terminal, junit_cases, rows_of, start, wait_for_rows
 
 FOUR = """
 import os
@@ -38,19 +42,61 @@ def test_os_exit_in_a_body_stops_the_run_as_interrupted_with_its_row_and_report(
     assert summary["tests"][0]["samples"] == 2
 
 
-def test_a_forked_child_that_returns_into_pytest_writes_no_rows_and_runs_nothing_more(pytester):
-    # a body that forks and lets the child return gave 7 rows for 4 items
+MIXED = """
+import os
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=3, sampler="halton")
+def test_a(case):
+    pass
+
+def test_plain():
+    {body}
+
+@scenario(y=Uniform(0, 1), samples=3, sampler="halton")
+def test_b(case):
+    pass
+"""
+
+
+def test_os_exit_in_a_plain_test_beside_scenario_tests_stops_the_run_as_interrupted(pytester):
+    # serially, os._exit(0) in a plain test ended the process: exit 0, 3 of 6 rows, no JUnit file
+    pytester.makepyfile(MIXED.format(body="os._exit(0)"))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
+                                           "--junitxml=out.xml", timeout=120)
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert [r["item"].rpartition("::")[2] for r in rows_of(pytester.path)] == [
+        "test_a[halton-000]", "test_a[halton-001]", "test_a[halton-002]"]
+    assert junit_cases(pytester.path / "out.xml") == 4  # the plain test's failure included
+    result.stdout.fnmatch_lines(["*os._exit(0) called while the test ran*",
+                                 "*Interrupted: os._exit(0) called in test_*.py::test_plain*"])
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["interrupted"] is True and "os._exit" in summary["stopped"]
+
+
+def test_without_scenario_tests_os_exit_is_left_alone(pytester):
+    pytester.makepyfile("import os\n\ndef test_plain():\n    os._exit(5)\n")
+    result = pytester.runpytest_subprocess("-p", "no:xdist", "-p", "no:cacheprovider", timeout=120)
+    assert result.ret == 5
+
+
+@pytest.mark.parametrize("xdist", [False, True], ids=["serial", "xdist"])
+def test_a_forked_child_that_returns_into_pytest_writes_no_rows_and_runs_nothing_more(pytester, xdist):
+    # a body that forks and lets the child return gave 7 rows for 4 items; under -n 2, 5 rows
+    # and 5 "passed" (the child sent its item's setup report through the worker's channel)
     pytester.makepyfile(FOUR.format(body="""if case.index == 1:
         pid = os.fork()
         if pid:
             os.waitpid(pid, 0)"""))
-    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:xdist", "-p", "no:cacheprovider",
-                                           "--junitxml=out.xml", timeout=120)
+    result = pytester.runpytest_subprocess("--avs-db=none", *(("-n", "2") if xdist else ("-p", "no:xdist")),
+                                           "-p", "no:cacheprovider", "--junitxml=out.xml", timeout=120)
     assert result.ret == pytest.ExitCode.OK
+    result.assert_outcomes(passed=4)
     rows = rows_of(pytester.path)
     assert sorted(r["index"] for r in rows) == [0, 1, 2, 3]
     assert junit_cases(pytester.path / "out.xml") == 4
-    assert "returned into pytest; it is ended here" in result.stderr.str()
+    if not xdist:  # an xdist worker's stderr is its own
+        assert "returned into pytest; it is ended here" in result.stderr.str()
 
 
 def test_a_forked_child_may_still_end_itself_with_os_exit(pytester):
@@ -162,3 +208,46 @@ def test_the_space_plot_scales_its_axis_once_not_per_value(monkeypatch):
     assert len(calls) == 1 and labels is None and values[500] == 0.5
     values, labels = plots._axis_values(rows, "w")
     assert labels == ["c0", "c1", "c2"] and [round(v) for v in values[:3]] == [0, 1, 2]
+
+
+def test_ctrl_c_under_xdist_says_one_line_per_worker_and_keeps_every_row(pytester):
+    # #33 item 6: Ctrl-C at a terminal reaches the controller and both workers; before, pytest
+    # rendered the whole traceback of the interrupt in every process (the time it took), and
+    # nothing said where the workers stopped
+    pytester.makepyfile("""
+import time
+from pytest_avscenario import scenario, Uniform
+
+@scenario(x=Uniform(0, 1), samples=300, sampler="halton")
+def test_many(case):
+    time.sleep(0.05)
+""")
+
+    def own_group_with_ctrl_c():
+        ctrl_c_as_at_a_terminal()
+        os.setsid()  # a terminal's Ctrl-C goes to the whole foreground process group
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "2", "--avs-db=none",
+         "--junitxml=out.xml"], cwd=pytester.path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        preexec_fn=own_group_with_ctrl_c)
+    try:
+        wait_for_rows(pytester, proc, 10)
+        os.killpg(proc.pid, signal.SIGINT)
+        out = proc.communicate(timeout=120)[0].decode()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
+    workers = sorted(line for line in out.splitlines() if line.startswith("avscenario: worker gw")
+                     or "avscenario: worker gw" in line)
+    assert len(workers) == 2, out
+    assert all(re.search(r"worker gw[01] interrupted (at test_\S+\.py::test_many\[halton-\d+\]|between tests)", w)
+               for w in workers), workers
+    assert "Traceback" not in out and "node down" not in out, out
+    assert len(out.splitlines()) < 40, out  # the header, the table, the summary: no tracebacks
+    rows = rows_of(pytester.path)
+    assert 10 <= len(rows) < 300
+    assert junit_cases(pytester.path / "out.xml") == len(rows)
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["tests"][0]["samples"] == len(rows)

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import pytest
 
+from .. import files
 from .stash import settings_key
 
 if TYPE_CHECKING:  # loaded with the first row: a run without scenario tests never needs it
@@ -334,8 +335,7 @@ class RunState:
                     folder.add(p)
                 elif staged and folder is not None:
                     target = folder.add(folder.path / "cases" / p.name)
-                    target.parent.mkdir(parents=True, exist_ok=True)
-                    shutil.move(p, target)
+                    files.move_file(p, target)  # never through a link in the folder
                     self._staged.add(p.parent.parent)
                     p = target
                 elif staged:

@@ -22,7 +22,7 @@ import pytest
 
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
-from .stopping import ExitGuard, TermGuard, end_workers, unknown_test_info
+from .stopping import ExitGuard, TermGuard, end_workers, shorten_interrupt, unknown_test_info
 from .stash import (
     campaigns_key,
     controller_key,
@@ -165,7 +165,10 @@ class _XdistHooks:
         with whole_xdist_events(self.config):
             return (yield)
 
+    @pytest.hookimpl(tryfirst=True)
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
+        # tryfirst: before pytest's terminal renders the interrupt, and at once for the workers
+        shorten_interrupt(self.config, excinfo)
         if not hasattr(self.config, "workerinput"):
             end_workers(self.config)
 

@@ -20,9 +20,12 @@
 * :func:`signals_held` — one piece of work (one report's handling by every plugin, one event
   of an xdist controller) happens whole: a SIGTERM or Ctrl-C arriving meanwhile is raised when
   it ends, so the error table and the JUnit file never hold different parts of a run.
-* :func:`end_workers` — an interrupted xdist controller ends its workers and reports what they
-  sent until they ended.
-* :class:`ExitGuard` — ``os._exit()`` in a scenario item of a serial run: a process that
+* :func:`end_workers` — an interrupted xdist controller ends its workers, says in one line per
+  worker where it stopped, and reports what they sent until they ended.
+* :func:`shorten_interrupt` — a Ctrl-C's traceback cut to its last frame before pytest renders
+  it (unless ``--full-trace``), in the controller and each worker.
+* :class:`ExitGuard` — ``os._exit()`` in an item of a serial run with scenario items (in a
+  scenario item or a plain test beside them): a process that
   ends that way writes nothing afterwards (no JUnit file, no summary) and its status is the
   one the body chose (0: "all passed"). While a scenario item runs in the process that started
   the run, ``os._exit`` raises :class:`ProcessExitCalled` instead (a ``SystemExit``: the case is
@@ -151,14 +154,15 @@ def _sentinel(config: pytest.Config) -> Any:
 class ProcessExitCalled(SystemExit):
     """``os._exit(status)`` called by a scenario item in the process that runs the session."""
 
-    def __init__(self, status: Any):
+    def __init__(self, status: Any, what: str = "case"):
         super().__init__(status)
         self.status = status
+        self.what = what
 
     def __str__(self) -> str:
-        return (f"os._exit({self.status!r}) called while the case ran; the process was not ended "
-                "(it would have lost the JUnit file and the report) and the run stops after this "
-                "case as interrupted")
+        return (f"os._exit({self.status!r}) called while the {self.what} ran; the process was not "
+                "ended (it would have lost the JUnit file and the report) and the run stops after "
+                f"this {self.what} as interrupted")
 
 
 class ExitGuard:
@@ -170,7 +174,9 @@ class ExitGuard:
         self.real_exit = os._exit
         self.called: Any = None  # the status of the first os._exit a scenario item called
         self.item: str | None = None
+        self.what = "case"
         self.session: pytest.Session | None = None
+        self.scenarios = False  # the session holds scenario items: then every item is guarded
 
     def _exit(self, status: int = 0) -> None:
         if os.getpid() != self.pid or self.item is None:
@@ -185,15 +191,22 @@ class ExitGuard:
             self.called = status
         if self.session is not None:
             self.session.shouldstop = f"os._exit({status!r}) called in {self.item}"
-        raise ProcessExitCalled(status)
+        raise ProcessExitCalled(status, self.what)
+
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        # a plain test's os._exit ends the scenario items' run as surely as a case's: in a
+        # session with scenario items every item is guarded (a run without any is left alone)
+        self.scenarios = any(i.get_closest_marker("scenario") is not None for i in session.items)
 
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
-        if item.get_closest_marker("scenario") is None or os.getpid() != self.pid:
+        scenario = item.get_closest_marker("scenario") is not None
+        if not (scenario or self.scenarios) or os.getpid() != self.pid:
             return (yield)
         wrap = not hasattr(item.config, "workerinput")  # xdist gives a dead worker's case its row
         if wrap:
             self.session, self.item, os._exit = item.session, item.nodeid, self._exit
+            self.what = "case" if scenario else "test"
         try:
             return (yield)
         finally:
@@ -201,15 +214,41 @@ class ExitGuard:
                 os._exit = self.real_exit
                 self.item = None
             if os.getpid() != self.pid:
-                # the body forked and the child returned into pytest instead of ending: it
-                # must not run the rest of the session a second time, nor write its reports
-                try:
-                    sys.stderr.write(f"\navscenario: {item.nodeid}: a process the test forked "
-                                     f"(pid {os.getpid()}) returned into pytest; it is ended here\n")
-                except Exception:  # noqa: BLE001 - a closed stream: nothing left to say
-                    pass
-                _flush_streams()
-                self.real_exit(0)
+                self._end_child(item)
+
+    # The earliest the child of a body that forked is back in pytest: at the end of the phase
+    # it forked in, before that phase's report is made (a scenario's case runs as the last
+    # step of the setup). An xdist worker's child would otherwise send that report through
+    # the worker's channel: a second row and a second "passed" for one item.
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_setup(self, item: pytest.Item) -> Any:
+        return (yield from self._phase(item))
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_call(self, item: pytest.Item) -> Any:
+        return (yield from self._phase(item))
+
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_runtest_teardown(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+        return (yield from self._phase(item))
+
+    def _phase(self, item: pytest.Item) -> Any:
+        try:
+            return (yield)
+        finally:
+            if os.getpid() != self.pid and (self.scenarios or item.get_closest_marker("scenario") is not None):
+                self._end_child(item)
+
+    def _end_child(self, item: pytest.Item) -> None:
+        # the body forked and the child returned into pytest instead of ending: it must not
+        # run the rest of the session a second time, nor write or send its reports
+        try:
+            sys.stderr.write(f"\navscenario: {item.nodeid}: a process the test forked "
+                             f"(pid {os.getpid()}) returned into pytest; it is ended here\n")
+        except Exception:  # noqa: BLE001 - a closed stream: nothing left to say
+            pass
+        _flush_streams()
+        self.real_exit(0)
 
     @pytest.hookimpl(trylast=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
@@ -486,6 +525,52 @@ def _die_by_sigterm() -> None:
     _REAL_EXIT(128 + signal.SIGTERM)
 
 
+def shorten_interrupt(config: pytest.Config, excinfo: Any) -> None:
+    """A Ctrl-C's traceback, cut to the frame it landed in, unless ``--full-trace``.
+
+    pytest's terminal renders the whole traceback of an interrupt (each frame's source, found
+    by parsing its whole file, and its arguments) only to print the last frame's location
+    without ``--full-trace``: 60-odd frames deep in pytest, pluggy and xdist that took seconds
+    in the controller and in every worker at once — most of the ~12 s a Ctrl-C under ``-n 2``
+    took to stop."""
+    if hasattr(config, "workerinput"):
+        # an xdist worker's terminal is nobody's (the controller prints the run): its summary
+        # is skipped, and with it the imports other plugins' summary hooks make — hypothesis's
+        # imports Hypothesis whole — which the controller would wait for, as it waits for each
+        # worker's end to be sure no report of the stopped run is still on its way
+        try:
+            config.pluginmanager.unregister(name="terminalreporter")
+        except Exception:  # noqa: BLE001 - already gone, or never there
+            pass
+    if getattr(config.option, "fulltrace", False):
+        return
+    try:
+        traceback = excinfo.traceback
+        if len(traceback) > 1:
+            excinfo.traceback = traceback[-1:]
+    except Exception:  # noqa: BLE001 - an ExceptionInfo of another shape: render it as it is
+        pass
+
+
+def _running_items(dsession: Any, nodes: list[Any]) -> dict[Any, str]:
+    """The item each worker runs (the first of those the scheduler sent it and it has not
+    finished), where the scheduler says so (``--dist load``/``worksteal``/``each``)."""
+    sched = getattr(dsession, "sched", None)
+    pending = getattr(sched, "node2pending", None)
+    collection = getattr(sched, "collection", None)
+    if not isinstance(pending, dict):
+        return {}
+    out = {}
+    for node in nodes:
+        try:
+            first = pending.get(node)
+            if first:
+                out[node] = collection[first[0]] if collection is not None else ""
+        except Exception:  # noqa: BLE001 - a scheduler of another shape: say less
+            pass
+    return out
+
+
 def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
     """An interrupted xdist controller ends its workers at once — SIGTERM reaches each as it
     reaches a run of its own, so none goes on running, and storing counterexamples for, cases
@@ -501,6 +586,7 @@ def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
     dsession = config.pluginmanager.getplugin("dsession")
     # the workers whose end the controller has not handled yet
     nodes = list(getattr(dsession, "_active_nodes", ()) or ())
+    _say_where_workers_stopped(config, nodes, _running_items(dsession, nodes))
     for node in nodes:
         popen = getattr(getattr(getattr(node, "gateway", None), "_io", None), "popen", None)
         if popen is not None and popen.poll() is None:
@@ -527,6 +613,21 @@ def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
                 report(**kwargs)
             except Exception:  # noqa: BLE001 - one report we cannot read: the others still count
                 pass
+
+
+def _say_where_workers_stopped(config: pytest.Config, nodes: list[Any], running: dict[Any, str]) -> None:
+    """One line per worker (their own tracebacks are not shown: a worker's Ctrl-C is the
+    run's, not a fault of the worker)."""
+    terminal = config.pluginmanager.getplugin("terminalreporter")
+    if terminal is None:
+        return
+    for node in nodes:
+        name = getattr(getattr(node, "gateway", None), "id", None) or str(node)
+        at = running.get(node)
+        try:
+            terminal.write_line(f"avscenario: worker {name} interrupted " + (f"at {at}" if at else "between tests"))
+        except Exception:  # noqa: BLE001 - a closed terminal: nothing left to say
+            return
 
 
 _CASE_ID = re.compile(r"(?:^|-)([A-Za-z_][A-Za-z0-9_]*)-(\d+)(?=-|$)")

@@ -20,6 +20,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
+from ..files import make_dirs, unlink_file
 from ..outcome import CaseRow
 from .coverage import DEFAULT_TOL
 from .summary import SummaryRow, TestInfo, summarize, summary_to_json
@@ -205,7 +206,7 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     if not failing:
         return []
     cases = root / "cases"
-    cases.mkdir(parents=True, exist_ok=True)
+    make_dirs(cases)
     space = info.space if info is not None else None
     metrics = info.metrics if info is not None else ()
 
@@ -237,7 +238,10 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
         if recording is not None and "id='replay-data'" in page and folder.owns(recording):
             # the card holds the recording now (its replay-data script): one copy per report,
             # so ~700 counterexamples cost ~15 KB each, not ~19
-            Path(recording).unlink(missing_ok=True)
+            try:
+                unlink_file(recording)
+            except FileNotFoundError:
+                pass
     minimized = sum(r.minimized is not None for r in failing)
     return [mode_table(root, campaigns, rows),
             f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"

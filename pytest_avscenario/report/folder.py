@@ -21,7 +21,11 @@ the directory before it writes there (:func:`claim_report_dir`):
 
 Every file of the report is written atomically (:func:`atomic_write_bytes`), except the
 error tables, which grow row by row (the writer is :mod:`pytest_avscenario.files`, shared
-with the replay database and the pictures). Nothing here imports pytest.
+with the replay database and the pictures). The folder is *confined* there: nothing is
+written, read or deleted through a symbolic link below it, nor opened unless it is a
+regular file. A link or a special file at one of our names (``.avs-lock``, ``cases``,
+``errors.jsonl`` …) is somebody else's too: the run uses a sibling and says which path was
+in the way. Nothing here imports pytest.
 """
 
 from __future__ import annotations
@@ -30,9 +34,11 @@ import errno
 import json
 import os
 import re
+import stat
 from pathlib import Path
 from typing import Any, IO
 
+from .. import files
 from ..files import atomic_write_bytes, atomic_write_text
 
 
@@ -55,6 +61,8 @@ MAX_SIBLINGS = 20
 # The names a run of ours writes: fixed names at the top, "<readable>-<8 hex>" + our suffixes
 # below. Only these can be in our way, and only these are ever deleted.
 _TOP = {MAIN_JSONL, SHRINK_JSONL, "summary.json", "index.html"}
+#: the largest manifest read (a few hundred bytes per case; far beyond any report)
+_MAX_MANIFEST = 256 * 1024 * 1024
 _SUB = {
     TABLES_DIR: re.compile(r"[^/]+-[0-9a-f]{8}(\.shrink)?\.csv"),
     "plots": re.compile(r"[^/]+-[0-9a-f]{8}\.(space|rho)\.png"),
@@ -87,14 +95,15 @@ class ReportFolder:
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
+        files.confine(self.path)
         self.files: set[str] = set()
         self.manifest_unreadable = False
         self._lock: IO[str] | None = None
         self._log: IO[str] | None = None
         manifest = self.path / MANIFEST
-        if manifest.exists():
+        if os.path.lexists(manifest):
             try:
-                data = json.loads(manifest.read_text(encoding="utf-8"))
+                data = json.loads(files.read_regular(manifest, _MAX_MANIFEST).decode("utf-8"))
                 self.files = {f for f in data["files"] if isinstance(f, str)}
             except (OSError, ValueError, KeyError, TypeError):
                 self.manifest_unreadable = True  # then no file counts as ours
@@ -105,7 +114,7 @@ class ReportFolder:
         """The names a run appended to the log (complete lines only: a line cut short by a
         killed process names no file)."""
         try:
-            text = (self.path / MANIFEST_LOG).read_text(encoding="utf-8")
+            text = files.read_regular(self.path / MANIFEST_LOG, _MAX_MANIFEST).decode("utf-8")
         except (OSError, ValueError):
             return set()
         return {line for line in text.split("\n")[:-1] if line}
@@ -143,7 +152,7 @@ class ReportFolder:
         if self._log is None:
             if not (self.path / MANIFEST).exists():
                 self._save()  # the log only ever extends a manifest that exists
-            self._log = open(self.path / MANIFEST_LOG, "a", encoding="utf-8")
+            self._log = files.open_regular(self.path / MANIFEST_LOG, "a")
         self._log.write("".join(f"{rel}\n" for rel in rels))
         self._log.flush()  # in the OS's hands before the file is written: a killed run's too
         self.files.update(rels)
@@ -156,7 +165,7 @@ class ReportFolder:
             self._log.close()
             self._log = None
         try:
-            (self.path / MANIFEST_LOG).unlink()  # ours: its names are in the JSON now
+            files.unlink_file(self.path / MANIFEST_LOG)  # ours: its names are in the JSON now
         except FileNotFoundError:
             pass
 
@@ -182,6 +191,27 @@ class ReportFolder:
                     found.append(rel)
         return found
 
+    def in_the_way(self) -> list[str]:
+        """Our names (the lock, the manifest, the pages, tables, ``cases/`` …) taken by a
+        symbolic link or a special file: none is ever written, read or deleted through."""
+        found = []
+        for name in sorted(_TOP | {LOCK, MANIFEST, MANIFEST_LOG}):
+            mode = _lmode(self.path / name)
+            if mode is not None and not stat.S_ISREG(mode):
+                found.append(name)
+        for sub in sorted(_SUB):
+            mode = _lmode(self.path / sub)
+            if mode is None:
+                continue
+            if not stat.S_ISDIR(mode):
+                found.append(sub)
+                continue
+            for f in sorted(os.scandir(self.path / sub), key=lambda e: e.name):
+                rel = f"{sub}/{f.name}"
+                if is_own_name(rel) and not f.is_file(follow_symlinks=False):
+                    found.append(rel)
+        return found
+
     def clear(self) -> None:
         """Delete the files an earlier run of ours wrote (as the manifest lists them), then
         ``tables/``, ``plots/`` and ``cases/`` if that left them empty; start a new manifest."""
@@ -189,12 +219,12 @@ class ReportFolder:
             if not is_own_name(rel):
                 continue  # the lock file, or a hand-edited entry: never deleted
             try:
-                (self.path / rel).unlink()
+                files.unlink_file(self.path / rel)
             except FileNotFoundError:
                 pass
         for sub in _SUB:
             try:
-                (self.path / sub).rmdir()
+                files.remove_dir(self.path / sub)
             except OSError:
                 pass  # missing, or somebody else's files live there too
         self.files = {LOCK} if self._lock is not None else set()
@@ -209,7 +239,7 @@ class ReportFolder:
             import fcntl
         except ImportError:
             return True, ""
-        fh = open(self.path / LOCK, "a+", encoding="utf-8")
+        fh = files.open_regular(self.path / LOCK, "a+")
         try:
             fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -273,6 +303,11 @@ def claim_report_dir(requested: str | os.PathLike, *,
         existed = path.is_dir()
         lock_existed = (path / LOCK).exists()
         folder = ReportFolder(path)
+        if existed:
+            links = folder.in_the_way()
+            if links:
+                reasons.append(_links_reason(path, links))
+                continue
         if existed and not lock_existed:
             # Look before creating a lock file there: a folder of somebody else's stays as it was.
             foreign = folder.foreign()
@@ -305,6 +340,18 @@ def _reread(locked: ReportFolder) -> ReportFolder:
     fresh = ReportFolder(locked.path)
     fresh._lock, locked._lock = locked._lock, None
     return fresh
+
+
+def _links_reason(path: Path, links: list[str]) -> str:
+    shown = ", ".join(str(path / f) for f in links[:3]) + (f" and {len(links) - 3} more" if len(links) > 3 else "")
+    return f"{shown} {'is a symbolic link or not a regular file' if len(links) == 1 else 'are symbolic links or special files'}; pytest-avscenario writes through none"
+
+
+def _lmode(path: Path) -> int | None:
+    try:
+        return os.lstat(path).st_mode
+    except OSError:
+        return None
 
 
 def _foreign_reason(path: Path, foreign: list[str], folder: ReportFolder) -> str:

@@ -43,6 +43,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping
 
+from .. import files
 from ..codec import jsonable, rho_from_json, rho_to_str
 from ..outcome import CaseRow
 from .folder import MAIN_JSONL, SHRINK_JSONL, TABLES_DIR, ReportFolder, atomic_write_bytes, atomic_write_text
@@ -113,7 +114,7 @@ class _CsvFile:
         self.path = path
         self.columns = columns
         self.fsync = fsync
-        self.fh = open(path, "w", newline="", encoding="utf-8")
+        self.fh = files.open_regular(path, "w", newline="")
         try:
             self.writer = csv.DictWriter(self.fh, fieldnames=columns, extrasaction="raise")
             self.writer.writeheader()
@@ -136,7 +137,7 @@ class _CsvFile:
 
     def _widen(self, new: list[str]) -> None:
         self.fh.close()
-        with open(self.path, newline="", encoding="utf-8") as fh:
+        with files.open_regular(self.path, "r", newline="") as fh:
             old = list(csv.DictReader(fh))
         # Parameters before metrics keeps the "inputs, then outputs" reading order.
         self.columns = _order_columns(self.columns + new)
@@ -145,7 +146,7 @@ class _CsvFile:
         w.writeheader()
         w.writerows(old)
         atomic_write_text(self.path, buf.getvalue())
-        self.fh = open(self.path, "a", newline="", encoding="utf-8")
+        self.fh = files.open_regular(self.path, "a", newline="")
         self.writer = csv.DictWriter(self.fh, fieldnames=self.columns, restval="")
 
     def close(self) -> None:
@@ -193,13 +194,12 @@ class ErrorTable:
         self.fsync = fsync
         self.folder = folder if folder is not None else ReportFolder(self.directory)
         self._own_folder = folder is None  # then closing the table ends the folder's run
-        (self.directory / TABLES_DIR).mkdir(parents=True, exist_ok=True)
+        files.make_dirs(self.directory / TABLES_DIR)
         self._lock = threading.Lock()
         self._jsonl: dict[bool, Any] = {}
         try:
             for shrink, name in ((False, MAIN_JSONL), (True, SHRINK_JSONL)):
-                self._jsonl[shrink] = open(self.folder.add(self.directory / name), "w",
-                                           encoding="utf-8")
+                self._jsonl[shrink] = files.open_regular(self.folder.add(self.directory / name), "w")
         except BaseException:  # the first file's handle must not outlive a failed second open
             for fh in self._jsonl.values():
                 fh.close()
