@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
+from .astguard import guard_ast_parse
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
 from .stopping import ExitGuard, TermGuard, end_workers, shorten_interrupt, unknown_test_info
@@ -37,6 +38,8 @@ from .stash import (
     settings_key,
     shrink_rows_key,
 )
+
+guard_ast_parse()  # before pytest formats any failure of this process
 
 
 if TYPE_CHECKING:
