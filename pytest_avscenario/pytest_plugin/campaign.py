@@ -144,8 +144,10 @@ def active_params(item: pytest.Function, slot: CaseSlot, request: pytest.Fixture
         earlier = sampled_slot(campaign.plan, slot.sampler, j).case(
             f"{function_id(item)}[{slot.sampler}-{j:03d}]", run.params[j])
         outcome = executor.run(make_job(item, campaign.plan, earlier, fresh_world=True, fixtures=fixtures))
-        run.ahead[j] = outcome
         tell(run, outcome, unfair(item, campaign, earlier, outcome, fixtures))
+        if outcome.verdict != "fail":  # only a failure's item draws from its world
+            outcome.world = outcome.trajectory = None  # its item may run elsewhere, or never
+        run.ahead[j] = outcome
     run.params.append(run.sampler.ask())
     return run.params[k]
 
