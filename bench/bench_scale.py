@@ -24,6 +24,12 @@ simulations and their judging are measured:
    per case, and CPU per case summed over the client (which hosts the local scheduler) and
    the workers, so the overhead is visible even when other jobs load the machine.
 
+3. ``--memory 1000,10000``: peak RSS and the time after the last case of a trivial campaign
+   (two Halton parameters, a body that asserts, 30 % failing, report on, no shrinking and no
+   database), serial and ``-n 2``: ``ru_maxrss`` of the largest process (the pytest process;
+   under xdist the largest of controller and workers) and the time from the last call's end
+   to the process's exit (the report, pytest's summary, the interpreter's end).
+
 Medians over repeats. The machine is shared: the load average is printed with the numbers;
 compare ratios from one run, not absolute times across runs.
 """
@@ -320,6 +326,40 @@ def check_modes(tmp: Path) -> None:
               f"{same}/8{'':<13}{len(active):<12}{summary}")
 
 
+TRIVIAL = '''
+from pytest_avscenario import Uniform, scenario
+
+
+@scenario(x=Uniform(0.0, 1.0), y=Uniform(0.0, 1.0), samples={cases}, sampler="halton")
+def test_trivial(case):
+    assert case.x < 0.7
+'''
+
+
+def bench_memory(tmp: Path, sizes: list[int], parallel: list[str]) -> None:
+    """Peak RSS and the time after the last case, per campaign size, serial and -n 2."""
+    print(f"{'cases':>8} {'mode':<8} {'peak RSS MB':>12} {'after last s':>13} {'wall s':>8}  load")
+    for n in sizes:
+        d = tmp / f"mem{n}"
+        d.mkdir()
+        (d / "test_trivial.py").write_text(TRIVIAL.format(cases=n))
+        (d / "avs_bench_timing.py").write_text(TIMING_PLUGIN)
+        for mode in parallel:
+            timing = d / "timing.json"
+            extra = [] if mode == "serial" else ["-n", mode]
+            script = (f"import resource, subprocess, sys, time; t0 = time.time(); "
+                      f"p = subprocess.run({[sys.executable, '-m', 'pytest', '-p', 'no:cacheprovider', '-p', 'avs_bench_timing', '-q', '--tb=line', '-rN', '--avs-seed=1', '--avs-db=none', '--avs-shrink-budget=0', f'--avs-report={d}/rep-{mode}', *extra]!r}, "
+                      f"stdout=subprocess.DEVNULL); end = time.time(); "
+                      f"print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, end - t0, end)")
+            env = dict(os.environ, AVS_BENCH_TIMING=str(timing), PYTHONPATH=f"{d}:{ROOT}")
+            out = subprocess.run([sys.executable, "-c", script], cwd=d, env=env, capture_output=True,
+                                 text=True, check=True).stdout.split()
+            span = json.loads(timing.read_text())
+            assert span["n"] == n, span
+            print(f"{n:>8} {mode:<8} {int(out[0]) / 1024:>12.0f} {float(out[2]) - span['last_stop']:>13.1f} "
+                  f"{float(out[1]):>8.1f}  {load()}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -327,6 +367,8 @@ def main() -> None:
                     help="cases per run; a comma list (40,400) also fits wall = fixed + N x per-case")
     ap.add_argument("--modes", action="store_true", help="check the --dist modes instead")
     ap.add_argument("--skip-overhead", action="store_true")
+    ap.add_argument("--memory", default="", help="peak RSS and end-of-run time at these sizes (1000,10000)")
+    ap.add_argument("--memory-modes", default="serial,2", help="serial and/or worker counts for --memory")
     ap.add_argument("--skip-pytest", action="store_true")
     args = ap.parse_args()
     print(f"load average {load()} on {os.cpu_count()} cores; python {sys.version.split()[0]}")
@@ -335,6 +377,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="avs-bench-scale-") as tmp:
         if args.modes:
             check_modes(Path(tmp))
+            return
+        if args.memory:
+            bench_memory(Path(tmp), [int(x) for x in args.memory.split(",")],
+                         args.memory_modes.split(","))
             return
         sizes = [int(x) for x in str(args.cases).split(",")]
         if not args.skip_pytest:

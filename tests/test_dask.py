@@ -105,10 +105,9 @@ def test_dask_local_cluster_gives_the_same_items_rows_and_properties(pytester, c
     local_props = _junit_props(pytester.path / "local.xml")
     remote_props = _junit_props(pytester.path / "dask.xml")
     assert [name for name, _ in remote_props] == [name for name, _ in local_props]
-    # passive cases are identical; the bandit asks ahead on a cluster (feedback arrives late),
-    # so only its first case — asked before any feedback — is the same as in-process
-    same = [n for n, _ in local_props if "halton" in n or n.endswith("[mab-000]")]
-    assert [p for p in remote_props if p[0] in same] == [p for p in local_props if p[0] in same]
+    # passive and active cases alike: the bandit asks case k once cases 0 .. k-1 are told,
+    # on the cluster as in-process
+    assert remote_props == local_props
     assert any(("avs.minimized" in dict(props)) for _, props in local_props)
     # the three passive (halton) cases started at collection and were matched by their
     # items; the active (mab) cases and the shrink candidates were run on demand
@@ -435,23 +434,20 @@ def test_search(case, world):
 """
 
 
-def test_active_sampler_asks_ahead_on_the_cluster_reproducibly(pytester, cluster_address,
-                                                               monkeypatch):
+def test_an_active_campaign_on_the_cluster_is_the_local_campaign_case_by_case(pytester, cluster_address):
+    """A bandit on two Dask workers gives every case id the parameters, seed, robustness and
+    verdict of the local serial run (it once asked ahead as many cases as the cluster ran at
+    once, and learnt of each late: 49 of the example suite's 75 bandit cases differed)."""
     pytester.makepyfile(test_search=ACTIVE)
-    _wait_for_both_workers(cluster_address)  # asking ahead needs a second worker to run on
-    runs = []
-    for k in range(2):
-        stats = pytester.path / f"stats-{k}.json"
-        monkeypatch.setenv("AVS_DASK_STATS", str(stats))
-        pytester.runpytest_subprocess(
-            "-p", "no:cacheprovider", "--avs-seed=3", "--avs-db=none", "--avs-shrink-budget=0",
-            "--avs-executor=dask", f"--avs-dask-address={cluster_address}", f"--junitxml=run{k}.xml",
-            "--avs-report=none")
-        counters = json.loads(stats.read_text())
-        # while case k ran, the next one was asked and already running on the other worker
-        assert counters.get("submitted_ahead", 0) >= 6, counters
-        runs.append(_junit_props(pytester.path / f"run{k}.xml"))
-    assert len(runs[0]) == 8
-    # asks and tells happen at the same points of the run: the same seed, the same cases
-    strip = lambda props: [(n, tuple(p for p in ps if p[0] in ("avs.params", "avs.verdict"))) for n, ps in props]
-    assert strip(runs[0]) == strip(runs[1])
+    _wait_for_both_workers(cluster_address)  # two workers: room to run cases side by side
+    common = ("-p", "no:cacheprovider", "--avs-seed=3", "--avs-db=none", "--avs-shrink-budget=0",
+              "--avs-report=none")
+    pytester.runpytest_subprocess(*common, "--junitxml=local.xml")
+    pytester.runpytest_subprocess(*common, "--avs-executor=dask", f"--avs-dask-address={cluster_address}",
+                                  "--junitxml=dask.xml")
+    keep = ("avs.params", "avs.seed", "avs.verdict", "avs.rho.distance")
+    rows = [[(n, tuple(p for p in ps if p[0] in keep)) for n, ps in _junit_props(pytester.path / f)]
+            for f in ("local.xml", "dask.xml")]
+    assert len(rows[0]) == 8 and all(len(ps) == len(keep) for _, ps in rows[0]), rows[0]
+    assert len({dict(ps)["avs.params"] for _, ps in rows[0]}) > 1  # the bandit moved
+    assert rows[1] == rows[0]

@@ -76,8 +76,6 @@ class Campaign:
     judged: dict[str, int] = field(default_factory=dict)  # sampler -> avoidability checks run
     # (sampler, index) -> its avoidability, judged before its item ran (to tell a sampler)
     judgements: dict[tuple[str, int], Any] = field(default_factory=dict)
-    # asking ahead on a cluster: (sampler, index) -> the item
-    items: dict[tuple[str, int], Any] = field(default_factory=dict)
 
     def run_of(self, name: str) -> ActiveRun:
         """The run of active sampler ``name``, made on first use."""
@@ -127,7 +125,7 @@ def active_params(item: pytest.Function, slot: CaseSlot, request: pytest.Fixture
     campaign = campaign_of(item)
     run = campaign.run_of(slot.sampler)
     k = slot.index
-    if k < len(run.params):  # asked already: by an item after it, or ahead for a cluster
+    if k < len(run.params):  # asked already, by an item after it
         return run.params[k]
     if k in run.cached:
         run.from_cache.add(k)
@@ -144,8 +142,10 @@ def active_params(item: pytest.Function, slot: CaseSlot, request: pytest.Fixture
         earlier = sampled_slot(campaign.plan, slot.sampler, j).case(
             f"{function_id(item)}[{slot.sampler}-{j:03d}]", run.params[j])
         outcome = executor.run(make_job(item, campaign.plan, earlier, fresh_world=True, fixtures=fixtures))
-        run.ahead[j] = outcome
         tell(run, outcome, unfair(item, campaign, earlier, outcome, fixtures))
+        if outcome.verdict != "fail":  # only a failure's item draws from its world
+            outcome.world = outcome.trajectory = None  # its item may run elsewhere, or never
+        run.ahead[j] = outcome
     run.params.append(run.sampler.ask())
     return run.params[k]
 
@@ -283,8 +283,6 @@ def run_item(item: pytest.Function) -> ItemResult:
     if run is not None and slot.index in run.ahead:  # simulated before its item, in index order
         outcome = run.ahead.pop(slot.index)
     else:
-        if run is not None:
-            ask_ahead(item, campaign, slot)
         outcome = executor_of(item.config).run(make_job(item, plan, case_obj, fresh_world=False))
         if run is not None and slot.index not in run.from_cache:
             tell(run, outcome, unfair(item, campaign, case_obj, outcome))
@@ -348,41 +346,16 @@ def run_item(item: pytest.Function) -> ItemResult:
     return ItemResult(outcome, message, reraise, accepted)
 
 
-def ask_ahead(item: pytest.Function, campaign: Campaign, slot: CaseSlot) -> None:
-    """Keep a cluster busy with an active sampler: while case k runs, cases k+1 .. k+B-1 (B the
-    cluster's capacity) are asked and started too, so the sampler learns of each case up to B-1
-    cases late — as a parallel falsifier does. Nothing happens in-process or on an xdist
-    worker (whose items are not consecutive), nor with a conftest driver, which cannot be sent
-    before its item's fixtures exist."""
-    executor = executor_of(item.config)
-    submit = getattr(executor, "submit", None)
-    if submit is None or hasattr(item.config, "workerinput") or driver_ahead(item) is None:
-        return
-    run = campaign.run_of(slot.sampler)
-    jobs = []
-    for j in range(len(run.params), slot.index + executor.capacity):
-        ahead = campaign.items.get((slot.sampler, j))
-        if ahead is None:
-            break
-        run.params.append(run.sampler.ask())
-        case_j = slot_of(ahead).case(ahead.nodeid, run.params[j])
-        jobs.append(make_job(ahead, campaign.plan, case_j, fresh_world=True, prefetch=True))
-    if jobs:
-        submit(jobs)
-
-
 def prefetch_passive_cases(session: pytest.Session) -> None:
-    """Hand a remote executor the passive cases ahead, so its workers stay busy; remember the
-    items of active samplers, whose cases are asked ahead once items run."""
+    """Hand a remote executor the passive cases ahead, so its workers stay busy. An active
+    sampler's cases are not asked ahead: case k is asked once cases 0 .. k-1 are told, on a
+    cluster as in-process, so each case id names the same values and verdict as a local run."""
     jobs = []
     for item in session.items:
         slot = slot_of(item)
-        if slot is None or item.get_closest_marker("scenario") is None:
+        if slot is None or item.get_closest_marker("scenario") is None or slot.params is None:
             continue
         campaign = campaign_of(item)
-        if slot.params is None:
-            campaign.items[(slot.sampler, slot.index)] = item
-            continue
         jobs.append(make_job(item, campaign.plan, slot.case(item.nodeid), fresh_world=True,
                              prefetch=True))
     if jobs:

@@ -175,6 +175,7 @@ def _minimized_values(rows: Sequence[CaseRow], name: str, plotted) -> dict[int, 
     out: dict[int, float] = {}
     numbers = [float(r.params.get(name)) for r in rows if _is_number(r.params.get(name))]
     scale = _axis_scale(numbers) if numbers else 1.0
+    keys: dict[str, int] | None = None  # a category's position, made once (per row: O(n²))
     for i, r in enumerate(rows):
         if not r.minimized or name not in r.minimized:
             continue
@@ -182,9 +183,10 @@ def _minimized_values(rows: Sequence[CaseRow], name: str, plotted) -> dict[int, 
         if labels is None and _is_number(v):
             out[i] = float(v) / scale
         elif labels is not None:
-            keys = list(dict.fromkeys(str(r2.params.get(name)) for r2 in rows))
+            if keys is None:
+                keys = {k: j for j, k in enumerate(dict.fromkeys(str(r2.params.get(name)) for r2 in rows))}
             if str(v) in keys:
-                out[i] = float(keys.index(str(v)))  # no jitter: the category's own line
+                out[i] = float(keys[str(v)])  # no jitter: the category's own line
             else:
                 out[i] = values[i]
     return out
