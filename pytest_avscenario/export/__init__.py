@@ -1,0 +1,92 @@
+"""Counterexamples that leave the plugin: OpenSCENARIO + OpenDRIVE, and an OSI trace.
+
+:func:`export_case` writes, for one case whose world has run, ``<stem>.xosc`` (the scenario:
+:mod:`.openscenario`), ``<stem>.xodr`` (its road: :mod:`.opendrive`) and an OSI SensorView
+trace (:mod:`.osi`) beside them, each atomically, and returns what it wrote. A part that
+cannot be written is reported in the result (``errors``), never raised past the caller's
+case. :func:`schema_path` finds the XSDs scenariogeneration installs, for validation;
+:mod:`.replay` plays an exported file back in the plugin's own simulator.
+
+Nothing here imports pytest; scenariogeneration (the ``[export]`` extra) and osi3 (the
+``[osi]`` extra) are imported when a file is written.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+__all__ = ["ExportResult", "export_case", "schema_path"]
+
+
+@dataclass
+class ExportResult:
+    """``files``: kind (``xosc``, ``xodr``, ``osi``) -> path written; ``trajectories``: agents
+    exported as their recorded trajectories and why; ``errors``: kind -> why it was not written."""
+
+    files: dict[str, str] = field(default_factory=dict)
+    actions: dict[str, str] = field(default_factory=dict)
+    trajectories: dict[str, str] = field(default_factory=dict)
+    errors: dict[str, str] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        """The row's ``exports`` field: file names (relative to the card's folder), which
+        agents follow trajectories, and what failed."""
+        out: dict[str, Any] = {k: Path(v).name for k, v in self.files.items()}
+        if self.trajectories:
+            out["trajectories"] = dict(self.trajectories)
+        if self.errors:
+            out["errors"] = dict(self.errors)
+        return out
+
+
+def schema_path(name: str = "OpenSCENARIO_1_3_1.xsd") -> Path:
+    """The XSD ``name`` that scenariogeneration installs (``OpenSCENARIO_1_3_1.xsd``,
+    ``opendrive_17_core.xsd``…); FileNotFoundError when it is not installed."""
+    from importlib import metadata
+
+    for f in metadata.files("scenariogeneration") or ():
+        if f.name == name:
+            return Path(f.locate())
+    raise FileNotFoundError(f"scenariogeneration installs no {name}")
+
+
+def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathLike[str],
+                stem: str, *, units: Mapping[str, str] | None = None, title: str = "",
+                osi: bool = True) -> ExportResult:
+    """Write ``world``'s case (run, with its recording) as ``<directory>/<stem>.xosc`` and
+    ``.xodr``, and with ``osi`` its SensorView trace; never raises for a part that fails."""
+    from ..files import atomic_write_bytes
+
+    out = ExportResult()
+    directory = Path(directory)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        from .opendrive import road_xodr
+        from .openscenario import scenario_xosc
+
+        road, rmap = road_xodr(world.road, name=stem)
+        xodr_path = directory / f"{stem}.xodr"
+        atomic_write_bytes(xodr_path, road, durable=False)
+        out.files["xodr"] = str(xodr_path)
+        sce = scenario_xosc(world, params, units=units, road_file=xodr_path.name, rmap=rmap,
+                            title=stem, description=title or stem)
+        xosc_path = directory / f"{stem}.xosc"
+        atomic_write_bytes(xosc_path, sce.xml, durable=False)
+        out.files["xosc"] = str(xosc_path)
+        out.actions, out.trajectories = sce.actions, sce.trajectories
+    except Exception as exc:  # an export is extra evidence: say why, keep the case
+        out.errors["xosc"] = f"{type(exc).__name__}: {exc}"
+    if osi:
+        try:
+            from .osi import trace_bytes, trace_name
+
+            data, frames = trace_bytes(world)
+            path = directory / trace_name(frames, stem)
+            atomic_write_bytes(path, data, durable=False)
+            out.files["osi"] = str(path)
+        except Exception as exc:
+            out.errors["osi"] = f"{type(exc).__name__}: {exc}"
+    return out
