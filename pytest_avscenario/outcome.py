@@ -186,6 +186,10 @@ class CaseRow:
     #: the driver under test that drove the ego ({"name", "kind", "file", "sha256", "from",
     #: ...}: :mod:`pytest_avscenario.sim.drivers.identity`); None for a test without one
     driver: Mapping[str, Any] | None = None
+    #: the case exported for other simulators (``--avs-export``): {"xosc", "xodr", "osi": file
+    #: name beside the card, "trajectories": {agent: why it follows its recorded trajectory},
+    #: "errors": {part: why it was not written}}; None: not exported
+    exports: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -228,6 +232,8 @@ class CaseRow:
             out["drawn"] = jsonable(dict(self.drawn))
         if self.driver is not None:
             out["driver"] = jsonable(dict(self.driver))
+        if self.exports is not None:
+            out["exports"] = jsonable(dict(self.exports))
         return out
 
     @classmethod
@@ -262,6 +268,7 @@ class CaseRow:
             violations=_violations(data.get("violations")),
             drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
             driver=dict(data["driver"]) if isinstance(data.get("driver"), Mapping) else None,
+            exports=dict(data["exports"]) if isinstance(data.get("exports"), Mapping) else None,
         )
 
     @property

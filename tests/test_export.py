@@ -157,3 +157,89 @@ def test_an_export_that_fails_says_why_and_raises_nothing(tmp_path):
     res = export_case(w, {}, tmp_path, "unrun")  # never run: no recording
     assert "xosc" not in res.files and "osi" not in res.files
     assert "has not run" in res.errors["xosc"] and "has not run" in res.errors["osi"]
+
+
+# --------------------------------------------------------------------------- the plugin
+
+BRAKING_LEAD = """
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import collision
+from pytest_avscenario.sim import behaviors as b
+
+def blind(observation):
+    return 0.0, 0.0
+
+@scenario(gap=Uniform(20.0, 60.0, unit="m"), samples=3, monitors=[collision()],
+          reference_driver=None)
+def test_lead(case, world):
+    road = world.straight_road(lanes=1, length=400)
+    world.ego(road.lane(0), s=20.0, speed=15.0, driver=blind)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0, behavior=b.brake_at(1.0, decel=6.0))
+    world.run(seconds=8)
+"""
+
+
+FAST = ("--avs-seed=1", "--avs-db=none", "--avs-shrink-budget=0", "--avs-gifs=0",
+        "--avs-case-pictures=0", "-p", "no:cacheprovider")
+
+
+def _rows(pytester):
+    import json
+
+    lines = (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()
+    return [json.loads(line) for line in lines if line.strip()]
+
+
+def test_plugin_exports_counterexamples_beside_their_cards(pytester, schemas):
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest(*FAST, "--avs-export=1")
+    result.assert_outcomes(failed=3)  # a blind ego hits every braking lead
+    cases = pytester.path / "avs-report" / "cases"
+    rows = [r for r in _rows(pytester) if r["verdict"] == "fail"]
+    exported = [r for r in rows if r.get("exports")]
+    assert len(exported) == 1  # --avs-export=1: one per test and sampler (none minimized)
+    ex = exported[0]["exports"]
+    assert set(ex) == {"xosc", "xodr", "osi", "trajectories"}
+    assert set(ex["trajectories"]) == {"ego"}  # the lead brakes: an action, not a trajectory
+    for kind in ("xosc", "xodr"):
+        assert list(schemas[kind].iter_errors(str(cases / ex[kind]))) == []
+    assert (cases / ex["osi"]).stat().st_size > 0
+    card = next(c for c in cases.glob("*.html")
+                if ex["xosc"] in c.read_text())  # the card links its files
+    page = card.read_text()
+    assert all(f"href='{ex[k]}'" in page for k in ("xosc", "xodr", "osi"))
+    root = ET.parse(cases / ex["xosc"]).getroot()
+    gap = root.find("ParameterDeclarations/ParameterDeclaration[@name='gap']")
+    assert float(gap.get("value")) == exported[0]["params"]["gap"]
+    assert "gap [m]" in (cases / ex["xosc"]).read_text()
+
+
+def test_export_none_writes_nothing_and_a_failing_export_keeps_the_case(pytester, monkeypatch):
+    import pytest_avscenario.export.opendrive as odr
+
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest(*FAST, "--avs-export=none")
+    result.assert_outcomes(failed=3)
+    assert not any(r.get("exports") for r in _rows(pytester))
+    assert not list((pytester.path / "avs-report" / "cases").glob("*.xosc"))
+    # an export that breaks (here: the road writer) is said in the row; the case stays failed
+    def broken(road, name="road"):
+        raise RuntimeError("cannot write this road")
+
+    monkeypatch.setattr(odr, "road_xodr", broken)
+    result = pytester.runpytest(*FAST, "--avs-export=all")
+    result.assert_outcomes(failed=3)
+    rows = [r for r in _rows(pytester) if r["verdict"] == "fail"]
+    assert len(rows) == 3
+    for r in rows:
+        assert r["exports"]["errors"]["xosc"] == "RuntimeError: cannot write this road"
+        assert "osi" in r["exports"]  # the trace does not need the road writer
+    card = next((pytester.path / "avs-report" / "cases").glob("*.html")).read_text()
+    assert "Not exported (xosc): RuntimeError: cannot write this road" in card
+
+
+def test_bad_export_option_is_a_usage_error(pytester):
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest("--avs-export=some", "-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--avs-export*must be a number N, 'all' or 'none'*"])
