@@ -22,6 +22,7 @@ from pytest_avscenario.sim.world import World  # noqa: E402
 @pytest.fixture(scope="module")
 def schemas():
     return {"xosc": xmlschema.XMLSchema(str(schema_path("OpenSCENARIO_1_3_1.xsd"))),
+            "xosc_1_0": xmlschema.XMLSchema(str(schema_path("OpenSCENARIO_1_0.xsd"))),
             "xodr": xmlschema.XMLSchema(str(schema_path("opendrive_17_core.xsd")))}
 
 
@@ -42,7 +43,7 @@ def braking_lead(seconds=6.0):
 
 def assert_valid(schemas, res):
     assert not res.errors, res.errors
-    for kind in ("xosc", "xodr"):
+    for kind in ("xosc", "xosc_1_0", "xodr"):
         errors = [str(e)[:300] for e in schemas[kind].iter_errors(res.files[kind])]
         assert errors == [], f"{kind}: {errors}"
 
@@ -53,7 +54,11 @@ def test_braking_lead_exports_valid_files_that_parse_back_to_the_case(tmp_path, 
     w = braking_lead()
     res = export_case(w, {"gap": 30.0, "lanes": 2}, tmp_path, "following", units={"gap": "m"})
     assert_valid(schemas, res)
-    assert set(res.files) == {"xosc", "xodr", "osi"}
+    assert set(res.files) == {"xosc", "xosc_1_0", "xodr", "osi"}
+    old = ET.parse(res.files["xosc_1_0"]).getroot()  # CARLA's ScenarioRunner: 1.0, a hero
+    assert old.find("FileHeader").get("revMinor") == "0"
+    assert old.find("Entities/ScenarioObject[@name='ego']//Property").attrib == {
+        "name": "type", "value": "ego_vehicle"}
     assert set(res.trajectories) == {"ego"}  # the lead brakes and car2 cruises: actions
     assert "SpeedAction" in res.actions["car1"]
     sce = xosc.ParseOpenScenario(res.files["xosc"])  # scenariogeneration reads it back
@@ -122,6 +127,9 @@ def test_every_road_kind_and_manoeuvre_exports_valid(tmp_path, schemas, build):
         assert "car1: behaviour Encroach has no OpenSCENARIO equivalent" in text
     elif build == "highway":
         assert "LaneChangeAction" in text and "SpeedProfileAction" in text
+        # OpenSCENARIO 1.0 has no SpeedProfileAction: that car follows its trajectory there
+        assert "in the 1.0 file only" in res.trajectories["car2"]
+        assert "SpeedProfileAction" not in open(res.files["xosc_1_0"]).read()
         assert open(res.files["xodr"]).read().count("<laneSection") == 3
     elif build == "intersection":
         assert "connecting roads are not" in open(res.files["xodr"]).read()
@@ -199,7 +207,7 @@ def test_plugin_exports_counterexamples_beside_their_cards(pytester, schemas):
     exported = [r for r in rows if r.get("exports")]
     assert len(exported) == 1  # --avs-export=1: one per test and sampler (none minimized)
     ex = exported[0]["exports"]
-    assert set(ex) == {"xosc", "xodr", "osi", "trajectories"}
+    assert set(ex) == {"xosc", "xosc_1_0", "xodr", "osi", "trajectories"}
     assert set(ex["trajectories"]) == {"ego"}  # the lead brakes: an action, not a trajectory
     for kind in ("xosc", "xodr"):
         assert list(schemas[kind].iter_errors(str(cases / ex[kind]))) == []
@@ -207,7 +215,7 @@ def test_plugin_exports_counterexamples_beside_their_cards(pytester, schemas):
     card = next(c for c in cases.glob("*.html")
                 if ex["xosc"] in c.read_text())  # the card links its files
     page = card.read_text()
-    assert all(f"href='{ex[k]}'" in page for k in ("xosc", "xodr", "osi"))
+    assert all(f"href='{ex[k]}'" in page for k in ("xosc", "xosc_1_0", "xodr", "osi"))
     root = ET.parse(cases / ex["xosc"]).getroot()
     gap = root.find("ParameterDeclarations/ParameterDeclaration[@name='gap']")
     assert float(gap.get("value")) == exported[0]["params"]["gap"]

@@ -1,7 +1,8 @@
 """Counterexamples that leave the plugin: OpenSCENARIO + OpenDRIVE, and an OSI trace.
 
-:func:`export_case` writes, for one case whose world has run, ``<stem>.xosc`` (the scenario:
-:mod:`.openscenario`), ``<stem>.xodr`` (its road: :mod:`.opendrive`) and an OSI SensorView
+:func:`export_case` writes, for one case whose world has run, ``<stem>.xosc`` (the scenario
+in OpenSCENARIO 1.3: :mod:`.openscenario`; ``<stem>.v1_0.xosc`` the same in 1.0, the
+revision CARLA's ScenarioRunner reads), ``<stem>.xodr`` (its road: :mod:`.opendrive`) and an OSI SensorView
 trace (:mod:`.osi`) beside them, each atomically, and returns what it wrote. A part that
 cannot be written is reported in the result (``errors``), never raised past the caller's
 case. :func:`schema_path` finds the XSDs scenariogeneration installs, for validation;
@@ -23,7 +24,8 @@ __all__ = ["ExportResult", "export_case", "schema_path"]
 
 @dataclass
 class ExportResult:
-    """``files``: kind (``xosc``, ``xodr``, ``osi``) -> path written; ``trajectories``: agents
+    """``files``: kind (``xosc``: OpenSCENARIO 1.3, ``xosc_1_0``: the same in 1.0 for CARLA's
+    ScenarioRunner, ``xodr``, ``osi``) -> path written; ``trajectories``: agents
     exported as their recorded trajectories and why; ``errors``: kind -> why it was not written."""
 
     files: dict[str, str] = field(default_factory=dict)
@@ -79,6 +81,18 @@ def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathL
         out.actions, out.trajectories = sce.actions, sce.trajectories
     except Exception as exc:  # an export is extra evidence: say why, keep the case
         out.errors["xosc"] = f"{type(exc).__name__}: {exc}"
+    if "xosc" in out.files:
+        try:  # CARLA's ScenarioRunner reads OpenSCENARIO 1.0 only
+            old = scenario_xosc(world, params, units=units, road_file=xodr_path.name,
+                                rmap=rmap, title=stem, description=title or stem, minor=0)
+            path = directory / f"{stem}.v1_0.xosc"
+            atomic_write_bytes(path, old.xml, durable=False)
+            out.files["xosc_1_0"] = str(path)
+            for name, why in old.trajectories.items():
+                if name not in out.trajectories:
+                    out.trajectories[name] = f"in the 1.0 file only: {why}"
+        except Exception as exc:
+            out.errors["xosc_1_0"] = f"{type(exc).__name__}: {exc}"
     if osi:
         try:
             from .osi import trace_bytes, trace_name

@@ -77,12 +77,12 @@ def _xosc() -> Any:
     return xosc
 
 
-def _param_type(value: Any) -> tuple[Any, str]:
+def _param_type(value: Any, minor: int) -> tuple[Any, str]:
     P = _xosc().ParameterType
     if isinstance(value, (bool, np.bool_)):
         return P.boolean, "true" if value else "false"
     if isinstance(value, (int, np.integer)):
-        return P.int, str(int(value))
+        return (P.int if minor >= 2 else P.integer), str(int(value))
     if isinstance(value, (float, np.floating)):
         return P.double, repr(float(value))
     return P.string, str(value)
@@ -102,18 +102,24 @@ def _entity(agent_kind: str, name: str, length: float, width: float) -> Any:
     return xosc.Vehicle(name, cat, bb, front, rear, 60.0, 10.0, 10.0)
 
 
-def _time_trigger(name: str, t: float) -> Any:
+def _rule_at_least(minor: int) -> Any:
+    # OpenSCENARIO 1.0 has no greaterOrEqual: "after t" there (a step later at worst)
+    xosc = _xosc()
+    return xosc.Rule.greaterOrEqual if minor >= 1 else xosc.Rule.greaterThan
+
+
+def _time_trigger(name: str, t: float, minor: int) -> Any:
     xosc = _xosc()
     return xosc.ValueTrigger(name, 0, xosc.ConditionEdge.none,
-                             xosc.SimulationTimeCondition(float(t), xosc.Rule.greaterOrEqual))
+                             xosc.SimulationTimeCondition(float(t), _rule_at_least(minor)))
 
 
-def _trigger_of(name: str, agent: str, at: float, when: Any) -> tuple[Any, str] | None:
+def _trigger_of(name: str, agent: str, at: float, when: Any, minor: int) -> tuple[Any, str] | None:
     """The start trigger of a behaviour's manoeuvre: ``at`` [s] after the start, or its
     ``when`` trigger; None when the trigger has no OpenSCENARIO equivalent."""
     xosc = _xosc()
     if when is None:
-        return _time_trigger(name, at), f"t >= {at:g} s"
+        return _time_trigger(name, at, minor), f"t >= {at:g} s"
     kind = type(when).__name__
     if at and at > 0:
         return None  # "not before at, and when ..." needs two conditions in one group
@@ -135,7 +141,8 @@ def _trigger_of(name: str, agent: str, at: float, when: Any) -> tuple[Any, str] 
     return None
 
 
-def _actions(agent: Any, beh: Any, rmap: Any, lane_width: float) -> tuple[list, str] | None:
+def _actions(agent: Any, beh: Any, rmap: Any, lane_width: float,
+             minor: int) -> tuple[list, str] | None:
     """``[(event name, action, trigger)]`` and a description for behaviour ``beh``, or None
     when it has no one-to-one equivalent (the agent then follows its trajectory)."""
     xosc = _xosc()
@@ -147,12 +154,12 @@ def _actions(agent: Any, beh: Any, rmap: Any, lane_width: float) -> tuple[list, 
         dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate,
                                       1.5)
         return [(f"{name}_cruise", xosc.AbsoluteSpeedAction(float(beh.speed), dyn),
-                 _time_trigger(f"{name}_cruise_start", 0.0))], "keep_lane at a set speed"
+                 _time_trigger(f"{name}_cruise_start", 0.0, minor))], "keep_lane at a set speed"
     if kind == "BrakeAt":
         if beh.at is not None or beh.speed is not None:
             return None
-        trig = _trigger_of(f"{name}_brake_start", name, beh.t or 0.0, beh.when) \
-            if beh.when is not None else _trigger_of(f"{name}_brake_start", name, beh.t, None)
+        trig = _trigger_of(f"{name}_brake_start", name, beh.t or 0.0, beh.when, minor) \
+            if beh.when is not None else _trigger_of(f"{name}_brake_start", name, beh.t, None, minor)
         if trig is None:
             return None
         dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate,
@@ -162,7 +169,7 @@ def _actions(agent: Any, beh: Any, rmap: Any, lane_width: float) -> tuple[list, 
     if kind in ("ChangeLane", "CutIn"):
         if beh.speed is not None:
             return None
-        trig = _trigger_of(f"{name}_lane_change_start", name, float(beh.at), beh.when)
+        trig = _trigger_of(f"{name}_lane_change_start", name, float(beh.at), beh.when, minor)
         if trig is None:
             return None
         if beh.lateral_speed is not None:
@@ -184,7 +191,7 @@ def _actions(agent: Any, beh: Any, rmap: Any, lane_width: float) -> tuple[list, 
             action = xosc.AbsoluteLaneChangeAction(target[1], dyn)
         return [(f"{name}_lane_change", action, trig[0])], f"{kind}: {MAPPED[kind]} when {trig[1]}"
     if kind == "SpeedProfile":
-        if beh.by != "time":
+        if beh.by != "time" or minor < 2:  # SpeedProfileAction is OpenSCENARIO 1.2
             return None
         pts = [(float(x), float(v)) for x, v in beh.points]
         times = [pts[0][0]] + [b[0] - a[0] for a, b in zip(pts, pts[1:])]
@@ -192,7 +199,7 @@ def _actions(agent: Any, beh: Any, rmap: Any, lane_width: float) -> tuple[list, 
                                         max_deceleration=float(beh.max_decel))
         action = xosc.SpeedProfileAction([v for _, v in pts], xosc.FollowingMode.follow,
                                          times=times, dynamics_constraint=cons)
-        return [(f"{name}_speed_profile", action, _time_trigger(f"{name}_profile_start", 0.0))], \
+        return [(f"{name}_speed_profile", action, _time_trigger(f"{name}_profile_start", 0.0, minor))], \
             MAPPED[kind]
     return None
 
@@ -214,10 +221,14 @@ def _follow_trajectory(name: str, t: np.ndarray, x: np.ndarray, y: np.ndarray,
 
 def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, str] | None = None,
                   road_file: str, rmap: Any, title: str = "counterexample",
-                  description: str = "") -> Export:
+                  description: str = "", minor: int = 3) -> Export:
     """The OpenSCENARIO document of ``world`` (run, with its trajectory) for a case with
     ``params`` (``units``: parameter -> unit text), its road in ``road_file`` (a path relative
-    to the .xosc) whose lanes ``rmap`` (:class:`~.opendrive.RoadMap`) says."""
+    to the .xosc) whose lanes ``rmap`` (:class:`~.opendrive.RoadMap`) says. ``minor``: the
+    OpenSCENARIO 1.x revision, 3 (esmini and most tools) or 0 (CARLA's ScenarioRunner reads
+    1.0 only: no SpeedProfileAction there, so a speed profile becomes its trajectory)."""
+    if minor not in (0, 1, 2, 3):
+        raise ValueError(f"OpenSCENARIO 1.{minor}: write 1.0 to 1.3")
     xosc = _xosc()
     traj = world.trajectory
     if traj is None:
@@ -226,7 +237,7 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
     out = Export(xml=b"", notes=list(rmap.notes))
     decl = xosc.ParameterDeclarations()
     for k, v in params.items():
-        ptype, text = _param_type(v)
+        ptype, text = _param_type(v, minor)
         decl.add_parameter(xosc.Parameter(str(k), ptype, text))
     entities = xosc.Entities()
     init = xosc.Init()
@@ -237,7 +248,10 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
     for i, name in enumerate(traj.names):
         kind = traj.kinds[i]
         L, W = float(traj.length[i]), float(traj.width[i])
-        entities.add_scenario_object(name, _entity(kind, name, L, W))
+        ent = _entity(kind, name, L, W)
+        if kind == "ego":  # how CARLA's ScenarioRunner tells the ego (a hero vehicle)
+            ent.add_property("type", "ego_vehicle")
+        entities.add_scenario_object(name, ent)
         present = np.asarray(traj.present[i], dtype=bool)
         if not present.any():
             out.trajectories[name] = "never on the road"
@@ -264,7 +278,7 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
         elif agent is None:
             why = "not an agent of the world"
         else:
-            mapped = _actions(agent, agent.behavior, rmap, lane_width)
+            mapped = _actions(agent, agent.behavior, rmap, lane_width, minor)
             if mapped is None:
                 beh = agent.behavior
                 why = f"behaviour {type(beh).__name__} has no OpenSCENARIO equivalent"
@@ -275,8 +289,8 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
             out.trajectories[name] = why
             events[name] = [(f"{name}_follow_recorded",
                              _follow_trajectory(name, t[steps], x, y, h),
-                             _time_trigger(f"{name}_follow_start", 0.0))]
-    act = xosc.Act("counterexample", _time_trigger("act_start", 0.0))
+                             _time_trigger(f"{name}_follow_start", 0.0, minor))]
+    act = xosc.Act("counterexample", _time_trigger("act_start", 0.0, minor))
     for name, evs in events.items():
         if not evs:
             continue
@@ -284,7 +298,8 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
         mg.add_actor(name)
         man = xosc.Maneuver(f"{name}_maneuver")
         for ev_name, action, trigger in evs:
-            ev = xosc.Event(ev_name, xosc.Priority.override)
+            ev = xosc.Event(ev_name, xosc.Priority.override if minor >= 2 else
+                            xosc.Priority.overwrite)
             ev.add_action(f"{ev_name}_action", action)
             ev.add_trigger(trigger)
             man.add_event(ev)
@@ -294,13 +309,13 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
     story.add_act(act)
     t_end = float(t[-1]) if t.size else 0.0
     stop = xosc.ValueTrigger("stop", 0, xosc.ConditionEdge.rising,
-                             xosc.SimulationTimeCondition(t_end, xosc.Rule.greaterOrEqual),
+                             xosc.SimulationTimeCondition(t_end, _rule_at_least(minor)),
                              "stop")
     sb = xosc.StoryBoard(init, stop)
     sb.add_story(story)
     road = xosc.RoadNetwork(roadfile=road_file)
     sce = xosc.Scenario(title, "pytest-avscenario", decl, entities, sb, road, xosc.Catalog(),
-                        osc_minor_version=3)
+                        osc_minor_version=minor)
     root = sce.get_element()
     header = root.find("FileHeader")
     if header is not None:

@@ -271,7 +271,8 @@ def _metric_table(row: CaseRow, metrics: Sequence[str]) -> str:
 
 #: the files a case is exported as (``--avs-export``), in the order the card lists them
 EXPORT_CAPTIONS = {
-    "xosc": "OpenSCENARIO 1.3 scenario",
+    "xosc": "OpenSCENARIO 1.3 scenario (esmini and most tools)",
+    "xosc_1_0": "the same in OpenSCENARIO 1.0 (CARLA ScenarioRunner)",
     "xodr": "OpenDRIVE 1.7 road",
     "osi": "OSI SensorView trace",
 }
@@ -292,7 +293,7 @@ def _exports_html(directory: Path, row: CaseRow, files: CaseFiles) -> str:
             f"<li><a href='{href(directory, p)}' download>{e(Path(p).name)}</a> "
             f"<span class='meta'>{e(EXPORT_CAPTIONS[k])}</span></li>" for k, p in links) + "</ul>")
         out.append("<p class='meta'>Replay with <code>esmini --headless --osc FILE.xosc</code> or "
-                   "CARLA ScenarioRunner's <code>--openscenario FILE.xosc</code>; the ego follows its "
+                   "CARLA ScenarioRunner's <code>--openscenario FILE.v1_0.xosc</code>; the ego follows its "
                    "recorded trajectory: replace that action with your own controller.</p>")
     following = exports.get("trajectories") or {}
     others = {k: v for k, v in following.items() if k != "ego"}
