@@ -133,6 +133,7 @@ def test_every_road_kind_and_manoeuvre_exports_valid(tmp_path, schemas, build):
         assert open(res.files["xodr"]).read().count("<laneSection") == 3
     elif build == "intersection":
         assert "connecting roads are not" in open(res.files["xodr"]).read()
+        assert "connecting roads are not" in res.to_json()["notes"][0]  # the row says it too
         assert set(res.trajectories) == {"ego", "car1"}
     else:
         assert "TimeHeadwayCondition" in text and "RelativeDistanceCondition" in text

@@ -32,6 +32,7 @@ class ExportResult:
     actions: dict[str, str] = field(default_factory=dict)
     trajectories: dict[str, str] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # what the road file leaves out
 
     def to_json(self) -> dict[str, Any]:
         """The row's ``exports`` field: file names (relative to the card's folder), which
@@ -41,6 +42,8 @@ class ExportResult:
             out["trajectories"] = dict(self.trajectories)
         if self.errors:
             out["errors"] = dict(self.errors)
+        if self.notes:
+            out["notes"] = list(self.notes)
         return out
 
 
@@ -78,7 +81,7 @@ def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathL
         xosc_path = directory / f"{stem}.xosc"
         atomic_write_bytes(xosc_path, sce.xml, durable=False)
         out.files["xosc"] = str(xosc_path)
-        out.actions, out.trajectories = sce.actions, sce.trajectories
+        out.actions, out.trajectories, out.notes = sce.actions, sce.trajectories, sce.notes
     except Exception as exc:  # an export is extra evidence: say why, keep the case
         out.errors["xosc"] = f"{type(exc).__name__}: {exc}"
     if "xosc" in out.files:

@@ -40,7 +40,7 @@ def trace_name(frames: int, custom: str, when: _dt.datetime | None = None) -> st
     """The file name OSI's convention gives a SensorView trace of ``frames`` messages."""
     when = when or _dt.datetime.now(_dt.timezone.utc)
     osi, proto = _versions()
-    custom = re.sub(r"[^A-Za-z0-9-]+", "-", custom).strip("-")[:60] or "case"
+    custom = re.sub(r"[^A-Za-z0-9-]+", "-", custom).strip("-")[-120:] or "case"
     return f"{when.strftime('%Y%m%dT%H%M%SZ')}_sv_{osi}_{proto}_{int(frames)}_{custom}.osi"
 
 

@@ -301,6 +301,8 @@ def _exports_html(directory: Path, row: CaseRow, files: CaseFiles) -> str:
         out.append("<p class='meta'>Following their recorded trajectories (no one-to-one "
                    "OpenSCENARIO action): " + e("; ".join(f"{k}: {v}" for k, v in others.items()))
                    + "</p>")
+    for note in exports.get("notes") or ():
+        out.append(f"<p class='meta'>{e(note)}</p>")
     for part, why in errors.items():
         out.append(f"<p class='bad'>Not exported ({e(part)}): {e(why)}</p>")
     return "\n".join(out)
