@@ -253,3 +253,27 @@ def test_bad_export_option_is_a_usage_error(pytester):
     result = pytester.runpytest("--avs-export=some", "-p", "no:cacheprovider")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--avs-export*must be a number N, 'all' or 'none'*"])
+
+
+def test_the_example_vehicle_following_export_replays_to_the_same_collision(tmp_path, monkeypatch):
+    # the example suite's scenario 2: its lead's imprecise braking (drawn during the run) has
+    # no OpenSCENARIO equivalent, so the lead follows its recorded trajectory in the file
+    from pathlib import Path
+
+    from pytest_avscenario.case import Case
+
+    examples = Path(__file__).resolve().parent.parent / "example_tests"
+    monkeypatch.syspath_prepend(str(examples))
+    from test_02_vehicle_following import test_vehicle_following as scenario
+
+    case = Case(dict(gap=14.0, lead_speed=6.0, brake_at=1.0, lead_decel=8.0,
+                     lead_final_speed=0.0), 0, 5, "halton")
+    w = World(5, rng=case.rng, driver=blind)
+    scenario(case, w)
+    first = np.flatnonzero(w.trajectory.crashed[0])
+    assert first.size
+    res = export_case(w, dict(case.params), tmp_path, "vehicle_following", osi=False)
+    assert "Wobble has no OpenSCENARIO equivalent" in res.trajectories["car1"]
+    again = replay(res.files["xosc"])
+    second = np.flatnonzero(again.crashed[0])
+    assert second.size and abs(int(second[0]) - int(first[0])) <= 1
