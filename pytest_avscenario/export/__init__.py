@@ -72,7 +72,7 @@ def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathL
         from .opendrive import road_xodr
         from .openscenario import scenario_xosc
 
-        road, rmap = road_xodr(world.road, name=stem)
+        road, rmap = road_xodr(world.road)  # the same road, the same file
         xodr_path = directory / f"{stem}.xodr"
         atomic_write_bytes(xodr_path, road, durable=False)
         out.files["xodr"] = str(xodr_path)

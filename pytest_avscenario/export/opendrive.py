@@ -143,6 +143,9 @@ def road_xodr(road: Any, name: str = "road") -> tuple[bytes, RoadMap]:
     if odr.roads:
         odr.adjust_roads_and_lanes()
     root = odr.get_element()
+    header = root.find("header")
+    if header is not None:
+        header.set("date", "1970-01-01T00:00:00")  # the same road writes the same file
     for note in rmap.notes:
         root.insert(1, ET.Comment(f" {note} ".replace("--", "- ")))
     ET.indent(root)
