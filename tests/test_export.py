@@ -277,3 +277,11 @@ def test_the_example_vehicle_following_export_replays_to_the_same_collision(tmp_
     again = replay(res.files["xosc"])
     second = np.flatnonzero(again.crashed[0])
     assert second.size and abs(int(second[0]) - int(first[0])) <= 1
+
+
+def test_export_ini_value_is_checked_and_named(pytester):
+    pytester.makeini("[pytest]\navs_export = lots\n")
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest("-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*ini avs_export*must be a number N, 'all' or 'none'*"])
