@@ -192,6 +192,10 @@ class CaseRow:
     #: "penalty", "infractions": [{"kind", "factor", "t", "agent"}, ...]}, all 0..1):
     #: :mod:`pytest_avscenario.monitors.score`; None when the recording has no road
     score: Mapping[str, Any] | None = None
+    #: the case exported for other simulators (``--avs-export``): {"xosc", "xodr", "osi": file
+    #: name beside the card, "trajectories": {agent: why it follows its recorded trajectory},
+    #: "errors": {part: why it was not written}}; None: not exported
+    exports: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.origin not in ORIGINS:
@@ -236,6 +240,8 @@ class CaseRow:
             out["driver"] = jsonable(dict(self.driver))
         if self.score is not None:
             out["score"] = jsonable(dict(self.score))
+        if self.exports is not None:
+            out["exports"] = jsonable(dict(self.exports))
         return out
 
     @classmethod
@@ -271,6 +277,7 @@ class CaseRow:
             drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
             driver=dict(data["driver"]) if isinstance(data.get("driver"), Mapping) else None,
             score=dict(data["score"]) if isinstance(data.get("score"), Mapping) else None,
+            exports=dict(data["exports"]) if isinstance(data.get("exports"), Mapping) else None,
         )
 
     @property

@@ -187,8 +187,9 @@ def test_xdist_workers_case_pictures_land_in_the_claimed_directory(pytester, mon
     result.assert_outcomes(passed=3, failed=1)
     pictures = sorted(p.name for p in (pytester.path / "avs-report-2" / "cases").iterdir())
     # the first violation, the time series, the GIF and the card (which took in the replay's data)
-    # (and the replay player the cards share)
-    assert sorted(p.rpartition(".")[2] for p in pictures) == ["gif", "html", "js", "png", "png"]
+    # (and the replay player the cards share), and the case exported (--avs-export's default)
+    assert sorted(p.rpartition(".")[2] for p in pictures) == ["gif", "html", "js", "osi", "png",
+                                                              "png", "xodr", "xosc", "xosc"]
     manifest = json.loads((pytester.path / "avs-report-2" / ".avs-manifest.json").read_text())
     assert {f"cases/{p}" for p in pictures} <= set(manifest["files"])
     assert list(tmp.iterdir()) == [] and sorted(p.name for p in report.iterdir()) == ["index.html"]

@@ -332,6 +332,8 @@ def run_item(item: pytest.Function) -> ItemResult:
         note = update_db(item, plan, slot, case_obj, outcome, shrink)
     if outcome.failed:
         item.stash[pictures_key] = render_case(item, campaign, outcome, shrink)
+        from .export import export_counterexample  # --avs-export: .xosc/.xodr/.osi by the card
+        export_counterexample(item, campaign, outcome, shrink, item.stash[pictures_key])
     if outcome.verdict == "pass":
         return ItemResult(outcome)
     judgements = [j.text(case) for j, case in ((judged, "found" if min_judged else ""),

@@ -112,6 +112,16 @@ def _positive_seconds(raw: Any) -> float:
     return value
 
 
+def _export(raw: Any) -> int | str:
+    value = str(raw).strip().lower()
+    if value in ("all", "none"):
+        return value
+    try:
+        return _integer(0)(value)
+    except ValueError:
+        raise ValueError(f"must be a number N, 'all' or 'none', got {_show(raw)}") from None
+
+
 def _one_of(what: str, *names: str) -> Callable[[Any], str]:
     def parse(raw: Any) -> str:
         value = str(raw).strip()
@@ -424,6 +434,14 @@ OPTIONS = (
            "counterexample still gets its card and its replay)",
            "counterexamples per test and sampler drawn as PNGs besides the minimized ones",
            _integer(0)),
+    Option("export", "N|all|none",
+           "write counterexamples as OpenSCENARIO (.xosc) + OpenDRIVE (.xodr) and an OSI "
+           "trace beside their cards: the minimized ones and at most N more per test and "
+           "sampler (default: those drawn as PNGs, see --avs-case-pictures), 'all' or "
+           "'none' (needs the [export] extra; the trace also [osi])",
+           "counterexamples per test and sampler exported as OpenSCENARIO/OpenDRIVE/OSI "
+           "besides the minimized ones (N, all or none)",
+           _export),
     Option("accept", "CRITERIA",
            "when a scenario campaign is accepted: any (default: every counterexample rejects "
            "it), metric names (only their violations), regressions, rate:METRIC<=1%@95%; "
@@ -539,6 +557,9 @@ class Settings:
     junit: str  # "properties" or "strict"
     per_test: Mapping[str, Found]  # command line / ini values of the per-test settings
     command_line: Mapping[str, str]  # option key -> the text given on the command line
+    #: --avs-export: N (the minimized counterexamples and N more per test and sampler),
+    #: "all", "none"; None: not given (as the PNGs, when scenariogeneration is installed)
+    export: int | str | None = None
 
     @property
     def pinned(self) -> bool:
@@ -637,6 +658,8 @@ def read_settings(config: pytest.Config) -> Settings:
 
         configure(timeout_s=value("stack_timeout"))
     _imported_driver(found.get("driver"))
+    if value("export") not in (None, "none"):
+        _export_installed(found["export"])
     return Settings(
         seed=_session_seed(config),
         driver=driver,
@@ -656,7 +679,16 @@ def read_settings(config: pytest.Config) -> Settings:
         per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
         command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
                       if config.getoption(o.dest) not in (None, "")},
+        export=value("export"),
     )
+
+
+def _export_installed(found: Found) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("scenariogeneration") is None:
+        raise pytest.UsageError(f"{found.source}: exporting counterexamples needs "
+                                "scenariogeneration: pip install 'pytest-avscenario[export]'")
 
 
 def _default_criteria() -> Any:

@@ -269,6 +269,45 @@ def _metric_table(row: CaseRow, metrics: Sequence[str]) -> str:
     return "\n".join(out)
 
 
+#: the files a case is exported as (``--avs-export``), in the order the card lists them
+EXPORT_CAPTIONS = {
+    "xosc": "OpenSCENARIO 1.3 scenario (esmini and most tools)",
+    "xosc_1_0": "the same in OpenSCENARIO 1.0 (CARLA ScenarioRunner)",
+    "xodr": "OpenDRIVE 1.7 road",
+    "osi": "OSI SensorView trace",
+}
+
+
+def _exports_html(directory: Path, row: CaseRow, files: CaseFiles) -> str:
+    """The card's links to the case as exported for other simulators, and what was not."""
+    exports = row.exports or {}
+    links = [(k, files.get(k)) for k in EXPORT_CAPTIONS]
+    links = [(k, p) for k, p in links if p]
+    errors = exports.get("errors") or {}
+    if not links and not errors:
+        return ""
+    which = "minimized case" if row.minimized is not None else "case as found"
+    out = [f"<h2>For other simulators ({e(which)})</h2>"]
+    if links:
+        out.append("<ul class='exports'>" + "".join(
+            f"<li><a href='{href(directory, p)}' download>{e(Path(p).name)}</a> "
+            f"<span class='meta'>{e(EXPORT_CAPTIONS[k])}</span></li>" for k, p in links) + "</ul>")
+        out.append("<p class='meta'>Replay with <code>esmini --headless --osc FILE.xosc</code> or "
+                   "CARLA ScenarioRunner's <code>--openscenario FILE.v1_0.xosc</code>; the ego follows its "
+                   "recorded trajectory: replace that action with your own controller.</p>")
+    following = exports.get("trajectories") or {}
+    others = {k: v for k, v in following.items() if k != "ego"}
+    if others:
+        out.append("<p class='meta'>Following their recorded trajectories (no one-to-one "
+                   "OpenSCENARIO action): " + e("; ".join(f"{k}: {v}" for k, v in others.items()))
+                   + "</p>")
+    for note in exports.get("notes") or ():
+        out.append(f"<p class='meta'>{e(note)}</p>")
+    for part, why in errors.items():
+        out.append(f"<p class='bad'>Not exported ({e(part)}): {e(why)}</p>")
+    return "\n".join(out)
+
+
 def _draws_table(drawn: Mapping[str, Any] | None) -> str:
     if not drawn or not drawn.get("count"):
         return "<p class='meta'>The run drew nothing from <code>case.rng</code>.</p>"
@@ -398,6 +437,7 @@ def render_card(
             caption = f"{FILE_CAPTIONS[kind]} ({which})"
             parts.append(f"<figure><a href='{link}'><img src='{link}' alt='{e(caption)}: {e(row.item)}'></a>"
                          f"<figcaption>{e(caption)}</figcaption></figure>")
+    parts.append(_exports_html(directory, row, files))
     for title, body in sections:
         parts.append(f"<h2>{e(title)}</h2>")
         parts.append(f"<div class='team-section'>{body}</div>")

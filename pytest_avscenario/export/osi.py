@@ -1,0 +1,104 @@
+"""A case's recording as an ASAM OSI trace: one ``osi3.SensorView`` per recorded step.
+
+The single-channel binary format (``.osi``): each serialized message is preceded by its
+length as a four-byte little-endian unsigned integer. The file is named as OSI's trace-file
+naming convention asks, ``<timestamp>_sv_<osi-version>_<protobuf-version>_<frames>_<name>.osi``
+(versions without dots, e.g. ``20261125T160000Z_sv_370_2931_121_following.osi``). The
+timestamp is when the trace was written (UTC).
+
+The messages are built by :mod:`pytest_avscenario.stack.frame`, the same code that talks to a
+stack out of process: objects at the centre of their 3-D box in the world frame (x east,
+y north, yaw counter-clockwise), the ego as host vehicle 1. The road's lanes and lane
+boundaries are static for a case and go in the first message's ground truth only: with them
+in every message a 15-s trace at an intersection (151 frames) is 2.9 MB, without 88 kB (a
+reader keeps them from the first message, as OSI's static ground truth is meant to be kept).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import re
+import struct
+from typing import Any, Iterator
+
+import numpy as np
+
+__all__ = ["trace_name", "trace_bytes", "read_trace"]
+
+
+def _versions() -> tuple[str, str]:
+    import google.protobuf
+
+    from ..stack import wire
+
+    osi = "".join(str(v) for v in wire.osi_version())
+    proto = "".join(google.protobuf.__version__.split(".")[:3])
+    return osi, proto
+
+
+def trace_name(frames: int, custom: str, when: _dt.datetime | None = None) -> str:
+    """The file name OSI's convention gives a SensorView trace of ``frames`` messages."""
+    when = when or _dt.datetime.now(_dt.timezone.utc)
+    osi, proto = _versions()
+    custom = re.sub(r"[^A-Za-z0-9-]+", "-", custom).strip("-")[-120:] or "case"
+    return f"{when.strftime('%Y%m%dT%H%M%SZ')}_sv_{osi}_{proto}_{int(frames)}_{custom}.osi"
+
+
+def trace_bytes(world: Any) -> tuple[bytes, int]:
+    """The ``.osi`` contents of ``world``'s recording (every step, agents present then; the
+    lanes in the first message) and the number of frames."""
+    from ..stack import frame, wire
+    from osi3 import osi_sensorview_pb2
+
+    traj = world.trajectory
+    if traj is None:
+        raise ValueError("the world has not run: no recording to trace")
+    static = frame.lane_ground_truth(world.view())
+    ids = {name: i + 1 for i, name in enumerate(traj.names)}  # ego first: host vehicle 1
+    lane_ids = {lane.id: frame.LANE_ID0 + i for i, lane in enumerate(world.view().lanes)}
+    acc = np.zeros_like(traj.speed)
+    if traj.n_steps > 1:
+        acc[:, :-1] = np.diff(traj.speed, axis=1) / np.diff(traj.t)
+    out = bytearray()
+    for k, t in enumerate(traj.t):
+        sv = osi_sensorview_pb2.SensorView()
+        t_ns = wire.ns(t)
+        wire.set_version(sv.version)
+        wire.set_timestamp(sv.timestamp, t_ns)
+        sv.host_vehicle_id.value = 1
+        gt = sv.global_ground_truth
+        wire.set_version(gt.version)
+        wire.set_timestamp(gt.timestamp, t_ns)
+        gt.host_vehicle_id.value = 1
+        for i, name in enumerate(traj.names):
+            if not traj.present[i, k]:
+                continue
+            a = float(acc[i, k]) if np.isfinite(acc[i, k]) else 0.0
+            flags = None
+            if traj.kinds[i] == "bus" and f"{name}.stop_arm" in traj.signals:
+                flags = {"stop_arm": bool(traj.signals[f"{name}.stop_arm"][k])}
+            frame.set_object(gt.moving_object.add(), ids[name], name, traj.kinds[i],
+                             float(traj.x[i, k]), float(traj.y[i, k]), float(traj.heading[i, k]),
+                             float(traj.speed[i, k]), float(traj.length[i]), float(traj.width[i]),
+                             a, lane_ids.get(str(traj.lane[i, k])), flags)
+        msg = sv.SerializeToString() + (static if k == 0 else b"")
+        out += struct.pack("<I", len(msg)) + msg
+    return bytes(out), traj.n_steps
+
+
+def read_trace(data: bytes) -> Iterator[Any]:
+    """The ``osi3.SensorView`` messages of a ``.osi`` trace's bytes, in order."""
+    from osi3 import osi_sensorview_pb2
+
+    i = 0
+    while i < len(data):
+        if i + 4 > len(data):
+            raise ValueError(f"truncated OSI trace: {len(data) - i} stray bytes at offset {i}")
+        (n,) = struct.unpack_from("<I", data, i)
+        i += 4
+        if i + n > len(data):
+            raise ValueError(f"truncated OSI trace: a message of {n} bytes at offset {i - 4}")
+        sv = osi_sensorview_pb2.SensorView()
+        sv.ParseFromString(data[i:i + n])
+        i += n
+        yield sv

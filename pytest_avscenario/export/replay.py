@@ -1,0 +1,193 @@
+"""An exported scenario played back in the plugin's own simulator, from the files alone.
+
+:func:`replay_world` reads a ``.xosc`` written by :mod:`.openscenario` and the ``.xodr`` it
+names, builds a :class:`~pytest_avscenario.sim.world.World` with the same road, places every
+entity at its ``Init`` state and gives it what its actions say: a ``SpeedAction`` to 0 m/s at
+a linear rate on a simulation-time trigger becomes ``b.brake_at(t, decel)``, a relative
+``LaneChangeAction`` on a time trigger ``b.change_lane``, no action ``b.keep_lane()``, and a
+``FollowTrajectoryAction`` is tracked step by step (the ego's by a driver, others' by a
+behaviour) with the one-step inverse of highway-env's kinematic bicycle. It shows that the
+file says what the case did: run it (:func:`replay`) and compare the first violation.
+
+It reads what this package writes on a one-way straight road, not any OpenSCENARIO file:
+anything else raises ``NotImplementedError`` naming what it met.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..sim import behaviors as b
+from .openscenario import centre_from_rear_axle
+
+__all__ = ["replay_world", "replay", "RecordedPath"]
+
+
+class RecordedPath:
+    """Vertices ``(t [s], x, y [m] of the centre, heading [rad])`` tracked exactly: at step k
+    the acceleration that gives the speed the vertices' spacing asks for next, and the
+    steering that turns to the next vertex's heading."""
+
+    def __init__(self, t: np.ndarray, x: np.ndarray, y: np.ndarray, h: np.ndarray) -> None:
+        self.t, self.x, self.y, self.h = t, x, y, h
+        step = np.hypot(np.diff(x), np.diff(y))
+        self.v = step / np.diff(t)  # speed on each interval [m/s]
+
+    def command(self, now: float, speed: float, heading: float, length: float,
+                dt: float) -> tuple[float, float]:
+        k = int(np.searchsorted(self.t, now + 1e-9)) - 1
+        k = min(max(k, 0), len(self.t) - 1)
+        v_next = float(self.v[k + 1]) if k + 1 < len(self.v) else float(self.v[-1]) if len(self.v) else 0.0
+        acc = (v_next - speed) / dt
+        h_next = float(self.h[min(k + 1, len(self.h) - 1)])
+        turn = math.atan2(math.sin(h_next - heading), math.cos(h_next - heading))
+        v_ref = speed if abs(speed) > 1e-3 else 1e-3
+        sin_beta = max(-1.0, min(1.0, turn / dt * (0.5 * length) / v_ref))
+        return acc, math.atan(2.0 * math.tan(math.asin(sin_beta)))
+
+
+class _EgoDriver:
+    """The ego driver that follows a recorded path (the part a team replaces)."""
+
+    def __init__(self, path: RecordedPath, name: str) -> None:
+        self.path, self.name, self.world = path, name, None
+
+    def reset(self, world: Any) -> None:
+        self.world = world
+
+    def act(self, observation: Any) -> tuple[float, float]:
+        w = self.world
+        ego = w.agent(self.name)
+        return self.path.command(w.t, float(ego.speed), float(ego.heading), float(ego.LENGTH), w.dt)
+
+
+@dataclass(frozen=True)
+class FollowRecorded(b.Behavior):
+    """A non-ego agent tracking a recorded path (see :class:`RecordedPath`)."""
+
+    path: Any = None
+
+    def control(self, agent, world):
+        return self.path.command(world.t, float(agent.speed), float(agent.heading),
+                                 float(agent.LENGTH), world.dt)
+
+
+def _f(el: ET.Element, attr: str) -> float:
+    return float(el.get(attr))
+
+
+def _time_of(trigger: ET.Element | None) -> float | None:
+    cond = trigger.find(".//SimulationTimeCondition") if trigger is not None else None
+    return None if cond is None else _f(cond, "value")
+
+
+def _road(xodr: Path) -> tuple[int, float, float]:
+    """Lanes, lane width and length of a one-way straight road written by :mod:`.opendrive`."""
+    root = ET.parse(xodr).getroot()
+    roads = root.findall("road")
+    if len(roads) != 1:
+        raise NotImplementedError(f"{xodr.name}: {len(roads)} roads; the replay reads one "
+                                  "straight one-way road")
+    road = roads[0]
+    geoms = road.findall("planView/geometry")
+    if len(geoms) != 1 or geoms[0].find("line") is None or _f(geoms[0], "hdg") != 0.0:
+        raise NotImplementedError(f"{xodr.name}: not one straight line heading east")
+    if road.find("lanes/laneSection/left") is not None:
+        raise NotImplementedError(f"{xodr.name}: lanes on the left (a two-way road)")
+    right = road.findall("lanes/laneSection/right/lane")
+    widths = {_f(l.find("width"), "a") for l in right}
+    if not right or len(widths) != 1:
+        raise NotImplementedError(f"{xodr.name}: lanes of different widths")
+    return len(right), widths.pop(), _f(road, "length")
+
+
+def replay_world(xosc: str | Path, seed: int = 0) -> tuple[Any, float, float]:
+    """The world an exported ``.xosc`` describes, ready to run, its stop time [s] and its
+    step [s] (the ego's trajectory's vertex spacing)."""
+    from ..sim.world import World
+
+    xosc = Path(xosc)
+    root = ET.parse(xosc).getroot()
+    logic = root.find("RoadNetwork/LogicFile")
+    n, w, length = _road(xosc.parent / logic.get("filepath"))
+    sizes: dict[str, tuple[str, float, float]] = {}
+    for obj in root.findall("Entities/ScenarioObject"):
+        veh = obj.find("Vehicle")
+        if veh is None:
+            raise NotImplementedError(f"entity {obj.get('name')}: only vehicles replay")
+        dim = veh.find("BoundingBox/Dimensions")
+        sizes[obj.get("name")] = (veh.get("vehicleCategory"), _f(dim, "length"), _f(dim, "width"))
+    init: dict[str, dict[str, float]] = {}
+    for priv in root.findall("Storyboard/Init/Actions/Private"):
+        pos = priv.find(".//TeleportAction/Position/WorldPosition")
+        speed = priv.find(".//AbsoluteTargetSpeed")
+        init[priv.get("entityRef")] = {"x": _f(pos, "x"), "y": _f(pos, "y"), "h": _f(pos, "h"),
+                                      "v": _f(speed, "value") if speed is not None else 0.0}
+    events: dict[str, list[ET.Element]] = {}
+    for mg in root.iter("ManeuverGroup"):
+        who = mg.find("Actors/EntityRef").get("entityRef")
+        events.setdefault(who, []).extend(mg.iter("Event"))
+    stop = _time_of(root.find("Storyboard/StopTrigger"))
+    world = World(seed)
+    road = world.straight_road(lanes=n, length=length, lane_width=w)
+    step = 0.1
+    for name, (cat, L, W) in sizes.items():
+        st = init[name]
+        x, y = centre_from_rear_axle(st["x"], st["y"], st["h"], L)
+        lane = road.lane(min(max(int(round(-y / w)), 0), n - 1))
+        beh, path = None, None
+        for ev in events.get(name, []):
+            t0 = _time_of(ev.find("StartTrigger"))
+            poly = ev.find(".//FollowTrajectoryAction//Polyline")
+            speed = ev.find(".//SpeedAction")
+            lc = ev.find(".//LaneChangeAction")
+            if poly is not None:
+                vs = poly.findall("Vertex")
+                t = np.array([_f(v, "time") for v in vs])
+                wp = [v.find("Position/WorldPosition") for v in vs]
+                h = np.array([_f(p, "h") for p in wp])
+                cx, cy = centre_from_rear_axle(np.array([_f(p, "x") for p in wp]),
+                                               np.array([_f(p, "y") for p in wp]), h, L)
+                path = RecordedPath(t, cx, cy, h)
+                if name == "ego" and len(t) > 1:
+                    step = float(t[1] - t[0])
+            elif speed is not None and t0 is not None:
+                target = _f(speed.find(".//AbsoluteTargetSpeed"), "value")
+                dyn = speed.find("SpeedActionDynamics")
+                if target != 0.0 or dyn.get("dynamicsDimension") != "rate":
+                    raise NotImplementedError(f"{name}: a SpeedAction other than a linear "
+                                              "brake to 0 m/s")
+                beh = b.brake_at(t0, decel=_f(dyn, "value"))
+            elif lc is not None and t0 is not None and lc.find(".//RelativeTargetLane") is not None:
+                rel = lc.find(".//RelativeTargetLane")
+                if rel.get("entityRef") != name:
+                    raise NotImplementedError(f"{name}: a lane change relative to another entity")
+                dyn = lc.find("LaneChangeActionDynamics")
+                beh = b.change_lane("left" if int(rel.get("value")) > 0 else "right", at=t0,
+                                    duration=_f(dyn, "value"))
+            else:
+                raise NotImplementedError(f"{name}: event {ev.get('name')!r} is not replayed")
+        if name == "ego":
+            if path is None:
+                raise NotImplementedError("the ego has no FollowTrajectoryAction")
+            world.ego(lane, s=float(x), speed=st["v"], driver=_EgoDriver(path, name), name=name)
+        elif path is not None:
+            world.car(lane, s=float(x), speed=st["v"], behavior=FollowRecorded(path=path), name=name)
+        elif cat in ("bus", "truck"):
+            world.vehicle(lane, s=float(x), speed=st["v"], behavior=beh, kind="truck",
+                          length=L, width=W, name=name)
+        else:
+            world.car(lane, s=float(x), speed=st["v"], behavior=beh, name=name)
+    return world, float(stop if stop is not None else 10.0), step
+
+
+def replay(xosc: str | Path, seed: int = 0) -> Any:
+    """Run :func:`replay_world` to its stop time; returns the recorded trajectory."""
+    world, seconds, dt = replay_world(xosc, seed)
+    return world.run(seconds=seconds, dt=dt)

@@ -1,0 +1,74 @@
+"""``--avs-export``: a failing case written for other simulators beside its card.
+
+Which cases: as for the PNGs, the minimized counterexamples and the first N more per test and
+sampler (N: ``--avs-export N``, default ``--avs-case-pictures``), every one with ``all``, none
+with ``none``; without the option, only when scenariogeneration is installed. The files
+(:func:`pytest_avscenario.export.export_case`) join the case's pictures, so the report places
+them beside the card and the card links them; the row's ``exports`` names them. An export
+that fails is said in the row (``exports.errors``) and never fails or loses the case.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+from typing import Any
+
+import pytest
+
+from .stash import controller_key, row_key, settings_key
+
+__all__ = ["export_counterexample"]
+
+_counts_key = pytest.StashKey[dict]()
+
+
+def _limit(config: pytest.Config) -> int | str | None:
+    """N, "all", or None (no export)."""
+    settings = config.stash[settings_key]
+    chosen = getattr(settings, "export", None)
+    if chosen is None:
+        if importlib.util.find_spec("scenariogeneration") is None:
+            return None
+        return settings.case_pictures
+    return None if chosen == "none" else chosen
+
+
+def export_counterexample(item: pytest.Function, campaign: Any, outcome: Any, shrink: Any,
+                          pictures: dict[str, str]) -> None:
+    """Export ``item``'s failing case when ``--avs-export`` selects it: the files go into
+    ``pictures`` (``xosc``, ``xodr``, ``osi``) and the row's ``exports`` says what was written."""
+    config = item.config
+    limit = _limit(config)
+    directory = config.stash[controller_key].directory
+    if limit is None or directory is None or row_key not in item.stash:
+        return
+    minimized = shrink is not None and shrink.outcome is not None
+    if not minimized and limit != "all":
+        counts = config.stash.setdefault(_counts_key, {})
+        key = (id(campaign), getattr(item.funcargs.get("case"), "sampler", ""))
+        if counts.get(key, 0) >= limit:
+            return
+        counts[key] = counts.get(key, 0) + 1
+    shown = shrink.outcome if minimized else outcome
+    world = shown.world
+    row = item.stash[row_key]
+    if world is None or getattr(world, "trajectory", None) is None:
+        exports: dict[str, Any] = {"errors": {"xosc": "not exported: the case ran in another "
+                                              "process (its world is not here) or returned "
+                                              "a trajectory of its own"}}
+    else:
+        from ..export import export_case
+        from ..report.table import file_slug
+
+        params = dict(shown.params)
+        space = campaign.plan.space
+        units = {k: getattr(space.parameters.get(k), "unit", None) or ""
+                 for k in params if hasattr(space, "parameters")}
+        base = directory / "cases" / file_slug(item.nodeid)
+        res = export_case(world, params, base.parent, base.name, units=units,
+                          title=item.nodeid + (" (minimized)" if minimized else ""),
+                          osi=importlib.util.find_spec("osi3") is not None)
+        pictures.update(res.files)
+        exports = res.to_json()
+    item.stash[row_key] = dataclasses.replace(row, exports=exports)

@@ -1,0 +1,287 @@
+"""Counterexamples exported as OpenSCENARIO + OpenDRIVE and an OSI trace: valid against the
+XSDs scenariogeneration ships, parsed back to the same scenario, replayed in the plugin's own
+simulator to the same collision, and the trace read back."""
+
+import re
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+pytest.importorskip("scenariogeneration")
+xmlschema = pytest.importorskip("xmlschema")
+
+from pytest_avscenario.export import export_case, schema_path  # noqa: E402
+from pytest_avscenario.export.openscenario import rear_axle  # noqa: E402
+from pytest_avscenario.export.replay import replay  # noqa: E402
+from pytest_avscenario.sim import behaviors as b  # noqa: E402
+from pytest_avscenario.sim.highway import arc, straight  # noqa: E402
+from pytest_avscenario.sim.world import World  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def schemas():
+    return {"xosc": xmlschema.XMLSchema(str(schema_path("OpenSCENARIO_1_3_1.xsd"))),
+            "xosc_1_0": xmlschema.XMLSchema(str(schema_path("OpenSCENARIO_1_0.xsd"))),
+            "xodr": xmlschema.XMLSchema(str(schema_path("opendrive_17_core.xsd")))}
+
+
+def blind(observation):
+    """An ego that never brakes: it hits whatever stops in front of it."""
+    return 0.0, 0.0
+
+
+def braking_lead(seconds=6.0):
+    w = World(7, driver=blind)
+    road = w.straight_road(lanes=2, length=300)
+    w.ego(road.lane(0), s=20, speed=15)
+    w.car(road.lane(0), s=50, speed=10, behavior=b.brake_at(1.0, decel=6))
+    w.car(road.lane(1), s=30, speed=8)
+    w.run(seconds=seconds)
+    return w
+
+
+def assert_valid(schemas, res):
+    assert not res.errors, res.errors
+    for kind in ("xosc", "xosc_1_0", "xodr"):
+        errors = [str(e)[:300] for e in schemas[kind].iter_errors(res.files[kind])]
+        assert errors == [], f"{kind}: {errors}"
+
+
+def test_braking_lead_exports_valid_files_that_parse_back_to_the_case(tmp_path, schemas):
+    from scenariogeneration import xosc
+
+    w = braking_lead()
+    res = export_case(w, {"gap": 30.0, "lanes": 2}, tmp_path, "following", units={"gap": "m"})
+    assert_valid(schemas, res)
+    assert set(res.files) == {"xosc", "xosc_1_0", "xodr", "osi"}
+    old = ET.parse(res.files["xosc_1_0"]).getroot()  # CARLA's ScenarioRunner: 1.0, a hero
+    assert old.find("FileHeader").get("revMinor") == "0"
+    assert old.find("Entities/ScenarioObject[@name='ego']//Property").attrib == {
+        "name": "type", "value": "ego_vehicle"}
+    assert set(res.trajectories) == {"ego"}  # the lead brakes and car2 cruises: actions
+    assert "SpeedAction" in res.actions["car1"]
+    sce = xosc.ParseOpenScenario(res.files["xosc"])  # scenariogeneration reads it back
+    assert {p.name: p.value for p in sce.parameters.parameters} == {"gap": "30.0", "lanes": "2"}
+    assert [o.name for o in sce.entities.scenario_objects] == ["ego", "car1", "car2"]
+    root = ET.parse(res.files["xosc"]).getroot()
+    text = ET.tostring(root, encoding="unicode")
+    assert "gap [m]" in open(res.files["xosc"]).read()  # the unit travels as a comment
+    assert "replace that action with your own controller" in open(res.files["xosc"]).read()
+    # Init: the rear axle of each agent as recorded at t = 0, its speed
+    tr = w.trajectory
+    for i, name in enumerate(tr.names):
+        priv = root.find(f"Storyboard/Init/Actions/Private[@entityRef='{name}']")
+        pos = priv.find(".//WorldPosition")
+        x, y = rear_axle(tr.x[i, 0], tr.y[i, 0], tr.heading[i, 0], tr.length[i])
+        assert (float(pos.get("x")), float(pos.get("y"))) == pytest.approx((x, y))
+        assert float(priv.find(".//AbsoluteTargetSpeed").get("value")) == tr.speed[i, 0]
+    brake = root.find(".//Event[@name='car1_brake']")
+    assert float(brake.find(".//SpeedActionDynamics").get("value")) == 6.0
+    assert float(brake.find(".//SimulationTimeCondition").get("value")) == 1.0
+    assert float(root.find("Storyboard/StopTrigger//SimulationTimeCondition").get("value")) == 6.0
+    assert len(root.findall(".//Trajectory[@name='ego_recorded']//Vertex")) == tr.n_steps
+    assert "LogicFile" in text and root.find("RoadNetwork/LogicFile").get("filepath") == "following.xodr"
+
+
+def test_replayed_export_collides_within_one_step_of_the_original(tmp_path):
+    w = braking_lead()
+    first = np.flatnonzero(w.trajectory.crashed[0])
+    assert first.size, "the braking-lead case must collide for this test to mean anything"
+    res = export_case(w, {}, tmp_path, "following", osi=False)
+    again = replay(res.files["xosc"])  # from the files alone
+    second = np.flatnonzero(again.crashed[0])
+    assert second.size and abs(int(second[0]) - int(first[0])) <= 1
+    k = int(first[0])
+    assert np.abs(again.x[:, :k] - w.trajectory.x[:, :k]).max() < 1e-6
+
+
+@pytest.mark.parametrize("build", ["two_way", "highway", "intersection", "cut_in"])
+def test_every_road_kind_and_manoeuvre_exports_valid(tmp_path, schemas, build):
+    w = World(3, driver=blind)
+    if build == "two_way":
+        road = w.two_way_road(lanes=1, length=200, median=1.0)
+        w.ego(road.lane(0), s=10, speed=8)
+        w.car(road.lane(0, "backward"), s=60, speed=8, behavior=b.encroach(1.5, at=1.0))
+        w.parked_car(road.parking_lane, s=40)
+    elif build == "highway":
+        road = w.highway(lanes=3, segments=[straight(100), arc(500, 20), straight(200, lanes=2)])
+        w.ego(road.lane(1), s=10, speed=20)
+        w.car(road.lane(0), s=40, speed=20, behavior=b.change_lane("right", at=1.0))
+        w.car(road.lane(2), s=60, speed=15, behavior=b.speed_profile([(0, 15), (2, 10)]))
+    elif build == "intersection":
+        inter = w.intersection(lanes=1)
+        w.ego(inter.stop_line("south").before(20), speed=8, route=inter.route("south", "left"))
+        w.car(inter.stop_line("north").before(15), speed=8, behavior=b.turn_across("left"))
+    else:
+        road = w.straight_road(lanes=2, length=300)
+        w.ego(road.lane(0), s=10, speed=20)
+        w.car(road.lane(1), s=40, speed=15, behavior=b.cut_in(time_gap=1.5))
+        w.car(road.lane(0), s=80, speed=15, behavior=b.brake_at(when=b.gap_below(20)))
+    w.run(seconds=3)
+    res = export_case(w, {"x": 1.5, "side": "left", "on": False}, tmp_path, build, osi=False)
+    assert_valid(schemas, res)
+    text = open(res.files["xosc"]).read()
+    if build == "two_way":  # no equivalent for encroaching: its recorded trajectory, said so
+        assert "Encroach has no OpenSCENARIO equivalent" in res.trajectories["car1"]
+        assert "car1: behaviour Encroach has no OpenSCENARIO equivalent" in text
+    elif build == "highway":
+        assert "LaneChangeAction" in text and "SpeedProfileAction" in text
+        # OpenSCENARIO 1.0 has no SpeedProfileAction: that car follows its trajectory there
+        assert "in the 1.0 file only" in res.trajectories["car2"]
+        assert "SpeedProfileAction" not in open(res.files["xosc_1_0"]).read()
+        assert open(res.files["xodr"]).read().count("<laneSection") == 3
+    elif build == "intersection":
+        assert "connecting roads are not" in open(res.files["xodr"]).read()
+        assert "connecting roads are not" in res.to_json()["notes"][0]  # the row says it too
+        assert set(res.trajectories) == {"ego", "car1"}
+    else:
+        assert "TimeHeadwayCondition" in text and "RelativeDistanceCondition" in text
+
+
+def test_osi_trace_is_named_by_convention_and_reads_back(tmp_path):
+    from pytest_avscenario.export.osi import read_trace
+
+    w = braking_lead(seconds=2.0)
+    res = export_case(w, {}, tmp_path, "following")
+    name = res.files["osi"].rsplit("/", 1)[1]
+    m = re.fullmatch(r"\d{8}T\d{6}Z_sv_(\d+)_(\d+)_(\d+)_following\.osi", name)
+    assert m and int(m.group(3)) == w.trajectory.n_steps
+    frames = list(read_trace(open(res.files["osi"], "rb").read()))
+    tr = w.trajectory
+    assert len(frames) == tr.n_steps
+    for k in (0, tr.n_steps - 1):
+        gt = frames[k].global_ground_truth
+        assert gt.host_vehicle_id.value == 1
+        assert len(gt.lane) == (2 if k == 0 else 0)  # static: in the first message only
+        assert gt.timestamp.seconds * 10**9 + gt.timestamp.nanos == round(tr.t[k] * 1e9)
+        for i, obj in enumerate(gt.moving_object):
+            assert obj.id.value == i + 1
+            assert (obj.base.position.x, obj.base.position.y) == (tr.x[i, k], tr.y[i, k])
+
+
+def test_an_export_that_fails_says_why_and_raises_nothing(tmp_path):
+    w = World(1, driver=blind)
+    road = w.straight_road()
+    w.ego(road.lane(0), speed=5)
+    res = export_case(w, {}, tmp_path, "unrun")  # never run: no recording
+    assert "xosc" not in res.files and "osi" not in res.files
+    assert "has not run" in res.errors["xosc"] and "has not run" in res.errors["osi"]
+
+
+# --------------------------------------------------------------------------- the plugin
+
+BRAKING_LEAD = """
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import collision
+from pytest_avscenario.sim import behaviors as b
+
+def blind(observation):
+    return 0.0, 0.0
+
+@scenario(gap=Uniform(20.0, 60.0, unit="m"), samples=3, monitors=[collision()],
+          reference_driver=None)
+def test_lead(case, world):
+    road = world.straight_road(lanes=1, length=400)
+    world.ego(road.lane(0), s=20.0, speed=15.0, driver=blind)
+    world.car(road.lane(0), s=20.0 + case.gap, speed=10.0, behavior=b.brake_at(1.0, decel=6.0))
+    world.run(seconds=8)
+"""
+
+
+FAST = ("--avs-seed=1", "--avs-db=none", "--avs-shrink-budget=0", "--avs-gifs=0",
+        "--avs-case-pictures=0", "-p", "no:cacheprovider")
+
+
+def _rows(pytester):
+    import json
+
+    lines = (pytester.path / "avs-report" / "errors.jsonl").read_text().splitlines()
+    return [json.loads(line) for line in lines if line.strip()]
+
+
+def test_plugin_exports_counterexamples_beside_their_cards(pytester, schemas):
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest(*FAST, "--avs-export=1")
+    result.assert_outcomes(failed=3)  # a blind ego hits every braking lead
+    cases = pytester.path / "avs-report" / "cases"
+    rows = [r for r in _rows(pytester) if r["verdict"] == "fail"]
+    exported = [r for r in rows if r.get("exports")]
+    assert len(exported) == 1  # --avs-export=1: one per test and sampler (none minimized)
+    ex = exported[0]["exports"]
+    assert set(ex) == {"xosc", "xosc_1_0", "xodr", "osi", "trajectories"}
+    assert set(ex["trajectories"]) == {"ego"}  # the lead brakes: an action, not a trajectory
+    for kind in ("xosc", "xodr"):
+        assert list(schemas[kind].iter_errors(str(cases / ex[kind]))) == []
+    assert (cases / ex["osi"]).stat().st_size > 0
+    card = next(c for c in cases.glob("*.html")
+                if ex["xosc"] in c.read_text())  # the card links its files
+    page = card.read_text()
+    assert all(f"href='{ex[k]}'" in page for k in ("xosc", "xosc_1_0", "xodr", "osi"))
+    root = ET.parse(cases / ex["xosc"]).getroot()
+    gap = root.find("ParameterDeclarations/ParameterDeclaration[@name='gap']")
+    assert float(gap.get("value")) == exported[0]["params"]["gap"]
+    assert "gap [m]" in (cases / ex["xosc"]).read_text()
+
+
+def test_export_none_writes_nothing_and_a_failing_export_keeps_the_case(pytester, monkeypatch):
+    import pytest_avscenario.export.opendrive as odr
+
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest(*FAST, "--avs-export=none")
+    result.assert_outcomes(failed=3)
+    assert not any(r.get("exports") for r in _rows(pytester))
+    assert not list((pytester.path / "avs-report" / "cases").glob("*.xosc"))
+    # an export that breaks (here: the road writer) is said in the row; the case stays failed
+    def broken(road, name="road"):
+        raise RuntimeError("cannot write this road")
+
+    monkeypatch.setattr(odr, "road_xodr", broken)
+    result = pytester.runpytest(*FAST, "--avs-export=all")
+    result.assert_outcomes(failed=3)
+    rows = [r for r in _rows(pytester) if r["verdict"] == "fail"]
+    assert len(rows) == 3
+    for r in rows:
+        assert r["exports"]["errors"]["xosc"] == "RuntimeError: cannot write this road"
+        assert "osi" in r["exports"]  # the trace does not need the road writer
+    card = next((pytester.path / "avs-report" / "cases").glob("*.html")).read_text()
+    assert "Not exported (xosc): RuntimeError: cannot write this road" in card
+
+
+def test_bad_export_option_is_a_usage_error(pytester):
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest("--avs-export=some", "-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--avs-export*must be a number N, 'all' or 'none'*"])
+
+
+def test_the_example_vehicle_following_export_replays_to_the_same_collision(tmp_path, monkeypatch):
+    # the example suite's scenario 2: its lead's imprecise braking (drawn during the run) has
+    # no OpenSCENARIO equivalent, so the lead follows its recorded trajectory in the file
+    from pathlib import Path
+
+    from pytest_avscenario.case import Case
+
+    examples = Path(__file__).resolve().parent.parent / "example_tests"
+    monkeypatch.syspath_prepend(str(examples))
+    from test_02_vehicle_following import test_vehicle_following as scenario
+
+    case = Case(dict(gap=14.0, lead_speed=6.0, brake_at=1.0, lead_decel=8.0,
+                     lead_final_speed=0.0), 0, 5, "halton")
+    w = World(5, rng=case.rng, driver=blind)
+    scenario(case, w)
+    first = np.flatnonzero(w.trajectory.crashed[0])
+    assert first.size
+    res = export_case(w, dict(case.params), tmp_path, "vehicle_following", osi=False)
+    assert "Wobble has no OpenSCENARIO equivalent" in res.trajectories["car1"]
+    again = replay(res.files["xosc"])
+    second = np.flatnonzero(again.crashed[0])
+    assert second.size and abs(int(second[0]) - int(first[0])) <= 1
+
+
+def test_export_ini_value_is_checked_and_named(pytester):
+    pytester.makeini("[pytest]\navs_export = lots\n")
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    result = pytester.runpytest("-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*ini avs_export*must be a number N, 'all' or 'none'*"])
