@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import pytest
 
+from ..campaign.versions import versions
 from .stash import settings_key
 
 if TYPE_CHECKING:  # loaded with the first row: a run without scenario tests never needs it
@@ -212,7 +213,7 @@ class RunState:
 
     def rerun_command(self, row: CaseRow) -> str:
         """The command that re-runs the case of ``row`` (for its card)."""
-        from .failure import rerun_text
+        from ..campaign.message import rerun_text
 
         space = (self.tests.get(row.test) or {}).get("space") or {}
         return rerun_text(self.config.stash[settings_key], row.item, row.params, space)
@@ -471,15 +472,3 @@ def _stopped(session: pytest.Session) -> str | None:
         if reason:
             return str(reason) if not isinstance(reason, bool) else "the session was stopped"
     return None
-
-
-def versions() -> dict[str, str]:
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = {}
-    for dist in ("pytest-avscenario", "highway-env"):
-        try:
-            out[dist] = version(dist)
-        except PackageNotFoundError:
-            out[dist] = "not installed"
-    return out

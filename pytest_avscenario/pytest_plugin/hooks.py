@@ -8,8 +8,10 @@ campaign, collection, numpy, highway-env, scipy and matplotlib load when a scena
 collected or run.
 
 A test marked with ``@scenario`` becomes one item per concrete case (``test_x[halton-007]``,
-:mod:`.collect`); each item runs in :mod:`.campaign`; the controller (:mod:`.controller`)
-writes the error table and the report. Settings come from :mod:`.options`, once per session.
+:mod:`.collect`); the session object (:mod:`.session`) runs each item's case through the
+campaign pipeline (:mod:`pytest_avscenario.campaign.pipeline`); the controller
+(:mod:`.controller`) writes the error table and the report. Settings come from
+:mod:`.options`, once per session.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import pytest
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
 from .stopping import ExitGuard, TermGuard, end_workers, unknown_test_info
+from .session import ScenarioSession, session_of
 from .stash import (
     campaigns_key,
     controller_key,
@@ -33,6 +36,7 @@ from .stash import (
     result_key,
     row_key,
     sent_key,
+    session_key,
     settings_key,
     shrink_rows_key,
 )
@@ -69,6 +73,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.pluginmanager.register(ExitGuard(config), "avscenario-exit")
     config.stash[db_key] = _open_db(config, settings.db_path)
     config.stash[controller_key] = state = RunState(config)
+    config.stash[session_key] = ScenarioSession(config, config.stash[db_key], state)
     config.pluginmanager.register(state, "avscenario-run")
     if config.pluginmanager.hasplugin("xdist"):
         config.pluginmanager.register(_XdistHooks(config), "avscenario-xdist")
@@ -226,8 +231,7 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Any:
 @pytest.fixture
 def case(request: pytest.FixtureRequest) -> Case:
     """The concrete case of a ``@scenario`` test: ``case.<parameter>``, ``case.seed``, ``case.rng``."""
-    from .campaign import campaign_of, case_for
-    from .collect import CaseSlot
+    from ..campaign.plan import CaseSlot
 
     slot: CaseSlot | None = getattr(request, "param", None)
     if not isinstance(slot, CaseSlot):
@@ -235,10 +239,11 @@ def case(request: pytest.FixtureRequest) -> Case:
             f"{request.node.nodeid}: the `case` fixture is only available to tests decorated "
             "with @scenario(...)"
         )
-    why = campaign_of(request.node).out_of_time(slot.sampler)
+    session = session_of(request.config)
+    why = session.campaign_of(request.node).out_of_time(slot.sampler)
     if why is not None:
         pytest.skip(why)
-    return case_for(request.node, slot, request)
+    return session.case_for(request.node, request)
 
 
 @pytest.fixture
@@ -258,10 +263,7 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
 @pytest.fixture
 def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
     """A fresh simulated world for this case, seeded from it, with ``avs_driver`` as the ego's."""
-    from .campaign import build_world, campaign_of
-
-    return build_world(case, avs_driver, request.node.nodeid,
-                       plan=campaign_of(request.node).plan, item=request.node)
+    return session_of(request.config).world(request.node, case, avs_driver)
 
 
 def _is_scenario_case(item: pytest.Item) -> bool:
@@ -295,10 +297,8 @@ def pytest_runtest_setup(item: pytest.Item) -> Any:
     config = item.config
     if not _is_scenario_case(item) or config.option.setuponly or config.option.setupplan:
         return result
-    from .campaign import run_item
-
     try:
-        outcome = item.stash[result_key] = run_item(item)
+        outcome = item.stash[result_key] = session_of(config).run_item(item)
     except pytest.exit.Exception:
         raise  # pytest.exit() in the body: the run ends here, this case has no verdict
     except Exception as exc:
@@ -340,8 +340,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     report = yield
     if row_key not in item.stash:
         return report  # not a scenario case: nothing of the campaign is loaded for it
-    from .campaign import attach_to_html_report
     from .collect import plan_of
+    from .items import attach_to_html_report
 
     if not item.stash.get(sent_key, False):
         # The row leaves with the first report after the case ran: the setup's, since the case
@@ -370,19 +370,12 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     config = session.config
     if not any(item.get_closest_marker("scenario") is not None for item in session.items):
         return  # no scenario case selected (or an xdist controller): nothing to note or send
-    from .campaign import executor_of, left_out, note_selection, prefetch_passive_cases
-
-    note_selection(session)
-    config.stash[controller_key].partial = left_out(session)
-    if config.stash[settings_key].executor == "inprocess" or hasattr(config, "workerinput"):
-        return
-    executor_of(config)  # connect now: an unreachable cluster stops the run once
-    prefetch_passive_cases(session)
+    session_of(config).collection_finish(session)
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     if session.config.stash[campaigns_key]:
-        from .campaign import keep_drawn_values
+        from .session import keep_drawn_values
 
         keep_drawn_values(session.config)
 
@@ -395,14 +388,9 @@ def _slot_of(item: pytest.Item) -> Any:
 
 def record_error_row(item: pytest.Item, error: str) -> None:
     """Give ``item`` an error row, unless it has its row already."""
-    from ..outcome import CaseOutcome
-    from .campaign import item_case, make_row
+    from .items import record_error_row as record
 
-    if row_key in item.stash:
-        return
-    case_obj = item_case(item)
-    item.stash[row_key] = make_row(item, case_obj, CaseOutcome(params=dict(case_obj.params),
-                                                               verdict="error", error=error))
+    record(item, error)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
