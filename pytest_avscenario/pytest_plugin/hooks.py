@@ -239,11 +239,7 @@ def case(request: pytest.FixtureRequest) -> Case:
             f"{request.node.nodeid}: the `case` fixture is only available to tests decorated "
             "with @scenario(...)"
         )
-    session = session_of(request.config)
-    why = session.campaign_of(request.node).out_of_time(slot.sampler)
-    if why is not None:
-        pytest.skip(why)
-    return session.case_for(request.node, request)
+    return session_of(request.config).case_for(request.node, request)
 
 
 @pytest.fixture

@@ -68,11 +68,16 @@ class ScenarioSession:
 
     # -- the items' cases ------------------------------------------------------------------
     def case_for(self, item: pytest.Item, request: pytest.FixtureRequest) -> Any:
-        """The ``case`` fixture's value of ``item``."""
+        """The ``case`` fixture's value of ``item``; skipped once its campaign's time budget
+        is spent."""
         from ..campaign.pipeline import case_for
         from .items import case_item
 
-        return case_for(self.context, case_item(item, request))
+        ci = case_item(item, request)  # the campaign's code is loaded before its clock starts
+        why = self.context.campaign(ci.plan).out_of_time(ci.slot.sampler)
+        if why is not None:
+            pytest.skip(why)
+        return case_for(self.context, ci)
 
     def world(self, item: pytest.Item, case: Any, driver: Any) -> Any:
         """The ``world`` fixture's value of ``item``."""
