@@ -38,8 +38,9 @@ DEFAULT_CASE = "example_tests/test_02_vehicle_following.py::test_vehicle_followi
 class ModuleTrace:
     """The ``sys.setprofile`` hook and what it saw."""
 
-    def __init__(self, depth: int):
+    def __init__(self, depth: int, on_return: bool = False):
         self.depth = depth
+        self.on_return = on_return  # a return to the caller's module starts a stay too
         # frame -> (package frames on its stack, itself included; module of the innermost
         # package frame at or above it within the depth, or None)
         self.frames: dict[Any, tuple[int, str | None]] = {}
@@ -65,10 +66,14 @@ class ModuleTrace:
 
     def __call__(self, frame: Any, event: str, arg: Any) -> None:
         if event == "call":
-            self._at(self._state(frame)[1])
+            depth, module = self._state(frame)
+            if module is not None and module == frame.f_globals.get("__name__"):
+                self._at(module)  # a frame of this package within the depth (not pytest's,
+                # numpy's or pluggy's code called from one: that is a stay of the caller's)
         elif event == "return":
             self.frames.pop(frame, None)
-            self._at(self._state(frame.f_back)[1])
+            if self.on_return:
+                self._at(self._state(frame.f_back)[1])
 
     def summary(self) -> dict[str, Any]:
         seen: set[str] = set()
@@ -78,7 +83,8 @@ class ModuleTrace:
                 returns[module] += 1
             seen.add(module)
         order = list(dict.fromkeys(self.stays))
-        return {"depth": self.depth, "modules": len(order), "stays": len(self.stays),
+        return {"depth": self.depth, "counted": "calls and returns" if self.on_return else "calls",
+                "modules": len(order), "stays": len(self.stays),
                 "returns": sum(returns.values()), "returns_by_module": dict(returns.most_common()),
                 "order": order}
 
@@ -87,9 +93,9 @@ class TracePlugin:
     """Installs the hook for the item ``nodeid``'s protocol only (the outermost wrapper of
     ``pytest_runtest_protocol``: every other plugin's part of it is inside)."""
 
-    def __init__(self, nodeid: str, depth: int):
+    def __init__(self, nodeid: str, depth: int, on_return: bool = False):
         self.nodeid = nodeid
-        self.trace = ModuleTrace(depth)
+        self.trace = ModuleTrace(depth, on_return)
         self.ran = False
 
     def pytest_runtest_protocol(self, item: Any, nextitem: Any) -> Any:
@@ -151,6 +157,10 @@ def main() -> int:
     parser.add_argument("case", nargs="?", default=DEFAULT_CASE, help="the item's node id")
     parser.add_argument("--depth", type=int, default=3, help="package frames followed (3)")
     parser.add_argument("--show", action="store_true", help="print every stay")
+    parser.add_argument("--out", help="also write the result (JSON) to this file")
+    parser.add_argument("--returns-too", action="store_true",
+                        help="a return from a call into the caller's module starts a stay too "
+                             "(default: stays start where a call enters a module)")
     args = parser.parse_args()
     import pytest
 
@@ -159,7 +169,7 @@ def main() -> int:
     card = CardTrace()
     card.install()
     with tempfile.TemporaryDirectory(prefix="avs-trace-") as tmp:
-        plugin = TracePlugin(args.case, args.depth)
+        plugin = TracePlugin(args.case, args.depth, args.returns_too)
         status = pytest.main([str(ROOT / args.case.split("::")[0]) + "::" + args.case.split("::", 1)[1],
                               "--rootdir", str(ROOT), "-p", "no:cacheprovider", "-p", "no:xdist",
                               "-q", "--avs-seed=0", f"--avs-db={tmp}/db", f"--avs-report={tmp}/report"],
@@ -175,6 +185,8 @@ def main() -> int:
     if args.show:
         out["stays_in_order"] = plugin.trace.stays
     print(json.dumps(out, indent=1))
+    if args.out:
+        Path(args.out).write_text(json.dumps(out, indent=1))
     return 0
 
 

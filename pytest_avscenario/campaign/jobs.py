@@ -28,6 +28,11 @@ def build_world(case: Case, driver: Any, name: str, ego_driver: Any = None, *,
                  warn=warn)
 
 
+def world_for(ctx: Any, ci: Any, case: Case, driver: Any) -> Any:
+    """The world of ``ci``'s own case (the ``world`` fixture's value), ``driver`` driving."""
+    return build_world(case, driver, ci.nodeid, plan=ci.plan, warn=ctx.world_warner(ci.test))
+
+
 def make_job(ctx: Any, ci: Any, plan: ScenarioPlan, case: Case, fresh_world: bool,
              prefetch: bool = False, fixtures: Mapping[str, Any] | None = None,
              reference: str | None = None) -> Any:

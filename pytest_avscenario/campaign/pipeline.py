@@ -28,9 +28,18 @@ from .state import ActiveRun, Campaign
 from .versions import versions
 
 
+class OutOfTime(Exception):
+    """The campaign's time budget for this case's sampler is spent: the case is skipped."""
+
+
 def case_for(ctx: CampaignContext, ci: CaseItem) -> Case:
-    """The case of ``ci``: the slot's values, or its active sampler's (see :class:`ActiveRun`)."""
+    """The case of ``ci``: the slot's values, or its active sampler's (see :class:`ActiveRun`).
+    :class:`OutOfTime` once its sampler's time budget is spent (the budget's clock starts
+    with the first case asked)."""
     slot = ci.slot
+    why = ctx.campaign(ci.plan).out_of_time(slot.sampler)
+    if why is not None:
+        raise OutOfTime(why)
     params = slot.params if slot.params is not None else active_params(ctx, ci)
     pinned = ctx.settings.pinned
     return slot.case(ci.nodeid, params, origin="pinned" if pinned else None)

@@ -23,7 +23,7 @@ from typing import Any
 
 from ..outcome import CaseOutcome, CaseRow
 from .context import CampaignContext, CaseItem
-from .jobs import build_world, make_row
+from .jobs import make_row, world_for
 from .plan import build_plan
 from .settings import DeclarationError, Settings, script_settings
 
@@ -102,7 +102,7 @@ def run_campaign(func: Any, settings: Settings | None = None, *, seed: int = 0,
 def _run_slot(ctx: CampaignContext, func: Any, test: str, plan: Any, slot: Any,
               argnames: tuple[str, ...], drives: bool, rootdir: Any) -> CaseRow | None:
     """One case: what the plugin's fixtures, setup hook and pipeline do for one item."""
-    from .pipeline import case_for, run_item
+    from .pipeline import OutOfTime, case_for, run_item
 
     driver = ctx.settings.driver
     values: dict[str, Any] = {}
@@ -114,15 +114,17 @@ def _run_slot(ctx: CampaignContext, func: Any, test: str, plan: Any, slot: Any,
         other_fixtures=lambda: {"avs_driver": driver} if "avs_driver" in argnames else {},
         driver=lambda: driver, driver_ahead=driver,
         identity=lambda: _identity(driver) if drives else None)
-    if ctx.campaign(plan).out_of_time(slot.sampler) is not None:
-        return None  # skipped, as the plugin skips it: no row
     try:
         values["case"] = case = case_for(ctx, ci)
+    except OutOfTime:
+        return None  # skipped, as the plugin skips it: no row
+    except Exception as exc:
+        return _error_row(ci, f"the item's setup failed before its case ran: {type(exc).__name__}: {exc}")
+    try:
         if "avs_driver" in argnames:
             values["avs_driver"] = driver
         if "world" in argnames:
-            values["world"] = build_world(case, driver, ci.nodeid, plan=plan,
-                                          warn=ctx.world_warner(test))
+            values["world"] = world_for(ctx, ci, case, driver)
     except Exception as exc:
         return _error_row(ci, f"the item's setup failed before its case ran: {type(exc).__name__}: {exc}")
     try:

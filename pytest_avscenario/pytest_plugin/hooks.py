@@ -38,7 +38,6 @@ from .stash import (
     sent_key,
     session_key,
     settings_key,
-    shrink_rows_key,
 )
 
 
@@ -336,27 +335,14 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     report = yield
     if row_key not in item.stash:
         return report  # not a scenario case: nothing of the campaign is loaded for it
-    from .collect import plan_of
-    from .items import attach_to_html_report
-
-    if not item.stash.get(sent_key, False):
-        # The row leaves with the first report after the case ran: the setup's, since the case
-        # runs as the last step of the setup. pytest's JUnit writer counts an item from its
-        # first report on (the setup's duration opens its <testcase>), so a run stopped between
-        # an item's setup and call reports (a SIGTERM to an xdist worker lands there) still has
-        # the item's row, as it has its JUnit test case (issue #34). Extra attributes travel to
-        # the xdist controller too.
-        item.stash[sent_key] = True
-        report.avs_row = item.stash[row_key].to_json()
-        report.avs_shrink_rows = [r.to_json() for r in item.stash.get(shrink_rows_key, [])]
-        report.avs_pictures = item.stash.get(pictures_key, {})
-        report.avs_test = plan_of(item).info()
-        report.avs_partial = item.config.stash[controller_key].partial
     pictures = item.stash.get(pictures_key, None)
     shown = call.when == "call" or (call.when == "setup" and not report.passed)
-    if pictures and shown and item.config.pluginmanager.hasplugin("html"):
-        # pytest-html shows the report that decides the outcome, and a passed setup's not at all
-        attach_to_html_report(report, pictures)
+    if item.stash.get(sent_key, False) and not (
+            pictures and shown and item.config.pluginmanager.hasplugin("html")):
+        return report  # its row left already, and pytest-html shows no pictures on this report
+    from .items import report_case
+
+    report_case(item, call, report)
     return report
 
 

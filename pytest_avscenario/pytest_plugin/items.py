@@ -19,10 +19,8 @@ import pytest
 from ..campaign.context import CaseItem
 from .collect import function_id, plan_of, slot_of
 from .identity import session_driver
-from .stash import pictures_key, row_key, settings_key, shrink_rows_key
+from .stash import case_item_key, controller_key, pictures_key, row_key, sent_key, settings_key, shrink_rows_key
 from .stopping import stuck_case_handler
-
-case_item_key = pytest.StashKey[Any]()  # item -> its PytestCase
 
 #: the module whose ``avs_driver`` fixture is the plugin's own (any other is a user's)
 _OWN_FIXTURES = f"{__package__}.hooks"
@@ -109,6 +107,31 @@ def record_error_row(item: pytest.Item, error: str) -> None:
     case_obj = ci.own_case()
     item.stash[row_key] = make_row(ci, case_obj, CaseOutcome(params=dict(case_obj.params),
                                                              verdict="error", error=error))
+
+
+def report_case(item: pytest.Item, call: pytest.CallInfo[None], report: pytest.TestReport) -> None:
+    """Put the case's row on the first report made after it ran, and its pictures on the
+    report pytest-html shows."""
+    if not item.stash.get(sent_key, False):
+        # The row leaves with the first report after the case ran: the setup's, since the case
+        # runs as the last step of the setup. pytest's JUnit writer counts an item from its
+        # first report on (the setup's duration opens its <testcase>), so a run stopped between
+        # an item's setup and call reports (a SIGTERM to an xdist worker lands there) still has
+        # the item's row, as it has its JUnit test case (issue #34). Extra attributes travel to
+        # the xdist controller too.
+        item.stash[sent_key] = True
+        plan = case_item(item).plan
+        row = item.stash[row_key]
+        report.avs_row = row.to_json()
+        report.avs_shrink_rows = list(map(type(row).to_json, item.stash.get(shrink_rows_key, [])))
+        report.avs_pictures = item.stash.get(pictures_key, {})
+        report.avs_test = plan.info()
+        report.avs_partial = item.config.stash[controller_key].partial
+    pictures = item.stash.get(pictures_key, None)
+    shown = call.when == "call" or (call.when == "setup" and not report.passed)
+    if pictures and shown and item.config.pluginmanager.hasplugin("html"):
+        # pytest-html shows the report that decides the outcome, and a passed setup's not at all
+        attach_to_html_report(report, pictures)
 
 
 def attach_to_html_report(report: pytest.TestReport, pictures: Mapping[str, str]) -> None:

@@ -16,7 +16,14 @@ from typing import Any
 
 import pytest
 
-from .stash import campaigns_key, controller_key, executor_key, session_key, settings_key
+from .stash import (
+    campaigns_key,
+    case_item_key,
+    controller_key,
+    executor_key,
+    session_key,
+    settings_key,
+)
 
 
 class ScenarioSession:
@@ -70,29 +77,29 @@ class ScenarioSession:
     def case_for(self, item: pytest.Item, request: pytest.FixtureRequest) -> Any:
         """The ``case`` fixture's value of ``item``; skipped once its campaign's time budget
         is spent."""
-        from ..campaign.pipeline import case_for
+        ctx = self._context or self.context
         from .items import case_item
 
-        ci = case_item(item, request)  # the campaign's code is loaded before its clock starts
-        why = self.context.campaign(ci.plan).out_of_time(ci.slot.sampler)
-        if why is not None:
-            pytest.skip(why)
-        return case_for(self.context, ci)
+        ci = case_item(item, request)
+        from ..campaign.pipeline import OutOfTime, case_for  # loaded before the clock starts
+
+        try:
+            return case_for(ctx, ci)
+        except OutOfTime as exc:
+            why = str(exc)
+        pytest.skip(why)
 
     def world(self, item: pytest.Item, case: Any, driver: Any) -> Any:
         """The ``world`` fixture's value of ``item``."""
-        from ..campaign.jobs import build_world
-        from .collect import function_id, plan_of
+        from ..campaign.jobs import world_for
 
-        return build_world(case, driver, item.nodeid, plan=plan_of(item),
-                           warn=self.context.world_warner(function_id(item)))
+        return world_for(self._context or self.context, _case_of(item), case, driver)
 
     def run_item(self, item: pytest.Item) -> Any:
         """Run ``item``'s case through the pipeline (its row lands in the item's stash)."""
         from ..campaign.pipeline import run_item
-        from .items import case_item
 
-        return run_item(self.context, case_item(item))
+        return run_item(self._context or self.context, _case_of(item))
 
     # -- the whole selection ---------------------------------------------------------------
     def collection_finish(self, session: pytest.Session) -> None:
@@ -109,6 +116,16 @@ class ScenarioSession:
     def close(self) -> None:
         if self._context is not None:
             self._context.close()
+
+
+def _case_of(item: pytest.Item) -> Any:
+    """The item's campaign case (:func:`.items.case_item`), made once."""
+    found = item.stash.get(case_item_key, None)
+    if found is None:
+        from .items import case_item
+
+        found = case_item(item)
+    return found
 
 
 def session_of(config: pytest.Config) -> ScenarioSession:

@@ -13,6 +13,7 @@ session_key = pytest.StashKey[Any]()  # the session.ScenarioSession
 db_key = pytest.StashKey[Any]()  # the ReplayDB, or None
 executor_key = pytest.StashKey[Any]()  # the Executor, made on first use
 controller_key = pytest.StashKey[Any]()  # the controller.RunState
+case_item_key = pytest.StashKey[Any]()  # item -> its items.PytestCase (the campaign's view)
 row_key = pytest.StashKey[Any]()  # item -> its error-table row (outcome.CaseRow)
 shrink_rows_key = pytest.StashKey[list]()  # item -> its shrinking candidates' rows
 pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
