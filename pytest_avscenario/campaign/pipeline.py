@@ -19,6 +19,7 @@ from typing import Any
 from ..acceptance import accepted_reason, case_verdict
 from ..case import Case
 from ..outcome import CaseOutcome, CaseRow, violations_of
+from ..report.junit import case_properties
 from .avoidability import judge_avoidability, judge_minimized, judged_shrink_rows
 from .context import CampaignContext, CaseItem
 from .jobs import body_rho, make_job, make_row
@@ -193,8 +194,6 @@ def run_item(ctx: CampaignContext, ci: CaseItem) -> ItemResult:
     if ctx.settings.junit == "properties":
         # user_properties (not record_property): the same XML without xunit2's warning;
         # under --avs-junit=strict the controller writes them at suite level instead
-        from ..report.junit import case_properties
-
         ci.user_properties.extend(case_properties(row))
     if capped:
         note = (f"not minimized nor stored: {plan.shrink_max} failures of this test's "
