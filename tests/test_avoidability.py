@@ -358,7 +358,7 @@ def test_whether_a_scene_starts_rss_unsafe_does_not_depend_on_the_egos_first_act
     # 6 m to the side and the initial scene looked laterally safe: not unsafe at all.
     from pytest_avscenario.monitors.rss import rss_margins
     from pytest_avscenario.outcome import CaseOutcome
-    from pytest_avscenario.pytest_plugin.campaign import starts_unsafe
+    from pytest_avscenario.campaign.pipeline import starts_unsafe
     from pytest_avscenario.trajectory import Trajectory
 
     t = np.arange(0.0, 2.0, 0.1)

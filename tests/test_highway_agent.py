@@ -457,7 +457,7 @@ def test_a_reference_replay_on_a_cluster_takes_the_scenarios_agents_step_along()
     # away from this process the replay's world knows only the reference as its driver
     from types import SimpleNamespace
 
-    from pytest_avscenario.pytest_plugin.campaign import _remote_step
+    from pytest_avscenario.campaign.jobs import _remote_step
 
     agent = highway_env_agent(LinearPolicy(n_out=5, seed=3), env="highway-v0")
     plan = SimpleNamespace(dt=None, dt_from="")

@@ -215,7 +215,8 @@ def test_the_cycle_check_sees_a_cycle(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("module", ["space", "samplers", "monitors", "sim", "report", "executors",
-                                    "outcome", "trajectory", "shrink", "db", "runner", "files"])
+                                    "outcome", "trajectory", "shrink", "db", "runner", "files",
+                                    "campaign", "campaign.pipeline", "campaign.script"])
 def test_importing_the_library_loads_no_pytest(module):
     # a real process: this one has pytest loaded already
     code = (f"import sys, {NAME}.{module}\n"
@@ -223,3 +224,89 @@ def test_importing_the_library_loads_no_pytest(module):
             "assert not loaded, loaded\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+def _pytest_reach(package: str) -> set[tuple[str, str]]:
+    """(module, import) pairs where a module of ``package`` imports pytest or the pytest side,
+    anywhere in its code (functions included)."""
+    inside = [m for m in MODULES if m == f"{NAME}.{package}" or m.startswith(f"{NAME}.{package}.")]
+    return {(m, i) for m in inside for i in _imports(m)
+            if i == "pytest" or i.startswith(f"{NAME}.pytest_plugin")}
+
+
+def test_the_campaign_engine_knows_no_pytest():
+    # the campaign runs from a script as it runs under pytest: the pytest side adapts items,
+    # options and reports to it, never the other way round
+    assert _pytest_reach("campaign") == set()
+
+
+def test_the_campaign_rule_sees_pytest(tmp_path, monkeypatch):
+    # negative control: a campaign module reaching for pytest (as the pipeline once did for
+    # its warnings) or for the plugin's stash, even inside a function, is caught
+    probe = f"{NAME}.campaign._probe_pytest"
+    (tmp_path / "p.py").write_text("def f():\n    import pytest\n"
+                                   "    from ..pytest_plugin.stash import row_key\n")
+    monkeypatch.setitem(MODULES, probe, tmp_path / "p.py")
+    assert _pytest_reach("campaign") == {(probe, "pytest"), (probe, f"{NAME}.pytest_plugin.stash")}
+    with pytest.raises(AssertionError):
+        test_the_campaign_engine_knows_no_pytest()
+
+
+def _pytest_private_names() -> set[str]:
+    """The private names of pytest's own objects: ``self._x = ...`` and ``def _x`` in _pytest."""
+    import _pytest
+
+    names = set()
+    for path in Path(_pytest.__file__).parent.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store) \
+                    and isinstance(node.value, ast.Name) and node.value.id == "self":
+                names.add(node.attr)
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                names.add(node.name)
+    return {n for n in names if n.startswith("_") and not n.startswith("__")}
+
+
+PYTEST_PRIVATE = _pytest_private_names()
+
+
+def _private_use(module: str) -> set[str]:
+    """pytest's private names ``module`` reads off objects other than its own ``self``, and
+    ``_pytest`` imports."""
+    tree = ast.parse(MODULES[module].read_text())
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr in PYTEST_PRIVATE \
+                and not (isinstance(node.value, ast.Name) and node.value.id == "self"):
+            found.add(node.attr)
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("_pytest"):
+            found.add(node.module)
+        elif isinstance(node, ast.Import) and any(a.name.startswith("_pytest") for a in node.names):
+            found.add("_pytest")
+    return found
+
+
+def _private_users() -> dict[str, set[str]]:
+    return {m: _private_use(m) for m in MODULES if _private_use(m)}
+
+
+def test_pytest_private_api_stays_in_three_plugin_modules():
+    # pytest's private attributes (item._fixtureinfo, item._request, the fixture manager)
+    # change between pytest versions: the plugin reads them in few places, the rest never
+    users = _private_users()
+    # one known use outside: a Dask worker compiles the test module itself, with pytest's
+    # assert rewriting so that a failed assert reads as under pytest (plain asserts without it)
+    outside = {m: u for m, u in users.items() if not m.startswith(f"{NAME}.pytest_plugin.")}
+    assert outside == {f"{NAME}.executors.remote": {"_pytest.assertion.rewrite"}}, outside
+    assert len(users) - len(outside) <= 3, users
+
+
+def test_the_private_api_rule_sees_a_use(tmp_path, monkeypatch):
+    # negative control: reading item._fixtureinfo outside the three modules is caught
+    assert {"_fixtureinfo", "_request", "_fixturemanager"} <= PYTEST_PRIVATE
+    probe = f"{NAME}.campaign._probe_private"
+    (tmp_path / "q.py").write_text("def f(item):\n    return item._fixtureinfo.argnames\n")
+    monkeypatch.setitem(MODULES, probe, tmp_path / "q.py")
+    assert _private_users()[probe] == {"_fixtureinfo"}
+    with pytest.raises(AssertionError):
+        test_pytest_private_api_stays_in_three_plugin_modules()

@@ -29,7 +29,7 @@ def test_a_run_without_scenario_tests_loads_no_report_module_and_no_numpy(pytest
     assert "pytest_avscenario.pytest_plugin.hooks" in loaded  # the plugin was loaded ...
     assert [m for m in loaded if m.startswith("pytest_avscenario.report")] == []  # ... lightly
     assert [m for m in loaded if m == "numpy" or m.startswith("numpy.")] == []
-    assert "pytest_avscenario.pytest_plugin.campaign" not in loaded
+    assert "pytest_avscenario.campaign.pipeline" not in loaded
     assert "pytest_avscenario.pytest_plugin.collect" not in loaded
 
 
@@ -47,7 +47,7 @@ def test_the_listing_sees_what_a_scenario_run_loads(pytester):
     """)
     result, loaded = _loaded(pytester, "--avs-db=none")
     result.assert_outcomes(passed=2)
-    assert "numpy" in loaded and "pytest_avscenario.pytest_plugin.campaign" in loaded
+    assert "numpy" in loaded and "pytest_avscenario.campaign.pipeline" in loaded
     assert any(m.startswith("pytest_avscenario.report") for m in loaded)
 
 

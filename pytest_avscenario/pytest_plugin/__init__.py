@@ -1,10 +1,13 @@
-"""The pytest side of pytest-avscenario: the only package that imports pytest.
+"""The pytest side of pytest-avscenario: the only package that imports pytest, adapters to
+the campaign engine (:mod:`pytest_avscenario.campaign`).
 
-``hooks`` (the entry point: hooks and fixtures, nothing else), ``options`` (one frozen
-settings object per session, each value validated once with its source), ``collect`` (a
-declaration becomes a frozen plan and one item per case), ``campaign`` (a test's running
-state and one item's run), ``failure`` (the failure text and the re-run command),
-``controller`` (the error table, the xdist merge and the end-of-run report), ``stash`` (the
-``pytest.StashKey`` s), ``newhooks`` (the hookspecs a conftest.py implements). Everything below this package — space, samplers, monitors, sim,
-shrink, db, report, executors — knows nothing of pytest.
+``hooks`` (the entry point: hooks and fixtures, nothing else), ``options`` (the command line
+and ini file read into one frozen settings object per session), ``collect`` (the checks only
+collection can make; one item per case slot), ``items`` (a pytest item as a campaign case, its
+row on its reports), ``session`` (the one session object: campaigns, executor, report sink),
+``controller`` (the error table, the xdist merge and the end-of-run report), ``stopping``
+(signals, ``os._exit``, stuck cases), ``identity`` (the session's driver), ``stash`` (the
+``pytest.StashKey`` s), ``newhooks`` (the hookspecs a conftest.py implements). Everything
+below this package — campaign, space, samplers, monitors, sim, shrink, db, report, executors —
+knows nothing of pytest.
 """

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping
 import pytest
 
 from .. import files
+from ..campaign.versions import versions
 from .stash import settings_key
 
 if TYPE_CHECKING:  # loaded with the first row: a run without scenario tests never needs it
@@ -141,17 +142,13 @@ class RunState:
         data = getattr(report, "avs_row", None)
         # only the process that started the run writes rows (a body's forked child does not)
         if data is not None and not self.is_worker and os.getpid() == self.pid:
-            from ..outcome import CaseRow
-
             if getattr(report, "avs_partial", None) and not self.partial:
                 self.partial = report.avs_partial  # an xdist worker's selection
-            for shrink_row in getattr(report, "avs_shrink_rows", ()):
-                self.add(CaseRow.from_json(shrink_row), report.avs_test)
-            row = CaseRow.from_json(data)
-            self.add(row, report.avs_test)
+            # the case's shrink rows, then its own row, in one go
+            self.add_rows([*getattr(report, "avs_shrink_rows", ()), data], report.avs_test)
             pictures = getattr(report, "avs_pictures", None)
             if pictures:
-                self.case_files.setdefault(row.item, {}).update(self.place_pictures(row.test, pictures))
+                self.case_files.setdefault(data["item"], {}).update(self.place_pictures(data["test"], pictures))
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
@@ -213,7 +210,7 @@ class RunState:
 
     def rerun_command(self, row: CaseRow) -> str:
         """The command that re-runs the case of ``row`` (for its card)."""
-        from .failure import rerun_text
+        from ..campaign.message import rerun_text
 
         space = (self.tests.get(row.test) or {}).get("space") or {}
         return rerun_text(self.config.stash[settings_key], row.item, row.params, space)
@@ -278,30 +275,40 @@ class RunState:
 
     # -- state ----------------------------------------------------------------------------
     def add(self, row: CaseRow, info: dict[str, Any]) -> None:
-        if row.test not in self.tests or self.tests[row.test].get("unknown"):
-            # the first row of the test, or the first one to know the test (a crashed
-            # worker's row knows nothing of its declaration)
-            self.tests[row.test] = info
-        self.rows.append(row)
-        try:
-            self.config.hook.pytest_avscenario_case_finished(config=self.config, row=row)
-        except Exception as exc:
-            # a team's row sink (newhooks) that raises costs a warning, not the run's rows
-            self.warn(f"avscenario: a pytest_avscenario_case_finished hook raised for {row.item} "
-                      f"({type(exc).__name__}: {exc}); the case's row is kept")
-        folder = self.claim()
-        if folder is None:
-            return
-        try:
-            if self.table is None:
-                from ..report.table import ErrorTable
+        self.add_rows([row], info)
 
-                self.table = ErrorTable(folder.path, folder=folder)
-            self.table.append(row)
-        except OSError as exc:
-            # the run goes on (verdicts, the replay database and the terminal summary do not
-            # depend on the report); say once what was lost and where
-            self.report_failed(exc)
+    def add_rows(self, rows: list[CaseRow | dict[str, Any]], info: dict[str, Any]) -> None:
+        """Keep finished cases' rows (one item's shrink rows and its own row; rows or their
+        JSON data), each handed to the ``pytest_avscenario_case_finished`` hooks and written to
+        the error table in turn."""
+        from ..outcome import CaseRow
+
+        for row in list(map(CaseRow.coerce, rows)):
+            if row.test not in self.tests or self.tests[row.test].get("unknown"):
+                # the first row of the test, or the first one to know the test (a crashed
+                # worker's row knows nothing of its declaration)
+                self.tests[row.test] = info
+            self.rows.append(row)
+            try:
+                self.config.hook.pytest_avscenario_case_finished(config=self.config, row=row)
+            except Exception as exc:
+                # a team's row sink (newhooks) that raises costs a warning, not the run's rows
+                self.warn(f"avscenario: a pytest_avscenario_case_finished hook raised for {row.item} "
+                          f"({type(exc).__name__}: {exc}); the case's row is kept")
+            tried = self._claim_tried or self.requested is None or self.is_worker
+            folder = self.folder if tried else self.claim()  # claimed once, on the first row
+            if folder is None:
+                continue
+            try:
+                if self.table is None:
+                    from ..report.table import ErrorTable
+
+                    self.table = ErrorTable(folder.path, folder=folder)
+                self.table.append(row)
+            except OSError as exc:
+                # the run goes on (verdicts, the replay database and the terminal summary do not
+                # depend on the report); say once what was lost and where
+                self.report_failed(exc)
 
     def table_path(self) -> str | None:
         """The path of this run's ``errors.jsonl``, the table opened now if it was not yet
@@ -490,15 +497,3 @@ def _stopped(session: pytest.Session) -> str | None:
         if reason:
             return str(reason) if not isinstance(reason, bool) else "the session was stopped"
     return None
-
-
-def versions() -> dict[str, str]:
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = {}
-    for dist in ("pytest-avscenario", "highway-env"):
-        try:
-            out[dist] = version(dist)
-        except PackageNotFoundError:
-            out[dist] = "not installed"
-    return out

@@ -8,8 +8,10 @@ campaign, collection, numpy, highway-env, scipy and matplotlib load when a scena
 collected or run.
 
 A test marked with ``@scenario`` becomes one item per concrete case (``test_x[halton-007]``,
-:mod:`.collect`); each item runs in :mod:`.campaign`; the controller (:mod:`.controller`)
-writes the error table and the report. Settings come from :mod:`.options`, once per session.
+:mod:`.collect`); the session object (:mod:`.session`) runs each item's case through the
+campaign pipeline (:mod:`pytest_avscenario.campaign.pipeline`); the controller
+(:mod:`.controller`) writes the error table and the report. Settings come from
+:mod:`.options`, once per session.
 """
 
 from __future__ import annotations
@@ -24,8 +26,10 @@ from .astguard import guard_ast_parse
 from .controller import RunState
 from .options import DeclarationError, add_options, read_settings
 from .stopping import ExitGuard, TermGuard, end_workers, shorten_interrupt, unknown_test_info
+from .session import ScenarioSession, session_of
 from .stash import (
     campaigns_key,
+    case_item_key,
     controller_key,
     db_key,
     executor_key,
@@ -35,6 +39,7 @@ from .stash import (
     result_key,
     row_key,
     sent_key,
+    session_key,
     settings_key,
     shrink_rows_key,
 )
@@ -73,6 +78,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.pluginmanager.register(ExitGuard(config), "avscenario-exit")
     config.stash[db_key] = _open_db(config, settings.db_path)
     config.stash[controller_key] = state = RunState(config)
+    config.stash[session_key] = ScenarioSession(config, config.stash[db_key], state)
     config.pluginmanager.register(state, "avscenario-run")
     if config.pluginmanager.hasplugin("xdist"):
         config.pluginmanager.register(_XdistHooks(config), "avscenario-xdist")
@@ -247,8 +253,7 @@ def pytest_make_collect_report(collector: pytest.Collector) -> Any:
 @pytest.fixture
 def case(request: pytest.FixtureRequest) -> Case:
     """The concrete case of a ``@scenario`` test: ``case.<parameter>``, ``case.seed``, ``case.rng``."""
-    from .campaign import campaign_of, case_for
-    from .collect import CaseSlot
+    from ..campaign.plan import CaseSlot
 
     slot: CaseSlot | None = getattr(request, "param", None)
     if not isinstance(slot, CaseSlot):
@@ -256,10 +261,7 @@ def case(request: pytest.FixtureRequest) -> Case:
             f"{request.node.nodeid}: the `case` fixture is only available to tests decorated "
             "with @scenario(...)"
         )
-    why = campaign_of(request.node).out_of_time(slot.sampler)
-    if why is not None:
-        pytest.skip(why)
-    return case_for(request.node, slot, request)
+    return session_of(request.config).case_for(request.node, request)
 
 
 @pytest.fixture
@@ -279,10 +281,7 @@ def avs_driver(request: pytest.FixtureRequest) -> Any:
 @pytest.fixture
 def world(request: pytest.FixtureRequest, case: Case, avs_driver: Any) -> Any:
     """A fresh simulated world for this case, seeded from it, with ``avs_driver`` as the ego's."""
-    from .campaign import build_world, campaign_of
-
-    return build_world(case, avs_driver, request.node.nodeid,
-                       plan=campaign_of(request.node).plan, item=request.node)
+    return session_of(request.config).world(request.node, case, avs_driver)
 
 
 def _is_scenario_case(item: pytest.Item) -> bool:
@@ -316,10 +315,8 @@ def pytest_runtest_setup(item: pytest.Item) -> Any:
     config = item.config
     if not _is_scenario_case(item) or config.option.setuponly or config.option.setupplan:
         return result
-    from .campaign import run_item
-
     try:
-        outcome = item.stash[result_key] = run_item(item)
+        outcome = item.stash[result_key] = session_of(config).run_item(item)
     except pytest.exit.Exception:
         raise  # pytest.exit() in the body: the run ends here, this case has no verdict
     except Exception as exc:
@@ -364,27 +361,14 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         return report
     if row_key not in item.stash:
         return report  # not a scenario case: nothing of the campaign is loaded for it
-    from .campaign import attach_to_html_report
-    from .collect import plan_of
-
-    if not item.stash.get(sent_key, False):
-        # The row leaves with the first report after the case ran: the setup's, since the case
-        # runs as the last step of the setup. pytest's JUnit writer counts an item from its
-        # first report on (the setup's duration opens its <testcase>), so a run stopped between
-        # an item's setup and call reports (a SIGTERM to an xdist worker lands there) still has
-        # the item's row, as it has its JUnit test case (issue #34). Extra attributes travel to
-        # the xdist controller too.
-        item.stash[sent_key] = True
-        report.avs_row = item.stash[row_key].to_json()
-        report.avs_shrink_rows = [r.to_json() for r in item.stash.get(shrink_rows_key, [])]
-        report.avs_pictures = item.stash.get(pictures_key, {})
-        report.avs_test = plan_of(item).info()
-        report.avs_partial = item.config.stash[controller_key].partial
     pictures = item.stash.get(pictures_key, None)
     shown = call.when == "call" or (call.when == "setup" and not report.passed)
-    if pictures and shown and item.config.pluginmanager.hasplugin("html"):
-        # pytest-html shows the report that decides the outcome, and a passed setup's not at all
-        attach_to_html_report(report, pictures)
+    if item.stash.get(sent_key, False) and not (
+            pictures and shown and item.config.pluginmanager.hasplugin("html")):
+        return report  # its row left already, and pytest-html shows no pictures on this report
+    from .items import report_case
+
+    report_case(item, call, report)
     return report
 
 
@@ -393,7 +377,7 @@ def _release(item: pytest.Item) -> None:
     holds. Its outcome (the simulated world, the trajectory, the body's exception and its
     frames) and the copy of its row it sent go, so a campaign's memory does not grow with the
     worlds of its cases (issue #35: 0.22 MB per case before)."""
-    for key in (result_key, row_key, shrink_rows_key):
+    for key in (result_key, row_key, shrink_rows_key, case_item_key):
         if key in item.stash and (key is result_key or item.stash.get(sent_key, False)):
             del item.stash[key]
 
@@ -418,19 +402,12 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     config = session.config
     if not any(item.get_closest_marker("scenario") is not None for item in session.items):
         return  # no scenario case selected (or an xdist controller): nothing to note or send
-    from .campaign import executor_of, left_out, note_selection, prefetch_passive_cases
-
-    note_selection(session)
-    config.stash[controller_key].partial = left_out(session)
-    if config.stash[settings_key].executor == "inprocess" or hasattr(config, "workerinput"):
-        return
-    executor_of(config)  # connect now: an unreachable cluster stops the run once
-    prefetch_passive_cases(session)
+    session_of(config).collection_finish(session)
 
 
 def pytest_sessionfinish(session: pytest.Session) -> None:
     if session.config.stash[campaigns_key]:
-        from .campaign import keep_drawn_values
+        from .session import keep_drawn_values
 
         keep_drawn_values(session.config)
 
@@ -443,14 +420,9 @@ def _slot_of(item: pytest.Item) -> Any:
 
 def record_error_row(item: pytest.Item, error: str) -> None:
     """Give ``item`` an error row, unless it has its row already."""
-    from ..outcome import CaseOutcome
-    from .campaign import item_case, make_row
+    from .items import record_error_row as record
 
-    if row_key in item.stash:
-        return
-    case_obj = item_case(item)
-    item.stash[row_key] = make_row(item, case_obj, CaseOutcome(params=dict(case_obj.params),
-                                                               verdict="error", error=error))
+    record(item, error)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -2,21 +2,17 @@
 
 The options name one driver (``--avs-driver``, ini ``avs_driver``, else the autopilot); a
 conftest or test module may override the ``avs_driver`` fixture, and then the case's driver
-is that fixture's value. Identities are plain dicts (:mod:`pytest_avscenario.sim.drivers.identity`).
+is that fixture's value (:func:`.items.driver_identity`). Identities are plain dicts
+(:mod:`pytest_avscenario.sim.drivers.identity`).
 """
 
 from __future__ import annotations
 
-import inspect
-import os
 from typing import Any
 
 import pytest
 
 from .stash import driver_key, settings_key
-
-#: the module whose ``avs_driver`` fixture is the plugin's own (any other is a user's)
-_OWN_FIXTURES = f"{__package__}.hooks"
 
 
 def session_driver(config: pytest.Config) -> dict[str, Any]:
@@ -39,26 +35,3 @@ def session_driver(config: pytest.Config) -> dict[str, Any]:
                          else "default")
         config.stash[driver_key] = found
     return found
-
-
-def driver_identity(item: pytest.Item) -> dict[str, Any] | None:
-    """Who drives the ego of ``item``'s case: the options' driver, or the value of the
-    ``avs_driver`` fixture a conftest or module overrides (its class, or what its
-    ``describe()`` says), with the fixture's file. None for a test without a driver."""
-    if "avs_driver" not in getattr(item, "fixturenames", ()):
-        return None  # no `world` nor `avs_driver`: no ego under test
-    defs = item._fixtureinfo.name2fixturedefs.get("avs_driver", ())
-    if not defs or getattr(defs[-1].func, "__module__", None) == _OWN_FIXTURES:
-        return session_driver(item.config)
-    funcargs = getattr(item, "funcargs", {})
-    if "avs_driver" not in funcargs:
-        return None  # its fixture did not run (an earlier one failed): unknown, not guessed
-    from ..sim.drivers.identity import describe
-
-    out = describe(funcargs["avs_driver"])
-    try:
-        where = os.path.relpath(inspect.getsourcefile(defs[-1].func) or "", item.config.rootpath)
-    except (TypeError, ValueError):
-        where = ""
-    out["from"] = f"avs_driver fixture ({where})" if where else "avs_driver fixture"
-    return out

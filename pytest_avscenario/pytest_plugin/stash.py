@@ -7,15 +7,17 @@ from typing import Any
 import pytest
 
 settings_key = pytest.StashKey[Any]()  # the session's options.Settings
-plans_key = pytest.StashKey[dict]()  # function node id -> collect.ScenarioPlan (frozen)
-campaigns_key = pytest.StashKey[dict]()  # function node id -> campaign.Campaign (running state)
+plans_key = pytest.StashKey[dict]()  # function node id -> campaign.plan.ScenarioPlan (frozen)
+campaigns_key = pytest.StashKey[dict]()  # function node id -> campaign.state.Campaign (running state)
+session_key = pytest.StashKey[Any]()  # the session.ScenarioSession
 db_key = pytest.StashKey[Any]()  # the ReplayDB, or None
 executor_key = pytest.StashKey[Any]()  # the Executor, made on first use
 controller_key = pytest.StashKey[Any]()  # the controller.RunState
+case_item_key = pytest.StashKey[Any]()  # item -> its items.PytestCase (the campaign's view)
 row_key = pytest.StashKey[Any]()  # item -> its error-table row (outcome.CaseRow)
 shrink_rows_key = pytest.StashKey[list]()  # item -> its shrinking candidates' rows
 pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
-result_key = pytest.StashKey[Any]()  # item -> its campaign.ItemResult (set during setup)
+result_key = pytest.StashKey[Any]()  # item -> its campaign.pipeline.ItemResult (set during setup)
 sent_key = pytest.StashKey[bool]()  # item -> its row went out with a report already
 guard_key = pytest.StashKey[Any]()  # the stopping.TermGuard of this process
 sentinel_key = pytest.StashKey[Any]()  # the lastresort.Sentinel of this process (made on first use)

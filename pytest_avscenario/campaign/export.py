@@ -14,18 +14,13 @@ import dataclasses
 import importlib.util
 from typing import Any
 
-import pytest
-
-from .stash import controller_key, row_key, settings_key
+from .context import CampaignContext, CaseItem
 
 __all__ = ["export_counterexample"]
 
-_counts_key = pytest.StashKey[dict]()
 
-
-def _limit(config: pytest.Config) -> int | str | None:
+def _limit(settings: Any) -> int | str | None:
     """N, "all", or None (no export)."""
-    settings = config.stash[settings_key]
     chosen = getattr(settings, "export", None)
     if chosen is None:
         if importlib.util.find_spec("scenariogeneration") is None:
@@ -34,25 +29,26 @@ def _limit(config: pytest.Config) -> int | str | None:
     return None if chosen == "none" else chosen
 
 
-def export_counterexample(item: pytest.Function, campaign: Any, outcome: Any, shrink: Any,
-                          pictures: dict[str, str]) -> None:
-    """Export ``item``'s failing case when ``--avs-export`` selects it: the files go into
+def export_counterexample(ctx: CampaignContext, ci: CaseItem, campaign: Any, outcome: Any,
+                          shrink: Any, pictures: dict[str, str]) -> None:
+    """Export ``ci``'s failing case when ``--avs-export`` selects it: the files go into
     ``pictures`` (``xosc``, ``xodr``, ``osi``) and the row's ``exports`` says what was written."""
-    config = item.config
-    limit = _limit(config)
-    directory = config.stash[controller_key].directory
-    if limit is None or directory is None or row_key not in item.stash:
+    limit = _limit(ctx.settings)
+    if limit is None or ci.row is None:
+        return
+    directory = ctx.folder()
+    if directory is None:
         return
     minimized = shrink is not None and shrink.outcome is not None
     if not minimized and limit != "all":
-        counts = config.stash.setdefault(_counts_key, {})
-        key = (id(campaign), getattr(item.funcargs.get("case"), "sampler", ""))
-        if counts.get(key, 0) >= limit:
+        counts = campaign.exported
+        sampler = ci.slot.sampler
+        if counts.get(sampler, 0) >= limit:
             return
-        counts[key] = counts.get(key, 0) + 1
+        counts[sampler] = counts.get(sampler, 0) + 1
     shown = shrink.outcome if minimized else outcome
     world = shown.world
-    row = item.stash[row_key]
+    row = ci.row
     if world is None or getattr(world, "trajectory", None) is None:
         exports: dict[str, Any] = {"errors": {"xosc": "not exported: the case ran in another "
                                               "process (its world is not here) or returned "
@@ -65,10 +61,10 @@ def export_counterexample(item: pytest.Function, campaign: Any, outcome: Any, sh
         space = campaign.plan.space
         units = {k: getattr(space.parameters.get(k), "unit", None) or ""
                  for k in params if hasattr(space, "parameters")}
-        base = directory / "cases" / file_slug(item.nodeid)
+        base = directory / "cases" / file_slug(ci.nodeid)
         res = export_case(world, params, base.parent, base.name, units=units,
-                          title=item.nodeid + (" (minimized)" if minimized else ""),
+                          title=ci.nodeid + (" (minimized)" if minimized else ""),
                           osi=importlib.util.find_spec("osi3") is not None)
         pictures.update(res.files)
         exports = res.to_json()
-    item.stash[row_key] = dataclasses.replace(row, exports=exports)
+    ci.keep_row(dataclasses.replace(row, exports=exports), ci.shrink_rows)

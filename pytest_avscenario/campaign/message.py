@@ -7,16 +7,13 @@ import json
 import shlex
 from typing import Any, Mapping
 
-import pytest
-
 from ..case import Case
 from ..codec import fmt_rho, fmt_value
 from ..outcome import CaseOutcome
-from .collect import call_text, plan_of
-from .stash import settings_key
+from .plan import ScenarioPlan, call_text
 
 
-def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
+def failure_message(ctx: Any, ci: Any, case: Case, outcome: CaseOutcome,
                     shrink: Any = None, note: str | None = None,
                     avoidability: str | None = None) -> str:
     """The text a failing case shows: by default the violated metrics, the parameters (found
@@ -30,9 +27,9 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
     else:
         lines.append(f"scenario case could not be judged: {outcome.error}")
     shrunk = shrink is not None and shrink.minimized is not None and shrink.outcome is not None
-    verbose = item.config.get_verbosity() >= 1
+    verbose = ctx.verbosity >= 1
     if verbose:
-        lines += _full_tables(item, case, outcome, shrink if shrunk else None)
+        lines += _full_tables(ci.plan, case, outcome, shrink if shrunk else None)
     else:
         # compact: the violated metrics, the parameters, what to paste and what to run
         for name, res in outcome.results.items():
@@ -59,11 +56,11 @@ def failure_message(item: pytest.Item, case: Case, outcome: CaseOutcome,
         lines += [f"  {line}" for line in avoidability.splitlines()]
     if note:
         lines.append(f"  {note}")
-    lines.append(f"  re-run only this case: {rerun_command(item, case)}")
+    lines.append(f"  re-run only this case: {rerun_command(ctx, ci, case)}")
     return "\n".join(lines)
 
 
-def _full_tables(item: pytest.Item, case: Case, outcome: CaseOutcome, shrink: Any) -> list[str]:
+def _full_tables(plan: ScenarioPlan, case: Case, outcome: CaseOutcome, shrink: Any) -> list[str]:
     """Every metric (and, for a minimized case, found / minimized / nominal side by side)."""
     lines = []
     if outcome.results:
@@ -75,7 +72,7 @@ def _full_tables(item: pytest.Item, case: Case, outcome: CaseOutcome, shrink: An
             verdict = "VIOLATED" if res.rho < 0 else "ok"
             lines.append(f"  {name:<12} {fmt_rho(res.rho):>9}{mid}  {thr:>9}  {verdict:<8}  {res.detail}")
     if shrink:
-        nominal = plan_of(item).space.nominal()
+        nominal = plan.space.nominal()
         lines.append("  parameter          found      minimized        nominal")
         for k, v in case.params.items():
             lines.append(f"  {k:<12} {fmt_value(v):>11}  {fmt_value(shrink.minimized[k]):>13}  "
@@ -100,9 +97,9 @@ def draws_text(drawn: Any, shown: int = 3) -> str | None:
     return f"drawn from case.rng ({n}): " + "; ".join(parts) + more
 
 
-def rerun_command(item: pytest.Item, case: Case) -> str:
+def rerun_command(ctx: Any, ci: Any, case: Case) -> str:
     """A command that re-runs just this case, with the same values."""
-    return rerun_text(item.config.stash[settings_key], item.nodeid, case.params, plan_of(item).space.parameters)
+    return rerun_text(ctx.settings, ci.nodeid, case.params, ci.plan.space.parameters)
 
 
 def rerun_text(settings: Any, nodeid: str, params: Mapping[str, Any], names: Any) -> str:
