@@ -7,7 +7,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def _commands() -> list[str]:
     lines = (ROOT / "README.md").read_text().splitlines()
-    return [l.strip() for l in lines[:12] if l.startswith("    ")]
+    return [l.strip() for l in lines[:16] if l.startswith("    ")]
 
 
 def test_readme_opens_with_the_two_commands():

@@ -445,6 +445,14 @@ OPTIONS = (
            "junit-10 schema of Jenkins' xUnit plugin: as suite properties avs.case[<id>].<name>)",
            "where per-case data goes in the JUnit file: properties (default) or strict",
            _one_of("JUnit mode", "properties", "strict")),
+    Option("junit-accepted", "AS",
+           "how a counterexample the acceptance criteria accept is reported to pytest and in "
+           "the --junitxml file: xfail (default: <skipped type=\"pytest.xfail\">), skipped "
+           "(a plain skip) or passed (a passing test case carrying the counterexample as "
+           "properties avs.accepted and avs.verdict, so CI dashboards do not list it among "
+           "skips)",
+           "how accepted counterexamples are reported: xfail (default), skipped or passed",
+           _one_of("accepted-counterexample outcome", "xfail", "skipped", "passed")),
     Option("params", "JSON",
            "run the selected scenario cases with these parameter values (a JSON object; "
            "missing parameters take their nominal value)", "", _text, ini=False),
@@ -537,6 +545,7 @@ class Settings:
     params: Mapping[str, Any] | None  # --avs-params, not yet completed against a space
     baseline: Any  # acceptance.Baseline of --avs-baseline, or None
     junit: str  # "properties" or "strict"
+    junit_accepted: str  # "xfail", "skipped" or "passed"
     per_test: Mapping[str, Found]  # command line / ini values of the per-test settings
     command_line: Mapping[str, str]  # option key -> the text given on the command line
 
@@ -653,6 +662,7 @@ def read_settings(config: pytest.Config) -> Settings:
         params=_pinned_params(found.get("params")),
         baseline=_baseline(found.get("baseline"), config, value("baseline_partial", False)),
         junit=value("junit", "properties"),
+        junit_accepted=value("junit_accepted", "xfail"),
         per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
         command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
                       if config.getoption(o.dest) not in (None, "")},
