@@ -166,11 +166,30 @@ def test_terminal_table_fits_the_terminal_width(rows, tests_info):
     summary = summarize(rows, tests_info)
     wide = format_table(summary, width=400)
     narrow = format_table(summary, width=80)
-    assert max(map(len, narrow.splitlines()[:-1])) <= 80 < max(map(len, wide.splitlines()[:-1]))
+    assert max(map(len, narrow.splitlines())) <= 80 < max(map(len, wide.splitlines()[:-1]))
     # two lines per campaign when narrow: the figures, then the violations per metric
     lines = narrow.splitlines()
     assert lines[3].strip() == "violations: Distance 1, TTC 1, Lane 1"  # the metrics violated
-    assert len(lines) == 2 + 2 * len(summary) + 1
+    legend = lines[2 + 2 * len(summary):]
+    assert len(legend) >= 2 and " ".join(l.strip() for l in legend).startswith("ε: coverage")
+
+
+def test_long_test_names_are_shortened_in_the_middle_to_fit_columns(rows, tests_info):
+    from dataclasses import replace
+
+    from pytest_avscenario.report.summary import ellipsize
+
+    long = "test_" + "unprotected_left_turn_with_a_lateral_car_running_the_stop_" * 2 + "east"
+    summary = [replace(s, test=f"example_tests/test_mod.py::{long}") if i == 0 else s
+               for i, s in enumerate(summarize(rows, tests_info))]
+    for columns in (120, 100, 80):
+        text = format_table(summary, width=columns)
+        assert max(map(len, text.splitlines())) <= columns, (columns, text)
+        name_line = text.splitlines()[2]
+        assert "…" in name_line and name_line.startswith("test_unprot") and "_east" in name_line
+    # the legend wraps instead of running to 200+ characters
+    assert all(len(l) <= 120 for l in format_table(summary, width=120).splitlines())
+    assert ellipsize("abcdefghij", 5) == "ab…ij" and ellipsize("abc", 5) == "abc"
 
 
 def test_short_names_stay_unique():

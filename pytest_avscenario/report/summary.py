@@ -372,7 +372,8 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
 
     rule = "  ".join("-" * w for w in widths)
     if width is None or len(rule) <= width:
-        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), _legend(header)])
+        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body),
+                          *_wrap(_legend(header), width)])
     # too wide: the figures on one line, the violations per metric on the next
     metrics = [h for h in header if h not in ("test", "sampler", "samples", "ε", "cex", "min",
                                               "unavoid", "modes", "errors", "sim s", "verdict")]
@@ -380,14 +381,46 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
     fheader = [header[i] for i in fixed]
     fbody = [[r[i] for i in fixed] for r in body]
     fwidths = [max(len(r[i]) for r in [fheader, *fbody]) for i in range(len(fheader))]
+    over = sum(fwidths) + 2 * (len(fwidths) - 1) - width
+    if over > 0:  # long test names: shortened in the middle, where ids differ least
+        fwidths[0] = max(fwidths[0] - over, len(fheader[0]), MIN_NAME)
+        fbody = [[ellipsize(r[0], fwidths[0]), *r[1:]] for r in fbody]
     left = {0, 1} | ({len(fheader) - 1} if fheader[-1] == "verdict" else set())
     out = [line(fheader, fwidths), "  ".join("-" * w for w in fwidths)]
     for r, full in zip(fbody, body):
         out.append(line(r, fwidths))
         counts = [f"{h} {full[header.index(h)]}" for h in metrics
                   if full[header.index(h)] not in (DASH, "0")]
-        out.append("    violations: " + (", ".join(counts) or "none"))
-    return "\n".join([*out, _legend(header)])
+        out += _wrap("violations: " + (", ".join(counts) or "none"), width, indent="    ")
+    return "\n".join([*out, *_wrap(_legend(header), width)])
+
+
+#: the fewest characters a shortened test name keeps in the terminal table
+MIN_NAME = 16
+
+
+def ellipsize(text: str, width: int) -> str:
+    """``text`` cut to ``width`` characters with "…" in the middle (the start names the
+    module, the end the function: both tell tests apart)."""
+    if len(text) <= width:
+        return text
+    if width < 2:
+        return text[:width]
+    head = (width - 1 + 1) // 2
+    tail = width - 1 - head
+    return text[:head] + "…" + (text[-tail:] if tail else "")
+
+
+def _wrap(text: str, width: int | None, indent: str = "") -> list[str]:
+    """``text`` as lines of at most ``width`` characters (one line when ``width`` is None),
+    broken after a " · " or a space; continuation lines indented two more."""
+    import textwrap
+
+    if width is None:
+        return [indent + text]
+    return textwrap.wrap(text, width=max(width, 20), initial_indent=indent,
+                         subsequent_indent=indent + "  ", break_on_hyphens=False,
+                         break_long_words=True) or [indent]
 
 
 def format_rejections(summary: Sequence[SummaryRow]) -> list[str]:
