@@ -201,3 +201,21 @@ def test_short_names_stay_unique():
         "a/t1.py::test_x": "t1.py::test_x", "b/t2.py::test_x": "t2.py::test_x"}
     assert short_names(["a/t.py::test_x", "b/t.py::test_x"]) == {
         "a/t.py::test_x": "a/t.py::test_x", "b/t.py::test_x": "b/t.py::test_x"}
+
+
+def test_a_campaign_of_replays_counts_the_violations_of_its_cases(rows, tests_info):
+    """Replays of stored failures are no samples, but their row must not say "violations:
+    none" beside its counterexamples."""
+    replays = [row(FOLLOW, "replay", i, {"progress": 3.0, "distance": -1.0, "ttc": -0.5 if i else 1.0,
+                                         "lane": 0.2}, origin="replay", gap=20.0, speed=8.0, weather="dry")
+               for i in range(3)]
+    summary = summarize(rows + replays, tests_info)
+    rep = next(s for s in summary if s.sampler == "replay")
+    assert rep.samples == 0 and rep.counterexamples == 3
+    assert rep.violations["distance"] == 0  # the paper's counts stay over sampled cases
+    assert rep.case_violations["distance"] == 3 and rep.case_violations["ttc"] == 2
+    narrow = format_table(summary, width=80).splitlines()
+    i = next(k for k, l in enumerate(narrow) if " replay " in f" {l} ")
+    assert narrow[i + 1].strip() == "violations: Distance 3, TTC 2 (among its 3 cases)"
+    wide = next(l for l in format_table(summary, width=400).splitlines() if " replay " in l)
+    assert wide.split()[:6] == ["test_vehicle_following", "replay", "0", "0", "3", "2"]

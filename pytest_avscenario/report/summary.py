@@ -104,6 +104,10 @@ class SummaryRow:
     #: the failure modes could not be computed (summary.json then says ``"modes": null``,
     #: "not recorded", so a comparison does not call every earlier mode gone)
     modes_failed: bool = False
+    #: violations per metric among all the campaign's cases (``violations`` counts sampled
+    #: cases only, as the paper's table does): what a campaign of replays or pinned examples,
+    #: which has no sampled case, shows per metric
+    case_violations: dict[str, int] = field(default_factory=dict)
 
     @property
     def verdict(self) -> str | None:
@@ -197,6 +201,9 @@ def summarize(
         violations = {
             m: sum(1 for r in sampled if _violated(r.rho.get(m))) for m in metrics
         }
+        case_violations = {
+            m: sum(1 for r in main if _violated(r.rho.get(m))) for m in metrics
+        }
         failing = [r for r in main if r.verdict == "fail"]
         failing_items = {r.item for r in failing}
         shrunk = {r.item for r in shrink if r.verdict == "fail"}
@@ -257,6 +264,7 @@ def summarize(
                 unavoidable=sum(1 for r in failing if r.unavoidable),
                 modes=found,
                 modes_failed=modes_failed,
+                case_violations=case_violations,
             )
         )
     return out
@@ -316,7 +324,10 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     body = []
     for s in summary:
         line = [s.test, s.sampler, str(s.samples)]
-        line += [str(s.violations[m]) if m in s.violations else DASH for m in metrics]
+        # a campaign without sampled cases (replays of stored failures, pinned examples)
+        # counts its violations among the cases it ran, so its row agrees with its "cex"
+        counts = s.violations if s.samples or not s.case_violations else s.case_violations
+        line += [str(counts[m]) if m in counts else DASH for m in metrics]
         line += [_fmt_eps(s.epsilon), str(s.counterexamples), str(s.minimized)]
         line += [str(s.unavoidable) if s.judged else DASH] if show_unavoidable else []
         line += [str(len(s.modes)) if s.modes else DASH]
@@ -387,11 +398,12 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
         fbody = [[ellipsize(r[0], fwidths[0]), *r[1:]] for r in fbody]
     left = {0, 1} | ({len(fheader) - 1} if fheader[-1] == "verdict" else set())
     out = [line(fheader, fwidths), "  ".join("-" * w for w in fwidths)]
-    for r, full in zip(fbody, body):
+    for s_row, r, full in zip(summary, fbody, body):
         out.append(line(r, fwidths))
         counts = [f"{h} {full[header.index(h)]}" for h in metrics
                   if full[header.index(h)] not in (DASH, "0")]
-        out += _wrap("violations: " + (", ".join(counts) or "none"), width, indent="    ")
+        among = "" if s_row.samples or not s_row.cases else f" (among its {s_row.cases} cases)"
+        out += _wrap("violations: " + (", ".join(counts) or "none") + among, width, indent="    ")
     return "\n".join([*out, *_wrap(_legend(header), width)])
 
 
