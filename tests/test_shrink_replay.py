@@ -235,7 +235,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 from pytest_avscenario.trajectory import Trajectory
 
-@scenario(samples=1, shrink_budget=5, monitors=[distance(d, name=f"d{d}") for d in range(1, 9)],
+@scenario(samples=1, shrink_budget=5, monitors=[distance(d, kind="centre", name=f"d{d}") for d in range(1, 9)],
           **{f"p{i}": Uniform(0, 1, nominal=0.5) for i in range(9)})
 def test_many(case):
     return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
