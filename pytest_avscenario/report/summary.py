@@ -424,15 +424,25 @@ def ellipsize(text: str, width: int) -> str:
 
 
 def _wrap(text: str, width: int | None, indent: str = "") -> list[str]:
-    """``text`` as lines of at most ``width`` characters (one line when ``width`` is None),
-    broken after a " · " or a space; continuation lines indented two more."""
+    """``text`` as lines of at most ``width`` characters (one line when ``width`` is None):
+    whole " · "-separated items per line where they fit (an item is never split unless it is
+    longer than a line by itself), continuation lines indented two more."""
     import textwrap
 
     if width is None:
         return [indent + text]
-    return textwrap.wrap(text, width=max(width, 20), initial_indent=indent,
-                         subsequent_indent=indent + "  ", break_on_hyphens=False,
-                         break_long_words=True) or [indent]
+    width = max(width, 20)
+    lines: list[str] = []
+    for item in text.split(" · "):
+        lead = indent if not lines else indent + "  "
+        if lines and len(lines[-1]) + 3 + len(item) <= width:
+            lines[-1] += " · " + item
+        elif len(lead) + len(item) <= width:
+            lines.append(lead + item)
+        else:
+            lines += textwrap.wrap(item, width=width, initial_indent=lead,
+                                   subsequent_indent=indent + "  ", break_on_hyphens=False)
+    return lines or [indent]
 
 
 def format_rejections(summary: Sequence[SummaryRow]) -> list[str]:
