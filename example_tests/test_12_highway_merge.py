@@ -18,8 +18,8 @@ Parameters: ``ego_speed`` [m/s] U(20, 32); ``right_slower`` [m/s] U(0, 10); ``ri
 ramp at 18 m/s.
 
 A failure: a collision, the ego's centre off the carriageway (``off_road``), footprints
-closer than 1 m (``distance``), a TTC below 2 s with a 3.5 m circle (so traffic in the next
-lane is not counted) or the ego off its lane centre by 0.5 m on average (``lane_keeping``).
+closer than 1 m (``distance``), a TTC below 2 s (footprints meeting in the ego's path, so traffic
+in the next lane is not counted) or the ego off its lane centre by 0.5 m on average (``lane_keeping``).
 Expected corners: a right-lane car just ahead of the
 ego and slower than it, merging in late at the lane drop; the autopilot sees the merging car
 only once its footprint overlaps the ego's path.
@@ -38,7 +38,7 @@ from pytest_avscenario.sim.highway import arc, straight
     ramp_speed=Uniform(10.0, 25.0, nominal=18.0, unit="m/s"),
     samples=30,
     sampler=["halton", "mab"],
-    monitors=[collision(), off_road(), distance(1.0, footprint=True), ttc(2.0, radius=3.5),
+    monitors=[collision(), off_road(), distance(1.0, footprint=True), ttc(2.0),
               lane_keeping(0.5)],
     priority=["collision", "off_road", "distance", "ttc", "lane_keeping"],
 )

@@ -32,7 +32,7 @@ from pytest_avscenario.monitors import collision, distance, lane_keeping, progre
     adv_speed=Uniform(5.0, 14.0, nominal=10.0, unit="m/s"),
     samples=20,
     sampler=["halton", "mab"],
-    monitors=[progress(11.0), distance(1.0, footprint=True), ttc(2.0, radius=3.0),
+    monitors=[progress(11.0), distance(1.0, footprint=True), ttc(2.0),
               lane_keeping(0.5), collision()],
     priority=["collision", "distance", "ttc", "progress", "lane_keeping"],
 )

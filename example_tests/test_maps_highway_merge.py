@@ -29,7 +29,7 @@ from pytest_avscenario.monitors import collision, distance, lane_keeping, off_ro
     ramp_speed=Uniform(8.0, 20.0, nominal=14.0, unit="m/s"),
     samples=20,
     sampler=["halton", "mab"],
-    monitors=[collision(), off_road(), distance(1.0, footprint=True), ttc(2.0, radius=3.5),
+    monitors=[collision(), off_road(), distance(1.0, footprint=True), ttc(2.0),
               lane_keeping(0.5)],
     priority=["collision", "off_road", "distance", "ttc", "lane_keeping"],
 )

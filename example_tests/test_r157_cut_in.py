@@ -30,7 +30,7 @@ vehicle starts 2 s of closing before the trigger point ahead of it. Nominal: 90 
 20 km/h slower from the left at 1.5 s moving across at 1 m/s — an ordinary cut-in.
 
 A failure: as in test_r157_lead_deceleration (collision, off the road, footprints closer
-than 1 m, TTC below 2 s with a 3.5 m circle), without lane keeping: changing lane away
+than 1 m, TTC below 2 s in the ego's path), without lane keeping: changing lane away
 from the cutting vehicle is a legitimate answer that the paper's mean lane offset would
 count against the ego; ``off_road`` still fails an ego that leaves the carriageway.
 Cut-ins closer than the C&C driver can handle are unavoidable by design (the Annex's
@@ -54,7 +54,7 @@ from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
     samples=30,
     sampler=["halton", "mab"],
     monitors=[collision(), off_road(), distance(1.0, footprint=True),
-              ttc(CC.critical_ttc, radius=3.5)],
+              ttc(CC.critical_ttc)],
     priority=["collision", "off_road", "distance", "ttc"],
 )
 def test_r157_cut_in(case, world):

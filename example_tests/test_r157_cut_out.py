@@ -29,7 +29,7 @@ right when its front is 10-100 m from the blocking object, at a maximum lateral 
 
 Nominal: 90 km/h, 1.6 s behind the lead, which leaves to the left 4 s before a stopped car
 at 1.5 m/s. A failure: as in test_r157_lead_deceleration (collision, off the road,
-footprints closer than 1 m, TTC below 2 s with a 3.5 m circle), without lane keeping (as in
+footprints closer than 1 m, TTC below 2 s in the ego's path), without lane keeping (as in
 the cut-in: swerving round the revealed vehicle is legitimate, leaving the road is not);
 ``--avs-accept avoidable`` applies the regulation's criterion: only counterexamples R157's
 C&C driver avoids count.
@@ -52,7 +52,7 @@ from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
     samples=30,
     sampler=["halton", "mab"],
     monitors=[collision(), off_road(), distance(1.0, footprint=True),
-              ttc(CC.critical_ttc, radius=3.5)],
+              ttc(CC.critical_ttc)],
     priority=["collision", "off_road", "distance", "ttc"],
 )
 def test_r157_cut_out(case, world):

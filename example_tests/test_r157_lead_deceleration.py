@@ -28,8 +28,8 @@ middle lane of a three-lane motorway at its initial speed. Nominal: 100 km/h, 1.
 
 A failure: a collision, the ego's centre off the carriageway at any step (``off_road``: an
 agent that leaves the road fails here whatever else it does), the footprints closer than
-1 m (``distance``), a TTC below the C&C driver's critical 2 s (``ttc``, with a 3.5 m circle
-so traffic in the next lane is not counted), or the ego off its lane centre by 0.5 m on
+1 m (``distance``), a TTC below the C&C driver's critical 2 s (``ttc``: footprints
+meeting in the ego's path, so traffic in the next lane is not counted), or the ego off its lane centre by 0.5 m on
 average (``lane_keeping``, for the bends). Every counterexample is also judged avoidable or
 not by R157's C&C driver (the plugin's default reference driver); ``--avs-accept
 avoidable`` applies the regulation's criterion: a counterexample counts only when that
@@ -52,7 +52,7 @@ from r157 import CC, EGO_LANE, EGO_S, KMH, motorway
     samples=30,
     sampler=["halton", "mab"],
     monitors=[collision(), off_road(), distance(1.0, footprint=True),
-              ttc(CC.critical_ttc, radius=3.5), lane_keeping(0.5)],
+              ttc(CC.critical_ttc), lane_keeping(0.5)],
     priority=["collision", "off_road", "distance", "ttc", "lane_keeping"],
 )
 def test_r157_lead_deceleration(case, world):

@@ -18,7 +18,7 @@ from pytest_avscenario.trajectory import Trajectory
 
 SCALE = float(os.environ.get("AVS_TEST_SCALE", "20"))
 
-@scenario(x=Uniform(0, 1), samples={samples}, sampler="{sampler}", monitors=[distance(5.0), collision()]{accept})
+@scenario(x=Uniform(0, 1), samples={samples}, sampler="{sampler}", monitors=[distance(5.0, kind="centre"), collision()]{accept})
 def test_gap(case):
     gap = SCALE * case.x
     return Trajectory.from_arrays([0.0, 0.1], {{
@@ -152,7 +152,7 @@ def test_errors_always_reject_whatever_accept_says(pytester):
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 
-@scenario(x=Uniform(0, 1), samples=2, monitors=[distance(5.0)], accept="regressions")
+@scenario(x=Uniform(0, 1), samples=2, monitors=[distance(5.0, kind="centre")], accept="regressions")
 def test_broken(case):
     raise RuntimeError("scene mistake")
 """)

@@ -308,8 +308,8 @@ def test_the_same_conflict_is_the_same_agent_around_the_same_time():
     # a violation that names no agent cannot be placed
     assert judge_conflict(collision(), ref, None, 1.0).avoided is None
     # other metrics: their rho toward that agent, in the same window
-    assert judge_conflict(distance(5.0), ref, "late", 7.0).avoided is False
-    assert judge_conflict(distance(5.0), ref, "late", 1.0).avoided is None
+    assert judge_conflict(distance(5.0, kind="centre"), ref, "late", 7.0).avoided is False
+    assert judge_conflict(distance(5.0, kind="centre"), ref, "late", 1.0).avoided is None
 
 
 def test_a_metric_of_the_ego_alone_is_judged_on_the_reference_ego():

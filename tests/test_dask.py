@@ -65,7 +65,7 @@ def far_enough(gap):
     assert gap < 30
 
 @scenario(gap=Uniform(8.0, 40.0), lead_speed=Uniform(2.0, 8.0), samples=6, sampler=["halton", "mab"],
-          monitors=[distance(5.0), ttc(2.0)])
+          monitors=[distance(5.0, kind="centre"), ttc(2.0, kind="centre")])
 def test_follow(case, world):
     road = world.straight_road(lanes=1, length=300)
     world.ego(road.lane(0), s=20.0, speed=12.0)
@@ -128,7 +128,7 @@ from pytest_avscenario.monitors import distance
 LOG = Path({log!r})
 MARKER = Path({marker!r})
 
-@scenario(gap=Uniform(20.0, 40.0), samples=16, monitors=[distance(5.0)])
+@scenario(gap=Uniform(20.0, 40.0), samples=16, monitors=[distance(5.0, kind="centre")])
 def test_follow(case, world):
     with LOG.open("a") as f:
         f.write(f"{{case.index}} {{os.getpid()}}\\n")
@@ -232,7 +232,7 @@ def test_prefetched_cases_are_chunked_matched_and_a_replay_runs_again(tmp_path, 
     path = tmp_path / "test_prefetch_avs.py"
     path.write_text(COMPARED.replace("far_enough(case.gap)", "pass"))
     func = remote.import_test_module(str(path), str(tmp_path)).test_follow
-    monitors = MonitorSet([distance(5.0)])
+    monitors = MonitorSet([distance(5.0, kind="centre")])
 
     def job(k: int, gap: float) -> CaseJob:
         case = Case({"gap": gap, "lead_speed": 4.0}, k, 100 + k, "halton", test="t")
@@ -425,7 +425,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 
 @scenario(gap=Uniform(8.0, 40.0), lead_speed=Uniform(2.0, 12.0), samples=8, sampler="mab",
-          monitors=[distance(5.0)])
+          monitors=[distance(5.0, kind="centre")])
 def test_search(case, world):
     road = world.straight_road(lanes=1, length=300)
     world.ego(road.lane(0), s=20.0, speed=12.0)

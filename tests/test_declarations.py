@@ -163,7 +163,7 @@ def test_follow(case):
 def test_a_bad_monitor_built_at_module_level_names_the_line(pytester):
     pytester.makepyfile(test_mod="""
 from pytest_avscenario.monitors import ttc
-SAFE = ttc(2.0, radius=-1)
+SAFE = ttc(2.0, kind="centre", radius=-1)
 """)
     result = pytester.runpytest("--avs-db=none", "--avs-report=none")
     _clean(result)

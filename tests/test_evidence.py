@@ -28,7 +28,7 @@ def _traj():
 
 def test_a_pairwise_monitor_gives_rho_at_every_step_and_its_minimum_is_the_runs_rho():
     traj = _traj()
-    m = distance(5.0)
+    m = distance(5.0, kind="centre")
     per = m.series(traj)
     nearest = np.minimum(20 - 6 * T, np.where(T < 2.0, 7.0, np.inf))
     np.testing.assert_allclose(per, nearest - 5.0)
@@ -58,7 +58,8 @@ def test_the_evidence_names_the_critical_agent_and_the_violated_monitors_series(
 
 def test_the_ttc_radius_comes_from_the_tests_ttc_monitor_else_the_papers():
     assert ttc_radius([distance(5.0)]) == TTC_RADIUS_M == 5.0
-    assert ttc_radius([ttc(2.0, radius=3.0), ttc(1.0)]) == 3.0
+    assert ttc_radius([ttc(1.0), ttc(2.0, kind="centre", radius=3.0, name="c")]) == 3.0
+    assert ttc_radius([ttc(1.0)]) == TTC_RADIUS_M  # a path TTC has no circle
     assert [q for q, *_ in threshold_lines([distance(5.0), ttc(2.0), progress()])] == ["distance", "ttc"]
 
 

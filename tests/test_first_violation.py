@@ -24,7 +24,7 @@ def _approach(gaps):
 def test_the_first_step_below_the_threshold_not_the_worst():
     gaps = [20, 12, 8, 4.9, 4.0, 2.0, 3.0, 6.0, 9.0]  # first below 5 m at step 3, worst at 5
     traj = _approach(gaps)
-    m = distance(5.0)
+    m = distance(5.0, kind="centre")
     res = m.evaluate(traj)
     assert res.t == traj.t[5]
     assert first_violation(m, traj, res) == (traj.t[3], "lead")
@@ -54,9 +54,9 @@ def test_time_series_of_a_case_marks_its_first_violation_and_thresholds(tmp_path
 
     traj = _approach([20, 12, 8, 4.9, 4.0, 2.0, 3.0, 6.0, 9.0])
     assert critical_agent(traj, "lead") == 1 and critical_agent(traj, None, 0.5) == 1
-    a = plot_case_timeseries(tmp_path / "a.png", traj, first_t=0.3, monitors=[distance(5.0), ttc(2.0)])
-    b = plot_case_timeseries(tmp_path / "b.png", traj, first_t=0.3, monitors=[distance(9.0), ttc(2.0)])
-    c = plot_case_timeseries(tmp_path / "c.png", traj, first_t=0.6, monitors=[distance(5.0), ttc(2.0)])
+    a = plot_case_timeseries(tmp_path / "a.png", traj, first_t=0.3, monitors=[distance(5.0, kind="centre"), ttc(2.0, kind="centre")])
+    b = plot_case_timeseries(tmp_path / "b.png", traj, first_t=0.3, monitors=[distance(9.0, kind="centre"), ttc(2.0, kind="centre")])
+    c = plot_case_timeseries(tmp_path / "c.png", traj, first_t=0.6, monitors=[distance(5.0, kind="centre"), ttc(2.0, kind="centre")])
     pix = {p: Image.open(p).convert("RGB").tobytes() for p in (a, b, c)}
     assert len(set(pix.values())) == 3  # the threshold and the marked moment are drawn
     assert a.stat().st_size < 40_000  # ~600 counterexamples per example-suite report

@@ -19,7 +19,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import collision, distance
 from pytest_avscenario.trajectory import Trajectory
 
-@scenario(x=Uniform(0, 1), samples=8, monitors=[distance(5.0), collision()], accept=["collision"])
+@scenario(x=Uniform(0, 1), samples=8, monitors=[distance(5.0, kind="centre"), collision()], accept=["collision"])
 def test_follow(case):
     gap = 20 * case.x
     return Trajectory.from_arrays([0.0, 0.1], {

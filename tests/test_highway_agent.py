@@ -375,7 +375,7 @@ AGENT_TEST = """
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 
-@scenario(gap=Uniform(30.0, 60.0), samples=3, monitors=[distance(0.5)])
+@scenario(gap=Uniform(30.0, 60.0), samples=3, monitors=[distance(0.5, kind="centre")])
 def test_follow(case, world, avs_driver):
     road = world.straight_road(lanes=3, length=1000, lane_width=4.0)
     world.ego(road.lane(1), s=50, speed=25.0)

@@ -13,7 +13,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import collision, distance
 from pytest_avscenario.trajectory import Trajectory
 
-@scenario(x=Uniform(0, 1), samples=8, sampler="halton", monitors=[distance(5.0), collision()]{accept})
+@scenario(x=Uniform(0, 1), samples=8, sampler="halton", monitors=[distance(5.0, kind="centre"), collision()]{accept})
 def test_gap(case):
     gap = 20 * case.x
     return Trajectory.from_arrays([0.0, 0.1], {{

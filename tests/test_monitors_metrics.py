@@ -50,7 +50,7 @@ def straight(n=11, dt=0.1, **agents):
 def test_ttc_head_on_closing_at_20_mps():
     # 20 m apart, each closing at 10 m/s: relative speed 20 m/s, the 5-m circle is reached
     # after (20 - 5) / 20 = 0.75 s, so rho = 0.75 - 2 = -1.25.
-    r = ttc(2.0).evaluate(one_step((0, 0, 10, 0), (20, 0, -10, 0)))
+    r = ttc(2.0, kind="centre").evaluate(one_step((0, 0, 10, 0), (20, 0, -10, 0)))
     assert r.rho == pytest.approx((20 - 5) / 20 - 2.0)
     assert r.agent == "other" and r.t == 0.0 and r.threshold == 2.0
     assert r.rho < 0
@@ -59,25 +59,25 @@ def test_ttc_head_on_closing_at_20_mps():
 def test_ttc_same_speed_parallel_lanes_is_infinite():
     # 10 m ahead in the next lane (11.4 m away, outside the circle), same velocity: dv = 0,
     # the relative position never changes, no root
-    r = ttc().evaluate(one_step((0, 0, 15, 0), (10, 3.5, 15, 0)))
+    r = ttc(kind="centre").evaluate(one_step((0, 0, 15, 0), (10, 3.5, 15, 0)))
     assert r.rho == math.inf and r.agent is None
 
 
 def test_ttc_inside_the_circle_is_zero():
     # 3 m apart < 5 m radius: TTC 0, rho = 0 - 2
-    r = ttc(2.0).evaluate(one_step((0, 0, 10, 0), (3, 0, 10, 0)))
+    r = ttc(2.0, kind="centre").evaluate(one_step((0, 0, 10, 0), (3, 0, 10, 0)))
     assert r.rho == -2.0
 
 
 def test_ttc_receding_is_infinite():
     # the other is ahead and faster: both roots are in the past
-    r = ttc().evaluate(one_step((0, 0, 10, 0), (10, 0, 20, 0)))
+    r = ttc(kind="centre").evaluate(one_step((0, 0, 10, 0), (10, 0, 20, 0)))
     assert r.rho == math.inf
 
 
 def test_ttc_respects_radius_and_threshold_arguments():
     # 30 m apart, closing at 10 m/s, radius 10 m: (30 - 10) / 10 = 2 s; threshold 1.5 s
-    r = ttc(1.5, radius=10.0).evaluate(one_step((0, 0, 10, 0), (30, 0, 0, 0)))
+    r = ttc(1.5, radius=10.0, kind="centre").evaluate(one_step((0, 0, 10, 0), (30, 0, 0, 0)))
     assert r.rho == pytest.approx(2.0 - 1.5)
 
 
@@ -89,7 +89,7 @@ def test_ttc_checks_every_agent_not_only_the_first():
         "far": {"x": 500 + 10 * t, "y": 0 * t, "vx": 10, "vy": 0},
         "oncoming": {"x": 25 - 10 * t, "y": 0 * t, "vx": -10, "vy": 0},
     })
-    r = ttc().evaluate(traj)
+    r = ttc(kind="centre").evaluate(traj)
     assert r.agent == "oncoming"
     # worst at the last step: gap 25 - 4 = 21 m at t=0.2, (21 - 5) / 20 = 0.8 s
     assert r.t == pytest.approx(0.2)
@@ -99,10 +99,10 @@ def test_ttc_checks_every_agent_not_only_the_first():
 def test_ttc_grazing_pass_counts_when_the_path_enters_the_circle():
     # other drives past at lateral offset 3 m (< 5 m radius): dp=(20,3), dv=(-10,0);
     # |dp + dv t| = 5  ->  (20 - 10t)^2 = 25 - 9 = 16  ->  t1 = (20 - 4) / 10 = 1.6 s
-    r = ttc().evaluate(one_step((0, 0, 0, 0), (20, 3, -10, 0)))
+    r = ttc(kind="centre").evaluate(one_step((0, 0, 0, 0), (20, 3, -10, 0)))
     assert r.rho == pytest.approx(1.6 - 2.0)
     # at lateral offset 6 m the path never enters the circle
-    assert ttc().evaluate(one_step((0, 0, 0, 0), (20, 6, -10, 0))).rho == math.inf
+    assert ttc(kind="centre").evaluate(one_step((0, 0, 0, 0), (20, 6, -10, 0))).rho == math.inf
 
 
 # -- distance ------------------------------------------------------------------------------
@@ -114,16 +114,16 @@ def test_distance_is_min_centre_distance_minus_threshold_over_steps_and_agents()
         lead=(12, 0, 0, 0),        # gap 12, 11, 10, 9, 8
         side=(0, 6.5, 1, 0),       # constant 6.5
     )
-    r = distance(5.0).evaluate(traj)
+    r = distance(5.0, kind="centre").evaluate(traj)
     assert r.rho == pytest.approx(6.5 - 5.0)
     assert r.agent == "side" and r.t == 0.0
-    r2 = distance(9.0).evaluate(traj)
+    r2 = distance(9.0, kind="centre").evaluate(traj)
     assert r2.rho == pytest.approx(6.5 - 9.0)
 
 
 def test_distance_reports_time_and_agent_of_the_worst_value():
     traj = straight(n=11, dt=0.5, ego=(0, 0, 2, 0), lead=(20, 0, 0, 0))
-    r = distance().evaluate(traj)
+    r = distance(kind="centre").evaluate(traj)
     # ego ends at x = 10 at t = 5 s: 20 - 10 - 5 = 5
     assert (r.rho, r.t, r.agent) == (pytest.approx(5.0), 5.0, "lead")
     assert "lead" in r.detail and "t=5.00" in r.detail
@@ -133,12 +133,12 @@ def test_distance_footprint_gap_uses_the_rectangles():
     # two 5 m x 2 m cars nose to tail 8 m between centres: gap 8 - 5 = 3 m
     traj = one_step((0, 0, 1, 0), (8, 0, 1, 0))
     assert distance(1.0, footprint=True).evaluate(traj).rho == pytest.approx(3.0 - 1.0)
-    assert distance(1.0).evaluate(traj).rho == pytest.approx(8.0 - 1.0)
+    assert distance(1.0, kind="centre").evaluate(traj).rho == pytest.approx(8.0 - 1.0)
 
 
 def test_distance_with_no_other_agent_holds_trivially():
     traj = Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0, 1], "y": [0, 0]}})
-    r = distance().evaluate(traj)
+    r = distance(kind="centre").evaluate(traj)
     assert r.rho == math.inf and r.agent is None and r.t is None
 
 
@@ -152,8 +152,8 @@ def test_absent_steps_are_ignored_not_nan():
         "ego": {"x": 0 * t, "y": 0 * t, "vx": 0, "vy": 0},
         "ped": {"x": x_ped, "y": 0 * t, "vx": -1.0, "vy": 0, "present": present},
     })
-    assert distance().evaluate(traj).rho == pytest.approx(28.0 - 5.0)
-    r = ttc().evaluate(traj)
+    assert distance(kind="centre").evaluate(traj).rho == pytest.approx(28.0 - 5.0)
+    r = ttc(kind="centre").evaluate(traj)
     # closing at 1 m/s from 28 m at t=5: (28 - 5) / 1 = 23 s
     assert r.rho == pytest.approx(23.0 - 2.0) and r.t == 5.0
     assert collision().evaluate(traj).rho > 0
@@ -506,8 +506,8 @@ def test_reaches_point_and_polygon():
     (lambda: distance(math.inf), "finite"),
     (lambda: distance(math.nan), "finite"),
     (lambda: distance("5"), "number"),
-    (lambda: ttc(2.0, radius=-1.0), "radius"),
-    (lambda: ttc(2.0, radius=0.0), "radius"),
+    (lambda: ttc(2.0, radius=-1.0, kind="centre"), "radius"),
+    (lambda: ttc(2.0, radius=0.0, kind="centre"), "radius"),
     (lambda: progress(None), "number"),
     (lambda: lane_keeping(True), "number"),
     (lambda: time_headway(-1.0), "seconds"),

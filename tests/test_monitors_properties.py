@@ -74,7 +74,7 @@ def closest_approach(s, a, k):
 @settings(max_examples=150, deadline=None)
 @given(scenes())
 def test_distance_sign_agrees_with_boolean_definition(s):
-    rho = distance(5.0).evaluate(build(s)).rho
+    rho = distance(5.0, kind="centre").evaluate(build(s)).rho
     dists = [math.hypot(s["x"][a, k] - s["x"][0, k], s["y"][a, k] - s["y"][0, k])
              for a, k in pairs(s)]
     holds = all(d >= 5.0 for d in dists)
@@ -92,7 +92,7 @@ def test_ttc_sign_agrees_with_boolean_definition(s):
     ps = pairs(s)
     # numpy.roots and the closed form may disagree on a root that exists only by rounding
     assume(all(abs(closest_approach(s, a, k) - 5.0) > 1e-6 for a, k in ps))
-    rho = ttc(2.0).evaluate(build(s)).rho
+    rho = ttc(2.0, kind="centre").evaluate(build(s)).rho
     ttcs = [ttc_textbook(s, a, k) for a, k in ps]
     assume(all(abs(v - 2.0) > 1e-6 for v in ttcs))
     assert (rho >= 0) == all(v >= 2.0 for v in ttcs)
@@ -198,8 +198,8 @@ def test_distance_and_ttc_invariant_under_rotation_and_translation(s, theta, dx,
 @given(scenes())
 def test_stl_formulas_agree_with_the_builtin_metrics(s):
     traj = build(s)
-    assert always(gap() >= 5.0).evaluate(traj).rho == distance(5.0).evaluate(traj).rho
-    assert always(ttc_to() >= 2.0).evaluate(traj).rho == ttc(2.0).evaluate(traj).rho
+    assert always(gap() >= 5.0).evaluate(traj).rho == distance(5.0, kind="centre").evaluate(traj).rho
+    assert always(ttc_to() >= 2.0).evaluate(traj).rho == ttc(2.0, kind="centre").evaluate(traj).rho
 
 
 @settings(max_examples=100, deadline=None)

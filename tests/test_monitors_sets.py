@@ -41,7 +41,7 @@ def following(gap0=30.0):
 # -- MonitorSet -------------------------------------------------------------------------------
 
 def test_set_evaluates_every_member_into_a_verdict():
-    ms = MonitorSet([distance(), ttc(), progress(), lane_keeping()])
+    ms = MonitorSet([distance(kind="centre"), ttc(kind="centre"), progress(), lane_keeping()])
     assert ms.names == ("distance", "ttc", "progress", "lane_keeping")
     v = ms.evaluate(following())
     assert isinstance(v, Verdict)
@@ -54,14 +54,14 @@ def test_set_evaluates_every_member_into_a_verdict():
 
 
 def test_any_violated_member_fails_the_verdict():
-    v = MonitorSet([distance(), ttc(), progress(200.0)]).evaluate(following(gap0=12.0))
+    v = MonitorSet([distance(kind="centre"), ttc(kind="centre"), progress(200.0)]).evaluate(following(gap0=12.0))
     assert not v.ok
     assert v.violated == ["distance", "ttc", "progress"]
     assert v.worst.name == "progress"
 
 
 def test_priority_list_becomes_a_chain_of_edges():
-    ms = MonitorSet([distance(), ttc(), progress(), lane_keeping()],
+    ms = MonitorSet([distance(kind="centre"), ttc(kind="centre"), progress(), lane_keeping()],
                     priority=["ttc", "distance", "lane_keeping"])
     assert ms.priority_edges == (("ttc", "distance"), ("distance", "lane_keeping"))
     # a topological order; unranked members slot in by member order
@@ -70,7 +70,7 @@ def test_priority_list_becomes_a_chain_of_edges():
 
 
 def test_priority_dag_edges():
-    ms = MonitorSet([distance(), ttc(), progress(), lane_keeping()],
+    ms = MonitorSet([distance(kind="centre"), ttc(kind="centre"), progress(), lane_keeping()],
                     priority=[("distance", "progress"), ("ttc", "progress"),
                               ("progress", "lane_keeping")])
     assert ms.priority_order == ("distance", "ttc", "progress", "lane_keeping")
@@ -87,13 +87,13 @@ def test_priority_dag_edges():
 ])
 def test_bad_priorities_name_the_monitor(priority, match):
     with pytest.raises(MonitorError, match=match):
-        MonitorSet([distance(), ttc()], priority=priority)
+        MonitorSet([distance(kind="centre"), ttc(kind="centre")], priority=priority)
 
 
 def test_duplicate_names_are_rejected_with_a_fix():
     with pytest.raises(MonitorError, match="'distance'.*named"):
-        MonitorSet([distance(5.0), distance(2.0)])
-    ms = MonitorSet([distance(5.0), distance(2.0).named("distance_2m")])
+        MonitorSet([distance(5.0, kind="centre"), distance(2.0, kind="centre")])
+    ms = MonitorSet([distance(5.0, kind="centre"), distance(2.0, kind="centre").named("distance_2m")])
     assert ms.names == ("distance", "distance_2m")
 
 
@@ -101,7 +101,7 @@ def test_nan_from_a_member_is_an_error_naming_it_never_a_pass():
     def flaky(traj):
         return float("nan")
 
-    ms = MonitorSet([distance(), flaky])
+    ms = MonitorSet([distance(kind="centre"), flaky])
     with pytest.raises(MonitorError, match="'flaky'.*NaN"):
         ms.evaluate(following())
 
@@ -120,7 +120,7 @@ def test_nan_trajectory_in_a_builtin_metric_is_an_error_with_the_member_name():
     traj = Trajectory.from_arrays(t, {"ego": {"x": [0.0, np.nan, 2.0], "y": 0 * t},
                                       "lead": {"x": 20 + t, "y": 0 * t}})
     with pytest.raises(MonitorError, match="'distance'"):
-        MonitorSet([distance()]).evaluate(traj)
+        MonitorSet([distance(kind="centre")]).evaluate(traj)
 
 
 # -- as_monitor ---------------------------------------------------------------------------------
@@ -137,7 +137,7 @@ def test_plain_function_is_a_monitor_named_after_it():
 
 
 def test_as_monitor_passes_monitors_through():
-    d = distance()
+    d = distance(kind="centre")
     assert as_monitor(d) is d
 
 
@@ -162,7 +162,7 @@ def test_function_returning_a_bool_is_rejected_at_evaluation():
 
 def test_evaluate_refuses_a_non_trajectory():
     with pytest.raises(MonitorError, match="Trajectory"):
-        distance().evaluate({"x": [0.0]})
+        distance(kind="centre").evaluate({"x": [0.0]})
 
 
 # -- ±inf in every report ---------------------------------------------------------------------
@@ -201,7 +201,7 @@ def test_verdict_json_round_trip_keeps_infinities():
         "ego": {"x": [0, 20], "y": [0, 0], "lane_offset": 0.0},
         "lead": {"x": [50, 80], "y": [0, 0]},
     })
-    v = MonitorSet([distance(), ttc(), progress()]).evaluate(traj)
+    v = MonitorSet([distance(kind="centre"), ttc(kind="centre"), progress()]).evaluate(traj)
     assert v.rho["ttc"] == math.inf
     text = json.dumps(v.to_json(), allow_nan=False)
     back = Verdict.from_json(json.loads(text))
@@ -214,8 +214,8 @@ def test_builtin_monitors_pickle_for_worker_processes():
     from pytest_avscenario.monitors import collision, off_road, reaches, time_headway
 
     traj = following()
-    for m in (distance(), ttc(), progress(), lane_keeping(), collision(), time_headway(),
-              off_road(), reaches((50, 0), radius=2.0), MonitorSet([distance(), ttc()])):
+    for m in (distance(kind="centre"), ttc(kind="centre"), progress(), lane_keeping(), collision(), time_headway(),
+              off_road(), reaches((50, 0), radius=2.0), MonitorSet([distance(kind="centre"), ttc(kind="centre")])):
         clone = pickle.loads(pickle.dumps(m))
         assert clone.evaluate(traj) == m.evaluate(traj)
 

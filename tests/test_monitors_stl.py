@@ -203,7 +203,7 @@ def test_ttc_signal_matches_ttc_monitor():
     from pytest_avscenario.monitors import ttc
 
     traj = following()
-    assert always(ttc_to() >= 2.0).evaluate(traj).rho == pytest.approx(ttc().evaluate(traj).rho)
+    assert always(ttc_to() >= 2.0).evaluate(traj).rho == pytest.approx(ttc(kind="centre").evaluate(traj).rho)
 
 
 def test_until_on_a_trajectory_reports_the_deciding_step():
@@ -220,7 +220,7 @@ def test_until_on_a_trajectory_reports_the_deciding_step():
 def test_formulas_work_as_monitors_in_a_set_with_names():
     traj = following()
     phi = always(implies(gap() <= 15.0, ego_speed() <= 9.0)).named("slow_when_close")
-    ms = MonitorSet([phi, distance()])
+    ms = MonitorSet([phi, distance(kind="centre")])
     v = ms.evaluate(traj)
     assert "slow_when_close" in v.results and v.results["slow_when_close"].rho < 0
     assert always(ego_speed() >= 5).name == "always(ego_speed >= 5)"

@@ -40,7 +40,7 @@ def test_the_listing_sees_what_a_scenario_run_loads(pytester):
         from pytest_avscenario.monitors import distance
         from pytest_avscenario.trajectory import Trajectory
 
-        @scenario(x=Uniform(0, 1), samples=2, monitors=[distance(5.0)])
+        @scenario(x=Uniform(0, 1), samples=2, monitors=[distance(5.0, kind="centre")])
         def test_gap(case):
             return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
                                                        "lead": {"x": [50.0, 50.0], "y": [0.0, 0.0]}})

@@ -7,7 +7,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def _commands() -> list[str]:
     lines = (ROOT / "README.md").read_text().splitlines()
-    return [l.strip() for l in lines[:12] if l.startswith("    ")]
+    return [l.strip() for l in lines[:16] if l.startswith("    ")]
 
 
 def test_readme_opens_with_the_two_commands():
@@ -55,3 +55,25 @@ def test_the_options_table_lists_every_option():
     table = (ROOT / "README.md").read_text().split("## Options", 1)[1].split("\n## ", 1)[0]
     missing = [o.name for o in OPTIONS if f"`--avs-{o.name}" not in table]
     assert missing == []
+
+
+def test_the_complete_examples_nominal_case_passes_with_the_autopilot():
+    """A new user's first run: the README's complete example, at its nominal parameters and
+    driven by the built-in autopilot, violates nothing (its failures are the sampled corners)."""
+    from pytest_avscenario import Case
+    from pytest_avscenario.monitors import MonitorSet
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.space import FeatureSpace
+
+    ns: dict = {}
+    exec(compile(_snippet("## A complete example"), "README.md", "exec"), ns)
+    fn = ns["test_vehicle_following"]
+    (spec,) = [m.args[0] for m in fn.pytestmark if m.name == "scenario"]
+    params = FeatureSpace(spec.parameters).nominal()
+    for seed in (0, 1):
+        case = Case(params, index=0, seed=seed, sampler="nominal", test=fn.__name__)
+        world = World(seed=case.seed, rng=case.rng, driver="autopilot", name=fn.__name__)
+        fn(case=case, world=world)
+        verdict = MonitorSet(list(spec.monitors)).evaluate(world.trajectory)
+        assert verdict.ok, (seed, params, verdict.rho)
+        assert {"collision", "distance", "ttc"} <= set(verdict.rho)

@@ -24,7 +24,7 @@ from pytest_avscenario.report.recording import recording_data
 from pytest_avscenario.sim.clip import decoded, dumps, frame_lines
 from pytest_avscenario.trajectory import Trajectory
 
-MONITORS = [distance(8.0), collision(), ttc(2.0)]
+MONITORS = [distance(8.0, kind="centre"), collision(), ttc(2.0, kind="centre")]
 
 
 def _violations(traj):
@@ -106,7 +106,7 @@ def test_agents_present_for_part_of_the_run_are_absent_elsewhere():
                    "kind": "pedestrian", "present": present},
     })
     data = recording_data(traj, violations={"distance": {"t": 2.0, "agent": "walker", "threshold": 8.0, "rho": -3.0}},
-                       monitors=[distance(8.0)])
+                       monitors=[distance(8.0, kind="centre")])
     assert "road" not in data and data["agents"][1]["k0"] > 0
     plain = decoded(json.loads(dumps(data)))
     walker = plain["agents"][1]
@@ -140,7 +140,7 @@ CLOSE_CALLS = """
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 
-@scenario(gap=Uniform(3, 12, unit="m"), samples=6, monitors=[distance(8.0)])
+@scenario(gap=Uniform(3, 12, unit="m"), samples=6, monitors=[distance(8.0, kind="centre")])
 def test_gap(case, world):
     road = world.straight_road(lanes=1, length=200)
     world.ego(road.lane(0), s=10.0, speed=10.0)

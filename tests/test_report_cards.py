@@ -27,7 +27,7 @@ from pytest_avscenario import scenario, Uniform, Choice
 from pytest_avscenario.monitors import distance
 
 @scenario(gap=Uniform(3, 30, nominal=25, unit="m"), weather=Choice(["dry", "rain"]),
-          samples=6, monitors=[distance(8.0)])
+          samples=6, monitors=[distance(8.0, kind="centre")])
 def test_gap(case, world):
     jitter = float(case.rng.uniform(-0.5, 0.5))  # drawn during the run: on the card
     road = world.straight_road(lanes=1, length=300)
@@ -222,7 +222,7 @@ def test_the_replay_labels_each_car_beside_it_and_off_the_others_in_a_dense_scen
 
     w = dense_scene()
     data = recording_data(w, violations={"distance": {"t": 0.4, "agent": "car4", "threshold": 5.0, "rho": -4.0}},
-                       monitors=[distance(5.0)])
+                       monitors=[distance(5.0, kind="centre")])
     dom = _dom(_replay_page(tmp_path, data, "dense"))
     assert 'data-error="' not in dom, dom[:400]
     placed = json.loads(html.unescape(re.search(r'data-labels="([^"]*)"', dom).group(1)))

@@ -165,7 +165,7 @@ FAILING_WORLD = """
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 
-@scenario(gap=Uniform(3, 30), samples=4, monitors=[distance(8.0)])
+@scenario(gap=Uniform(3, 30), samples=4, monitors=[distance(8.0, kind="centre")])
 def test_gap(case, world):
     road = world.straight_road(lanes=1, length=300)
     world.ego(road.lane(0), s=20.0, speed=10.0)

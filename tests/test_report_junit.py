@@ -238,3 +238,55 @@ def test_gap(case):
     assert float(suite["avs.case[test_gap.py::test_gap[halton-003]].rho.distance"]) < 0
     assert json.loads(suite["avs.case[test_gap.py::test_gap[halton-000]].params"]) == {"x": 0.5}
     assert suite["avs.test[test_gap.py::test_gap][halton].verdict"].startswith("rejected; ")
+
+
+ACCEPTED = """
+from pytest_avscenario import scenario, Uniform
+from pytest_avscenario.monitors import distance, ttc
+from pytest_avscenario.trajectory import Trajectory
+
+@scenario(x=Uniform(0, 1), samples=4, monitors=[distance(5.0, kind="centre"), ttc(2.0)],
+          accept=["ttc"])
+def test_gap(case):
+    gap = 20 * case.x
+    return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
+                                               "lead": {"x": [gap, gap], "y": [3.0, 3.0]}})
+"""
+
+
+@pytest.mark.parametrize("how", ["xfail", "skipped", "passed", "ini:passed"])
+def test_accepted_counterexamples_appear_as_asked_in_junit(pytester, how):
+    """--avs-junit-accepted: an accepted counterexample (distance violated, only ttc gates)
+    is an xfail (default), a plain skip, or a passing test case that keeps the
+    counterexample in its properties, so dashboards need not list it among skips."""
+    pytester.makepyfile(test_gap=ACCEPTED)
+    args = ["--avs-db=none", "--avs-seed=1", "--junitxml=out.xml", "-p", "no:cacheprovider",
+            "--avs-report=none", "-p", "no:xdist"]
+    if how.startswith("ini:"):
+        how = how[4:]
+        pytester.makeini(f"[pytest]\navs_junit_accepted = {how}\n")
+    else:
+        args.append(f"--avs-junit-accepted={how}")
+    result = pytester.runpytest(*args)
+    assert result.ret == pytest.ExitCode.OK  # only ttc gates; distance violations are accepted
+    root = ET.parse(pytester.path / "out.xml").getroot()
+    case = next(c for c in root.iter("testcase") if c.get("name") == "test_gap[halton-003]")
+    skipped = case.find("skipped")
+    props = dict((p.get("name"), p.get("value")) for p in case.iter("property"))
+    assert props["avs.verdict"] == "fail" and float(props["avs.rho.distance"]) < 0
+    if how == "passed":
+        assert skipped is None and case.find("failure") is None
+        assert "distance" in props["avs.accepted"]
+        assert result.parseoutcomes().get("xfailed", 0) == 0
+    else:
+        assert skipped is not None and "avs.accepted" not in props
+        assert (skipped.get("type") == "pytest.xfail") == (how == "xfail")
+        assert result.parseoutcomes().get("xfailed" if how == "xfail" else "skipped", 0) >= 1
+    _validate(pytester.path / "out.xml", "junit-xunit2.xsd")
+
+
+def test_a_bad_junit_accepted_value_is_a_usage_error(pytester):
+    pytester.makepyfile(test_gap=ACCEPTED)
+    result = pytester.runpytest("--avs-junit-accepted=hidden", "-p", "no:xdist")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    assert "hidden" in (result.stdout.str() + result.stderr.str())

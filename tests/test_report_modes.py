@@ -124,7 +124,7 @@ from pytest_avscenario.trajectory import Trajectory
 LIMIT = float(os.environ.get("AVS_TEST_LIMIT", "4"))
 
 @scenario(gap=Uniform(0, 20, unit="m"), offset=Uniform(6, 20, unit="m"), samples=40, sampler="halton",
-          monitors=[distance(LIMIT)])
+          monitors=[distance(LIMIT, kind="centre")])
 def test_pair(case):
     return Trajectory.from_arrays([0.0, 0.1], {
         "ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},

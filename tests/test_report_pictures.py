@@ -222,8 +222,8 @@ def test_the_case_time_series_shows_the_egos_decisions_along_its_time_axis(tmp_p
         [0.0, "FASTER"], [2.0, "IDLE"], [6.0, "FASTER"]]}})
     assert decision_spans(plain) == []
     assert decision_spans(decided) == [(0.0, 2.0, "FASTER"), (2.0, 6.0, "IDLE"), (6.0, 10.0, "FASTER")]
-    before = Image.open(plot_case_timeseries(tmp_path / "plain.png", plain, monitors=[distance(5.0)]))
-    after = plot_case_timeseries(tmp_path / "decided.png", decided, monitors=[distance(5.0)], first_t=3.0)
+    before = Image.open(plot_case_timeseries(tmp_path / "plain.png", plain, monitors=[distance(5.0, kind="centre")]))
+    after = plot_case_timeseries(tmp_path / "decided.png", decided, monitors=[distance(5.0, kind="centre")], first_t=3.0)
     rgb = np.asarray(Image.open(after).convert("RGB")).astype(int)
     assert rgb.shape[0] > before.height  # a strip above the three panels
 

@@ -166,11 +166,30 @@ def test_terminal_table_fits_the_terminal_width(rows, tests_info):
     summary = summarize(rows, tests_info)
     wide = format_table(summary, width=400)
     narrow = format_table(summary, width=80)
-    assert max(map(len, narrow.splitlines()[:-1])) <= 80 < max(map(len, wide.splitlines()[:-1]))
+    assert max(map(len, narrow.splitlines())) <= 80 < max(map(len, wide.splitlines()[:-1]))
     # two lines per campaign when narrow: the figures, then the violations per metric
     lines = narrow.splitlines()
     assert lines[3].strip() == "violations: Distance 1, TTC 1, Lane 1"  # the metrics violated
-    assert len(lines) == 2 + 2 * len(summary) + 1
+    legend = lines[2 + 2 * len(summary):]
+    assert len(legend) >= 2 and " ".join(l.strip() for l in legend).startswith("ε: coverage")
+
+
+def test_long_test_names_are_shortened_in_the_middle_to_fit_columns(rows, tests_info):
+    from dataclasses import replace
+
+    from pytest_avscenario.report.summary import ellipsize
+
+    long = "test_" + "unprotected_left_turn_with_a_lateral_car_running_the_stop_" * 2 + "east"
+    summary = [replace(s, test=f"example_tests/test_mod.py::{long}") if i == 0 else s
+               for i, s in enumerate(summarize(rows, tests_info))]
+    for columns in (120, 100, 80):
+        text = format_table(summary, width=columns)
+        assert max(map(len, text.splitlines())) <= columns, (columns, text)
+        name_line = text.splitlines()[2]
+        assert "…" in name_line and name_line.startswith("test_unprot") and "_east" in name_line
+    # the legend wraps instead of running to 200+ characters
+    assert all(len(l) <= 120 for l in format_table(summary, width=120).splitlines())
+    assert ellipsize("abcdefghij", 5) == "ab…ij" and ellipsize("abc", 5) == "abc"
 
 
 def test_short_names_stay_unique():
@@ -182,3 +201,21 @@ def test_short_names_stay_unique():
         "a/t1.py::test_x": "t1.py::test_x", "b/t2.py::test_x": "t2.py::test_x"}
     assert short_names(["a/t.py::test_x", "b/t.py::test_x"]) == {
         "a/t.py::test_x": "a/t.py::test_x", "b/t.py::test_x": "b/t.py::test_x"}
+
+
+def test_a_campaign_of_replays_counts_the_violations_of_its_cases(rows, tests_info):
+    """Replays of stored failures are no samples, but their row must not say "violations:
+    none" beside its counterexamples."""
+    replays = [row(FOLLOW, "replay", i, {"progress": 3.0, "distance": -1.0, "ttc": -0.5 if i else 1.0,
+                                         "lane": 0.2}, origin="replay", gap=20.0, speed=8.0, weather="dry")
+               for i in range(3)]
+    summary = summarize(rows + replays, tests_info)
+    rep = next(s for s in summary if s.sampler == "replay")
+    assert rep.samples == 0 and rep.counterexamples == 3
+    assert rep.violations["distance"] == 0  # the paper's counts stay over sampled cases
+    assert rep.case_violations["distance"] == 3 and rep.case_violations["ttc"] == 2
+    narrow = format_table(summary, width=80).splitlines()
+    i = next(k for k, l in enumerate(narrow) if " replay " in f" {l} ")
+    assert narrow[i + 1].strip() == "violations: Distance 3, TTC 2 (among its 3 cases)"
+    wide = next(l for l in format_table(summary, width=400).splitlines() if " replay " in l)
+    assert wide.split()[:6] == ["test_vehicle_following", "replay", "0", "0", "3", "2"]

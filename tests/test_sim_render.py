@@ -145,9 +145,9 @@ def test_in_a_dense_scene_every_label_sits_by_its_own_car_and_covers_no_other(tm
     tr = w.trajectory
     step = 5
     assert np.ptp(tr.x[:, step]) < 20 and np.ptp(tr.y[:, step]) < 20  # eight cars within 20 m
-    rho = distance(5.0).evaluate(tr)
+    rho = distance(5.0, kind="centre").evaluate(tr)
     data = recording_data(w, violations={"distance": {"t": float(tr.t[step]), "agent": "car4", "threshold": 5.0,
-                                                   "rho": rho.rho}}, monitors=[distance(5.0)])
+                                                   "rho": rho.rho}}, monitors=[distance(5.0, kind="centre")])
     drawn = render_moment(w, str(tmp_path / "dense.png"), data)
     assert drawn["step"] == step
     placed = drawn["placed"]

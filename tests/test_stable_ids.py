@@ -14,7 +14,7 @@ from pytest_avscenario.monitors import distance
 from pytest_avscenario.trajectory import Trajectory
 
 @scenario(x=Uniform(0, 1), lane=IntRange(0, 3), samples=16, sampler="mab",
-          monitors=[distance(5.0)])
+          monitors=[distance(5.0, kind="centre")])
 def test_bandit(case):
     gap = 3.0 + 12.0 * case.x + case.lane
     return Trajectory.from_arrays([0.0, 0.1], {

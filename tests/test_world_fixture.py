@@ -7,7 +7,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance, progress
 from pytest_avscenario.sim import behaviors as b
 
-@scenario(gap=Uniform(25, 40), samples=2, monitors=[progress(11.0), distance(5.0)])
+@scenario(gap=Uniform(25, 40), samples=2, monitors=[progress(11.0), distance(5.0, kind="centre")])
 def test_follow(case, world):
     road = world.straight_road(lanes=1, length=400)
     world.ego(road.lane(0), s=20.0, speed=12.0)
@@ -65,7 +65,7 @@ def test_no_trajectory_with_monitors_is_an_error_that_says_why(pytester):
     pytester.makepyfile(test_none="""
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
-@scenario(gap=Uniform(25, 40), samples=1, monitors=[distance(5.0)])
+@scenario(gap=Uniform(25, 40), samples=1, monitors=[distance(5.0, kind="centre")])
 def test_nothing(case, world):
     world.straight_road(lanes=1, length=100)
 """)
@@ -78,7 +78,7 @@ def test_bad_monitor_declaration_is_a_collection_error(pytester):
     pytester.makepyfile(test_bad="""
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
-@scenario(gap=Uniform(25, 40), monitors=[distance(5.0), distance(2.0)])
+@scenario(gap=Uniform(25, 40), monitors=[distance(5.0, kind="centre"), distance(2.0, kind="centre")])
 def test_twice(case, world):
     pass
 """)
@@ -92,7 +92,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 from pytest_avscenario.sim import behaviors as b
 
-@scenario(gap=Uniform(6, 40, nominal=35), samples=3, monitors=[distance(25.0)], shrink_budget=4)
+@scenario(gap=Uniform(6, 40, nominal=35), samples=3, monitors=[distance(25.0, kind="centre")], shrink_budget=4)
 def test_close(case, world):
     road = world.straight_road(lanes=1, length=300)
     world.ego(road.lane(0), s=20.0, speed=10.0)
@@ -123,7 +123,7 @@ def test_pytest_html_rows_carry_the_pictures_of_a_failing_case(pytester):
 from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 
-@scenario(gap=Uniform(6, 40, nominal=35), samples=2, monitors=[distance(25.0)], shrink_budget=2)
+@scenario(gap=Uniform(6, 40, nominal=35), samples=2, monitors=[distance(25.0, kind="centre")], shrink_budget=2)
 def test_close(case, world):
     road = world.straight_road(lanes=1, length=300)
     world.ego(road.lane(0), s=20.0, speed=10.0)

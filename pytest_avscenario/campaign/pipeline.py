@@ -196,8 +196,10 @@ def run_item(ctx: CampaignContext, ci: CaseItem) -> ItemResult:
         # under --avs-junit=strict the controller writes them at suite level instead
         ci.user_properties.extend(case_properties(row))
     if capped:
-        note = (f"not minimized nor stored: {plan.shrink_max} failures of this test's "
-                f"{slot.sampler} campaign were already (--avs-shrink-max)")
+        n = plan.shrink_max
+        first = "the first failure" if n == 1 else f"the first {n} failures"
+        note = (f"not minimized nor stored: {first} of this test's {slot.sampler} campaign "
+                f"{'was' if n == 1 else 'were'} minimized already (--avs-shrink-max {n})")
     else:
         note = update_db(ctx, ci, plan, slot, case_obj, outcome, shrink)
     if outcome.failed:

@@ -419,6 +419,14 @@ OPTIONS = (
            "junit-10 schema of Jenkins' xUnit plugin: as suite properties avs.case[<id>].<name>)",
            "where per-case data goes in the JUnit file: properties (default) or strict",
            _one_of("JUnit mode", "properties", "strict")),
+    Option("junit-accepted", "AS",
+           "how a counterexample the acceptance criteria accept is reported to pytest and in "
+           "the --junitxml file: xfail (default: <skipped type=\"pytest.xfail\">), skipped "
+           "(a plain skip) or passed (a passing test case carrying the counterexample as "
+           "properties avs.accepted and avs.verdict, so CI dashboards do not list it among "
+           "skips)",
+           "how accepted counterexamples are reported: xfail (default), skipped or passed",
+           _one_of("accepted-counterexample outcome", "xfail", "skipped", "passed")),
     Option("params", "JSON",
            "run the selected scenario cases with these parameter values (a JSON object; "
            "missing parameters take their nominal value)", "", _text, ini=False),
@@ -484,6 +492,7 @@ class Settings:
     params: Mapping[str, Any] | None  # --avs-params, not yet completed against a space
     baseline: Any  # acceptance.Baseline of --avs-baseline, or None
     junit: str  # "properties" or "strict"
+    junit_accepted: str  # "xfail", "skipped" or "passed"
     per_test: Mapping[str, Found]  # command line / ini values of the per-test settings
     command_line: Mapping[str, str]  # option key -> the text given on the command line
     #: --avs-export: N (the minimized counterexamples and N more per test and sampler),
@@ -575,4 +584,4 @@ def script_settings(seed: int = 0, *, driver: str = "autopilot", report_dir: Any
         db_path=None if db_path is None else Path(db_path),
         executor="inprocess", dask_address=None, dask_workers=None, dask_timeout_s=None,
         dask_retries=None, gifs=gifs, case_pictures=case_pictures, params=None, baseline=None,
-        junit="properties", per_test=per_test, command_line={})
+        junit="properties", junit_accepted="xfail", per_test=per_test, command_line={})

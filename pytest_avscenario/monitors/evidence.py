@@ -49,8 +49,10 @@ class Evidence:
 
 
 def ttc_radius(monitors: Iterable[Any]) -> float:
-    """The TTC circle [m] of the test's first TTC monitor, else the paper's 5 m."""
-    return next((m.radius for m in monitors if isinstance(m, TTCMonitor)), TTC_RADIUS_M)
+    """The TTC circle [m] of the test's first circle TTC monitor (``ttc(kind="centre")``),
+    else the paper's 5 m."""
+    return next((m.radius for m in monitors if isinstance(m, TTCMonitor) and m.radius is not None),
+                TTC_RADIUS_M)
 
 
 def critical_hint(violations: Mapping[str, Mapping[str, Any]] | None) -> str | None:
@@ -69,6 +71,8 @@ def case_evidence(traj: Trajectory, monitors: Sequence[Any] = (), *, agent: str 
     else the nearest to the ego at ``t`` [s]), the values toward it, and ρ(t) of the monitors
     named in ``violated`` that have one."""
     radius = ttc_radius(monitors)
+    # the TTC the test judges by (footprints in the ego's path, or the paper's circle)
+    ttc_monitor = next((m for m in monitors if isinstance(m, TTCMonitor)), None)
     if traj.n_agents < 2:
         return Evidence(critical=None, radius_m=radius)
     k = critical_agent(traj, agent, t)
@@ -82,7 +86,8 @@ def case_evidence(traj: Trajectory, monitors: Sequence[Any] = (), *, agent: str 
                 rho_t[m.name] = per
     return Evidence(critical=k, radius_m=radius,
                     distance_m=pairwise_distance(traj)[k - 1], gap_m=footprint_gap(traj)[k - 1],
-                    ttc_s=pairwise_ttc(traj, radius)[k - 1], rho_t=rho_t)
+                    ttc_s=(ttc_monitor._values(traj) if ttc_monitor is not None
+                           else pairwise_ttc(traj, radius))[k - 1], rho_t=rho_t)
 
 
 def _per_step(per: Any, traj: Trajectory) -> np.ndarray | None:

@@ -34,13 +34,24 @@ __all__ = [
     "distance", "ttc", "progress", "lane_keeping",
     "collision", "time_headway", "off_road", "reaches",
     "pairwise_distance", "pairwise_ttc", "footprint_gap", "footprint_separation",
-    "swept_contacts", "critical_agent",
+    "swept_contacts", "critical_agent", "in_path", "path_distance", "footprint_ttc",
+    "DISTANCE_KINDS", "TTC_KINDS", "PATH_MARGIN_M",
 ]
 
 
 #: the circle [m] the paper's TTC extrapolates into (DESIGN.md, definition 2): ``ttc()``'s
 #: default and the TTC shown when a test declares no TTC monitor
 TTC_RADIUS_M = 5.0
+
+
+#: [m] how far beside the ego's footprint another road user still counts as in its path
+#: (:func:`in_path`): a car in the next lane of a 3.5 m road (1.5 m between two 2-m wide
+#: cars) is beside it, one drifting to within half a metre of its side is in its way
+PATH_MARGIN_M = 0.5
+#: what ``distance(kind=...)`` measures; ``"path"`` is the default
+DISTANCE_KINDS = ("path", "centre", "footprint")
+#: what ``ttc(kind=...)`` measures; ``"path"`` is the default
+TTC_KINDS = ("path", "centre")
 
 
 # -- vectorized kernels (also used by the STL signal builders) --------------------------------
@@ -335,6 +346,82 @@ def swept_contacts(traj: Trajectory, *, extrapolate: bool = False,
     return t_contact, depth
 
 
+def _travel_sign(traj: Trajectory) -> np.ndarray:
+    """``(T,)`` +1 where the ego drives forward (or stands), -1 where it reverses."""
+    h = traj.heading[0]
+    vlon = traj.vx[0] * np.cos(h) + traj.vy[0] * np.sin(h)
+    return np.where(vlon < -0.1, -1.0, 1.0)
+
+
+def in_path(traj: Trajectory, margin: float = PATH_MARGIN_M) -> np.ndarray:
+    """``(A-1, T)`` whether each other agent is in the ego's path at each step.
+
+    In the ego's frame (its heading; backwards while it reverses), the other agent's
+    footprint must reach ahead of the ego's centre and come within ``margin`` [m] of the
+    strip the ego's footprint sweeps when it drives straight on: ``|lateral offset| <
+    ego half width + the other's half extent across the ego's heading + margin``. A car in
+    the next lane (centres 3.5 m or more apart across, two 2-m wide cars) is not in the path;
+    one ahead in the ego's lane, one cutting into it, or a pedestrian crossing in front of it
+    is. Absent pairs are False. Needs x, y, heading, vx, vy."""
+    h = traj.heading[0][None, :]
+    c, s = np.cos(h), np.sin(h)
+    dx = traj.x[1:] - traj.x[0]
+    dy = traj.y[1:] - traj.y[0]
+    lon = (dx * c + dy * s) * _travel_sign(traj)[None, :]
+    lat = -dx * s + dy * c
+    rel = traj.heading[1:] - h
+    cr, sr = np.abs(np.cos(rel)), np.abs(np.sin(rel))
+    hl, hw = (traj.length[1:] / 2)[:, None], (traj.width[1:] / 2)[:, None]
+    across = hl * sr + hw * cr      # the other's half extent across the ego's heading
+    along = hl * cr + hw * sr       # ... and along it
+    beside = np.abs(lat) < traj.width[0] / 2 + across + margin
+    ahead = lon + along > 0
+    return beside & ahead & _pair_mask(traj)
+
+
+def path_distance(traj: Trajectory, margin: float = PATH_MARGIN_M) -> np.ndarray:
+    """``(A-1, T)`` centre distance [m] from the ego to each other agent while it is in the
+    ego's path (:func:`in_path`), +inf otherwise: the paper's distance, restricted to the road
+    users the ego could drive into."""
+    return np.where(in_path(traj, margin), pairwise_distance(traj), np.inf)
+
+
+def footprint_ttc(traj: Trajectory) -> np.ndarray:
+    """``(A-1, T)`` time [s] until the ego's footprint and each other agent's in its path
+    meet, both moving on at their current velocities with their current headings; +inf when
+    they never meet (parallel in neighbouring lanes, receding, or a path that misses), 0 when
+    they overlap already, +inf where either is absent or the agent is behind the ego.
+
+    Exact for two rectangles in uniform motion: along each of the four edge normals the
+    projected gap closes at the projected relative speed, giving the interval of times in
+    which the projections overlap; the footprints meet at the latest entry, when it comes
+    before the earliest exit. For two cars in line it is the paper's TTC with a circle of one
+    car length (bumper to bumper); unlike the paper's circle it ignores a car passing in the
+    next lane and counts a car whose lateral motion carries it into the ego's path."""
+    hl, hw = traj.length / 2, traj.width / 2
+    pose0 = (traj.heading[0], hl[0], hw[0])
+    hla, hwa = hl[1:, None], hw[1:, None]
+    at = _sat_axes(traj.x[0], traj.y[0], *pose0, traj.x[1:], traj.y[1:], traj.heading[1:], hla, hwa)
+    # the same projections of the relative velocity (the other's minus the ego's)
+    rate = _sat_axes(0.0, 0.0, *pose0, traj.vx[1:] - traj.vx[0], traj.vy[1:] - traj.vy[0],
+                     traj.heading[1:], hla, hwa)
+    enter = np.full(at[0][0].shape, -np.inf)
+    leave = np.full(at[0][0].shape, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for (p, e), (v, _) in zip(at, rate):
+            still = np.abs(v) < 1e-12
+            t1, t2 = (-e - p) / v, (e - p) / v
+            lo = np.where(still, np.where(np.abs(p) < e, -np.inf, np.inf), np.minimum(t1, t2))
+            hi = np.where(still, np.where(np.abs(p) < e, np.inf, -np.inf), np.maximum(t1, t2))
+            enter, leave = np.maximum(enter, lo), np.minimum(leave, hi)
+    meet = (enter < leave) & (leave > 0)
+    out = np.where(meet, np.maximum(enter, 0.0), np.inf)
+    bad = np.isnan(at[0][0]) | np.isnan(rate[0][0])
+    out = np.where(bad, np.nan, out)
+    ahead = in_path(traj, math.inf)  # ahead of the ego's centre; beside-ness is the motion's
+    return np.where(_pair_mask(traj) & (ahead | bad), out, np.inf)
+
+
 def _argmin_2d(values: np.ndarray) -> tuple[int, int]:
     """(agent row, step) of the smallest value, earliest step first on ties."""
     flat = int(np.argmin(values.T))
@@ -401,57 +488,103 @@ class _PairwiseMin(Monitor):
 
 
 class DistanceMonitor(_PairwiseMin):
-    """Always ``distance(ego, other) >= threshold`` [m] for every other agent."""
+    """Always ``distance(ego, other) >= threshold`` [m] for every other agent (in the ego's
+    path for ``kind="path"``)."""
 
     _unit = "m"
+    _WHAT = {"path": "centre distance in the ego's path", "centre": "centre distance",
+             "footprint": "footprint gap"}
 
-    def __init__(self, threshold: float = 5.0, *, footprint: bool = False, name: str = "distance"):
+    def __init__(self, threshold: float = 5.0, *, kind: str = "path", name: str = "distance"):
         self.threshold = check_threshold(name, threshold)
-        self.footprint = bool(footprint)
+        self.kind = _check_kind(name, kind, DISTANCE_KINDS)
         self.name = check_name(name)
-        self._what = "footprint gap" if self.footprint else "centre distance"
+        self._what = self._WHAT[self.kind]
+
+    @property
+    def footprint(self) -> bool:
+        return self.kind == "footprint"
 
     def _fields(self) -> tuple[str, ...]:
-        return ("x", "y", "heading") if self.footprint else ("x", "y")
+        return {"path": ("x", "y", "heading", "vx", "vy"), "centre": ("x", "y"),
+                "footprint": ("x", "y", "heading")}[self.kind]
 
     def _values(self, traj: Trajectory) -> np.ndarray:
-        return footprint_gap(traj) if self.footprint else pairwise_distance(traj)
+        if self.kind == "footprint":
+            return footprint_gap(traj)
+        return pairwise_distance(traj) if self.kind == "centre" else path_distance(traj)
 
 
 class TTCMonitor(_PairwiseMin):
-    """Always ``TTC(ego, other) >= threshold`` [s] for every other agent."""
+    """Always ``TTC(ego, other) >= threshold`` [s] for every other agent (footprints meeting
+    in the ego's path for ``kind="path"``, the paper's circle for ``kind="centre"``)."""
 
-    _what = "TTC"
     _unit = "s"
 
-    def __init__(self, threshold: float = 2.0, *, radius: float = TTC_RADIUS_M, name: str = "ttc"):
+    def __init__(self, threshold: float = 2.0, *, kind: str = "path", radius: float | None = None,
+                 name: str = "ttc"):
         self.threshold = check_threshold(name, threshold)
-        self.radius = check_positive(name, radius, "radius")
+        self.kind = _check_kind(name, kind, TTC_KINDS)
         self.name = check_name(name)
+        if self.kind == "path" and radius is not None:
+            raise MonitorError(
+                f"{name}: radius applies to the paper's circle, ttc(kind='centre', radius="
+                f"{radius!r}); the default kind='path' extrapolates the vehicles' footprints")
+        #: the circle [m] of kind="centre"; None for kind="path"
+        self.radius = (check_positive(name, TTC_RADIUS_M if radius is None else radius, "radius")
+                       if self.kind == "centre" else None)
+        self._what = "TTC (footprints, in the ego's path)" if self.kind == "path" else "TTC"
 
     def _fields(self) -> tuple[str, ...]:
-        return ("x", "y", "vx", "vy")
+        return ("x", "y", "vx", "vy", "heading") if self.kind == "path" else ("x", "y", "vx", "vy")
 
     def _values(self, traj: Trajectory) -> np.ndarray:
-        return pairwise_ttc(traj, self.radius)
+        return footprint_ttc(traj) if self.kind == "path" else pairwise_ttc(traj, self.radius)
+
+
+def _check_kind(name: str, kind: Any, kinds: tuple[str, ...]) -> str:
+    if kind not in kinds:
+        raise MonitorError(f"{name}: kind must be one of {', '.join(repr(k) for k in kinds)}, "
+                           f"got {kind!r}")
+    return kind
 
 
 @factory
-def distance(threshold: float = 5.0, *, footprint: bool = False, name: str = "distance") -> Monitor:
-    """The paper's distance metric: rho = min over steps and other agents of
-    (centre distance - ``threshold``) [m]. With ``footprint=True`` the gap between the
-    vehicles' rectangles is used instead of the centre distance (0 when they overlap).
-    No other agent present: rho = +inf."""
-    return DistanceMonitor(threshold, footprint=footprint, name=name)
+def distance(threshold: float = 5.0, *, kind: str = "path", footprint: bool = False,
+             name: str = "distance") -> Monitor:
+    """Keep ``threshold`` [m] from other road users: rho = min over steps and agents of
+    (value - ``threshold``) [m]; +inf when no agent counts. ``kind``:
+
+    * ``"path"`` (default) — the centre distance to agents in the ego's path
+      (:func:`in_path`: ahead of it and within half a metre of the strip it drives along);
+      a car passing in the next lane does not count, one ahead in the lane or cutting in does;
+    * ``"centre"`` — the paper's distance metric: the centre distance to every other agent,
+      whatever lane it is in (use it to reproduce the paper's table);
+    * ``"footprint"`` — the gap between the vehicles' rectangles (0 when they overlap), to
+      every other agent; ``footprint=True`` is the same."""
+    if footprint:
+        if kind not in ("path", "footprint"):
+            raise MonitorError(f"{name}: footprint=True and kind={kind!r} contradict each other; "
+                               "write kind='footprint'")
+        kind = "footprint"
+    return DistanceMonitor(threshold, kind=kind, name=name)
 
 
 @factory
-def ttc(threshold: float = 2.0, *, radius: float = TTC_RADIUS_M, name: str = "ttc") -> Monitor:
-    """The paper's time-to-collision metric: rho = min over steps and other agents of
-    (TTC - ``threshold``) [s], TTC from constant-velocity extrapolation reaching the
-    ``radius`` [m] circle (see :func:`pairwise_ttc`); +inf when no agent is on a
-    collision course."""
-    return TTCMonitor(threshold, radius=radius, name=name)
+def ttc(threshold: float = 2.0, *, kind: str = "path", radius: float | None = None,
+        name: str = "ttc") -> Monitor:
+    """Keep a time to collision of ``threshold`` [s]: rho = min over steps and agents of
+    (TTC - ``threshold``) [s]; +inf when no agent is on a collision course. ``kind``:
+
+    * ``"path"`` (default) — the time until the ego's footprint and another road user's meet
+      when both move on at constant velocity (:func:`footprint_ttc`), for agents ahead of
+      the ego: infinite for a car passing in the next lane (never on a collision course),
+      the bumper-to-bumper TTC for a car ahead in the lane, finite for one cutting in;
+    * ``"centre"`` — the paper's TTC: constant-velocity extrapolation of the centres reaching
+      a circle of ``radius`` [m] (default 5 m; see :func:`pairwise_ttc`), any agent; a car
+      in the next lane closer than the radius gives TTC 0. Use it to reproduce the paper's
+      table."""
+    return TTCMonitor(threshold, kind=kind, radius=radius, name=name)
 
 
 class ProgressMonitor(Monitor):

@@ -336,6 +336,11 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
         return None
     if result.outcome.verdict == "pass":
         return True
+    if result.accepted is not None and pyfuncitem.config.stash[settings_key].junit_accepted == "passed":
+        # --avs-junit-accepted=passed: a passing test case that still says what it found
+        pyfuncitem.add_report_section("call", "avscenario", result.message)
+        pyfuncitem.user_properties.append(("avs.accepted", result.accepted))
+        return True
     _raise_for(pyfuncitem, result, "call")
     return None  # not reached
 
@@ -345,6 +350,8 @@ def _raise_for(item: pytest.Item, result: Any, when: str) -> None:
         # a counterexample the campaign's acceptance criteria accept: an expected failure,
         # still minimized, stored and reported
         item.add_report_section(when, "avscenario", result.message)
+        if item.config.stash[settings_key].junit_accepted == "skipped":
+            pytest.skip(result.accepted)
         pytest.xfail(result.accepted)
     if result.reraise:
         # pytest shows the body's own traceback, with our summary as a report section

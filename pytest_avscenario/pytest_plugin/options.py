@@ -170,6 +170,7 @@ def read_settings(config: pytest.Config) -> Settings:
         params=_pinned_params(found.get("params")),
         baseline=_baseline(found.get("baseline"), config, value("baseline_partial", False)),
         junit=value("junit", "properties"),
+        junit_accepted=value("junit_accepted", "xfail"),
         per_test={k: f for k, f in found.items() if _BY_KEY[k].per_test},
         command_line={k: str(config.getoption(o.dest)) for k, o in _BY_KEY.items()
                       if config.getoption(o.dest) not in (None, "")},

@@ -81,6 +81,11 @@ dl.legend dt { font-weight: 600; }
 dl.legend dd { margin: 0; }
 .banner { background: #fff6e0; border: 1px solid #f0c36d; padding: .5em .8em; }
 #image-status.broken { color: #b33c00; font-weight: 600; }
+.run-verdict { font-size: 1.1em; padding: .4em .8em; border: 1px solid #ccc; margin: .5em 0; }
+.run-verdict.bad { background: #fdecea; border-color: #e0a39a; color: #222; font-weight: 400; }
+.run-verdict.good { background: #eaf6ea; border-color: #9ccc9c; color: #222; font-weight: 400; }
+.run-verdict .head { font-weight: 700; }
+td.verdict { white-space: nowrap; }
 """
 
 

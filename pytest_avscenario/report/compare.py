@@ -247,9 +247,10 @@ def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
     names = short_names(tests)
     out = ["<section id='comparison'><h2>Compared with an earlier run</h2>",
            f"<p class='meta'>baseline: <code>{e(comparison.baseline)}</code> · rates count violations "
-           "among sampled cases</p>",
-           "<div class='wide'><table class='comparison'><thead><tr><th>test</th><th>sampler</th><th>metric</th>"
-           "<th>now</th><th>before</th><th>change</th></tr></thead><tbody>"]
+           "among sampled cases</p>"]
+    head = ("<div class='wide'><table class='comparison{}'><thead><tr><th>test</th><th>sampler</th>"
+            "<th>metric</th><th>now</th><th>before</th><th>change</th></tr></thead><tbody>")
+    changed_rows, same_rows = [], []
     for r in comparison.rates:
         if r.now is None:
             continue  # a campaign of the baseline this run did not run: one line below
@@ -257,19 +258,34 @@ def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
             continue  # no sampled case in either run (e.g. the replays of stored failures)
         c = r.change
         cls = " bad" if c is not None and c > 1e-12 else " good" if c is not None and c < -1e-12 else ""
-        out.append(f"<tr><td title='{e(r.test)}'>{e(names[r.test])}</td><td>{e(r.sampler)}</td>"
-                   f"<td>{e(r.metric)}</td><td class='num'>{e(_kn(r.now))}</td>"
-                   f"<td class='num'>{e(_kn(r.before))}</td><td class='num{cls}'>{e(_change(r))}</td></tr>")
-    out.append("</tbody></table></div>")
+        row = (f"<tr><td title='{e(r.test)}'>{e(names[r.test])}</td><td>{e(r.sampler)}</td>"
+               f"<td>{e(r.metric)}</td><td class='num'>{e(_kn(r.now))}</td>"
+               f"<td class='num'>{e(_kn(r.before))}</td><td class='num{cls}'>{e(_change(r))}</td></tr>")
+        (same_rows if c is not None and abs(c) < 1e-12 else changed_rows).append(row)
+    # only what changed is open; the unchanged rates are one click away
+    if changed_rows:
+        out += [head.format(" changed"), *changed_rows, "</tbody></table></div>"]
+    else:
+        out.append("<p id='no-rate-change'>No violation rate changed.</p>")
+    if same_rows:
+        out += [f"<details class='unchanged'><summary>{len(same_rows)} unchanged rate"
+                f"{'s' if len(same_rows) != 1 else ''}</summary>", head.format(" unchanged"), *same_rows,
+                "</tbody></table></div></details>"]
     if comparison.only_before:
         out.append(f"<p class='meta'>{e(_not_run(comparison.only_before, names))}</p>")
     order = {"new": 0, "gone": 1, "kept": 2}
-    changed = sorted(comparison.modes, key=lambda m: order[m.status])  # stable: run order within
     kept = sum(m.status == "kept" for m in comparison.modes)
-    if changed:
-        out.append("<table class='mode-changes'><thead><tr><th></th><th>test</th><th>sampler</th><th>mode</th>"
-                   "<th>violated</th><th>where</th><th>cases</th></tr></thead><tbody>")
-        for m in changed:
+    mode_head = ("<table class='mode-changes'><thead><tr><th></th><th>test</th><th>sampler</th><th>mode</th>"
+                 "<th>violated</th><th>where</th><th>cases</th></tr></thead><tbody>")
+    for group in ([m for m in comparison.modes if m.status != "kept"],
+                  [m for m in comparison.modes if m.status == "kept"]):
+        if not group:
+            continue
+        if group[0].status == "kept":
+            out.append(f"<details class='unchanged'><summary>{len(group)} kept failure mode"
+                       f"{'s' if len(group) != 1 else ''}</summary>")
+        out.append(mode_head)
+        for m in sorted(group, key=lambda m: order[m.status]):  # stable: run order within
             if m.status == "gone":
                 ident, count = f"was {e(m.before_id)}", f"{m.before_count} before"
             else:
@@ -283,6 +299,8 @@ def comparison_html(comparison: Comparison, *, link: Any = None) -> str:
                        f"<td>{e(m.sampler)}</td><td>{ident}</td><td>{e(m.what)}</td>"
                        f"<td><code>{e(m.rule)}</code></td><td class='num'>{e(count)}</td></tr>")
         out.append("</tbody></table>")
+        if group[0].status == "kept":
+            out.append("</details>")
     if comparison.modes:
         out.append(f"<p class='meta'>{len(comparison.new_modes)} new, {len(comparison.gone_modes)} gone, "
                    f"{kept} kept failure mode{'s' if kept != 1 else ''} (matched by metric, agent and the "

@@ -69,18 +69,28 @@ def _summary_table(summary: Sequence[SummaryRow]) -> str:
     header, body = table_cells(summary)
     header = header + ["mesh r", "covered"]
     metrics = metric_columns(summary)
+    n_metrics = len(metrics)
+    first_metric = 3
+    if "verdict" in header:
+        # the verdict right after test and sampler: on screen without scrolling sideways
+        v = header.index("verdict")
+        header.insert(2, header.pop(v))
+        body = [[*cells[:2], cells[v], *cells[2:v], *cells[v + 1:]] for cells in body]
+        first_metric = 4
     out = ["<div class='wide'><table id='summary'>",
            "<thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in header) + "</tr></thead>", "<tbody>"]
-    n_metrics = len(metrics)
     names = short_names([s.test for s in summary])
     for s, cells in zip(summary, body):
         cover = DASH if s.covering_radius is None else f"{s.covering_radius:.3f}"
         frac = DASH if s.fraction_within is None else f"{100 * s.fraction_within:.1f}% within {s.within_radius:g}"
         tds = []
         for i, cell in enumerate(cells + [cover, frac]):
-            cls = "num" if i >= 2 else ""
-            if 3 <= i < 3 + n_metrics and cell not in ("0", DASH):
+            h = header[i]
+            cls = "num" if i >= 2 and h != "verdict" else ""
+            if first_metric <= i < first_metric + n_metrics and cell not in ("0", DASH):
                 cls += " bad"  # a violated metric should catch the eye
+            if h == "verdict":
+                cls = "verdict bad" if cell == "REJECTED" else "verdict good" if cell == "accepted" else "verdict"
             if i == 0:
                 cell_html = f"<a href='#{_anchor(s.test)}' title='{_e(s.test)}'>{_e(names[s.test])}</a>"
             else:
@@ -93,7 +103,7 @@ def _summary_table(summary: Sequence[SummaryRow]) -> str:
         if h in COLUMN_LEGEND:
             legend.append(f"<dt>{_e(h)}</dt><dd>{_e(COLUMN_LEGEND[h])}</dd>")
     if metrics:
-        legend.append(f"<dt>{_e(', '.join(header[3:3 + n_metrics]))}</dt><dd>cases of the campaign that "
+        legend.append(f"<dt>{_e(', '.join(header[first_metric:first_metric + n_metrics]))}</dt><dd>cases of the campaign that "
                       "violated that metric (its robustness ρ &lt; 0)</dd>")
     legend.append("</dl>")
     out.append("\n".join(legend))
@@ -159,6 +169,40 @@ def mode_table(directory: Path, campaigns: Sequence[SummaryRow], rows: Sequence[
     return "\n".join(out)
 
 
+def run_verdict(summary: Sequence[SummaryRow]) -> str:
+    """The run's verdict at the top of the page: accepted or rejected, how many campaigns, and
+    each rejected campaign with its reasons, linked to its test's section."""
+    if not summary:
+        return ""
+    judged = [s for s in summary if s.verdict is not None]
+    rejected = [s for s in judged if s.verdict == "rejected"]
+    errors = sum(s.errors for s in summary)
+    names = short_names([s.test for s in summary])
+    n = len(summary)
+    if not judged:
+        head, cls = "NOT JUDGED", "meta"
+        text = f"no acceptance criteria were judged for the {n} campaign{'s' if n != 1 else ''}"
+    elif rejected or errors:
+        head, cls = "REJECTED", "bad"
+        text = f"{len(rejected)} of {n} campaign{'s' if n != 1 else ''} rejected"
+    else:
+        head, cls = "ACCEPTED", "good"
+        text = f"all {n} campaign{'s' if n != 1 else ''} accepted"
+    if errors:
+        text += f"; {errors} case{'s' if errors != 1 else ''} could not be judged (errors)"
+    out = [f"<div id='run-verdict' class='run-verdict {cls}' data-verdict='{head.lower()}'>"
+           f"<span class='head'>Verdict: {head}</span> — {_e(text)}</div>"]
+    if rejected:
+        items = [f"<li><a href='#{_anchor(s.test)}' title='{_e(s.test)}'>{_e(names[s.test])}</a> "
+                 f"[{_e(s.sampler)}]: {_e('; '.join(s.reasons or ()))}</li>" for s in rejected]
+        shown, rest = items[:10], items[10:]
+        out.append("<ul id='rejected'>" + "".join(shown) + "</ul>")
+        if rest:
+            out.append(f"<details><summary>{len(rest)} more rejected campaign{'s' if len(rest) != 1 else ''}"
+                       f"</summary><ul>{''.join(rest)}</ul></details>")
+    return "\n".join(out)
+
+
 def _anchor(test: str) -> str:
     from .table import file_slug
 
@@ -192,6 +236,7 @@ def render_index(
         parts.append("<p class='meta'>" + " · ".join(f"{_e(k)}: {_e(v)}" for k, v in meta.items()) + "</p>")
     if banner:
         parts.append(f"<p class='banner'>{banner}</p>")
+    parts.append(run_verdict(summary_rows))
     parts.append("<p id='image-status' class='meta'></p>")
     parts.extend(preamble)
     if preamble:  # the table is this run's, not part of what came before it

@@ -108,6 +108,10 @@ class SummaryRow:
     #: 0..1) and how many cases had one; None when none had
     driving_score: float | None = None
     scored: int = 0
+    #: violations per metric among all the campaign's cases (``violations`` counts sampled
+    #: cases only, as the paper's table does): what a campaign of replays or pinned examples,
+    #: which has no sampled case, shows per metric
+    case_violations: dict[str, int] = field(default_factory=dict)
 
     @property
     def verdict(self) -> str | None:
@@ -202,6 +206,9 @@ def summarize(
         violations = {
             m: sum(1 for r in sampled if _violated(r.rho.get(m))) for m in metrics
         }
+        case_violations = {
+            m: sum(1 for r in main if _violated(r.rho.get(m))) for m in metrics
+        }
         failing = [r for r in main if r.verdict == "fail"]
         failing_items = {r.item for r in failing}
         shrunk = {r.item for r in shrink if r.verdict == "fail"}
@@ -264,6 +271,7 @@ def summarize(
                 modes_failed=modes_failed,
                 driving_score=campaign_score(r.driving_score for r in main),
                 scored=sum(1 for r in main if r.driving_score is not None),
+                case_violations=case_violations,
             )
         )
     return out
@@ -324,7 +332,10 @@ def table_cells(summary: Sequence[SummaryRow]) -> tuple[list[str], list[list[str
     body = []
     for s in summary:
         line = [s.test, s.sampler, str(s.samples)]
-        line += [str(s.violations[m]) if m in s.violations else DASH for m in metrics]
+        # a campaign without sampled cases (replays of stored failures, pinned examples)
+        # counts its violations among the cases it ran, so its row agrees with its "cex"
+        counts = s.violations if s.samples or not s.case_violations else s.case_violations
+        line += [str(counts[m]) if m in counts else DASH for m in metrics]
         line += [_fmt_eps(s.epsilon), str(s.counterexamples), str(s.minimized)]
         line += [str(s.unavoidable) if s.judged else DASH] if show_unavoidable else []
         line += [str(len(s.modes)) if s.modes else DASH]
@@ -384,7 +395,8 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
 
     rule = "  ".join("-" * w for w in widths)
     if width is None or len(rule) <= width:
-        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body), _legend(header)])
+        return "\n".join([line(header, widths), rule, *(line(r, widths) for r in body),
+                          *_wrap(_legend(header), width)])
     # too wide: the figures on one line, the violations per metric on the next
     metrics = [h for h in header if h not in ("test", "sampler", "samples", "ε", "cex", "min",
                                               "unavoid", "modes", "errors", "score", "sim s",
@@ -393,14 +405,57 @@ def format_table(summary: Sequence[SummaryRow], width: int | None = None) -> str
     fheader = [header[i] for i in fixed]
     fbody = [[r[i] for i in fixed] for r in body]
     fwidths = [max(len(r[i]) for r in [fheader, *fbody]) for i in range(len(fheader))]
+    over = sum(fwidths) + 2 * (len(fwidths) - 1) - width
+    if over > 0:  # long test names: shortened in the middle, where ids differ least
+        fwidths[0] = max(fwidths[0] - over, len(fheader[0]), MIN_NAME)
+        fbody = [[ellipsize(r[0], fwidths[0]), *r[1:]] for r in fbody]
     left = {0, 1} | ({len(fheader) - 1} if fheader[-1] == "verdict" else set())
     out = [line(fheader, fwidths), "  ".join("-" * w for w in fwidths)]
-    for r, full in zip(fbody, body):
+    for s_row, r, full in zip(summary, fbody, body):
         out.append(line(r, fwidths))
         counts = [f"{h} {full[header.index(h)]}" for h in metrics
                   if full[header.index(h)] not in (DASH, "0")]
-        out.append("    violations: " + (", ".join(counts) or "none"))
-    return "\n".join([*out, _legend(header)])
+        among = "" if s_row.samples or not s_row.cases else f" (among its {s_row.cases} cases)"
+        out += _wrap("violations: " + (", ".join(counts) or "none") + among, width, indent="    ")
+    return "\n".join([*out, *_wrap(_legend(header), width)])
+
+
+#: the fewest characters a shortened test name keeps in the terminal table
+MIN_NAME = 16
+
+
+def ellipsize(text: str, width: int) -> str:
+    """``text`` cut to ``width`` characters with "…" in the middle (the start names the
+    module, the end the function: both tell tests apart)."""
+    if len(text) <= width:
+        return text
+    if width < 2:
+        return text[:width]
+    head = (width - 1 + 1) // 2
+    tail = width - 1 - head
+    return text[:head] + "…" + (text[-tail:] if tail else "")
+
+
+def _wrap(text: str, width: int | None, indent: str = "") -> list[str]:
+    """``text`` as lines of at most ``width`` characters (one line when ``width`` is None):
+    whole " · "-separated items per line where they fit (an item is never split unless it is
+    longer than a line by itself), continuation lines indented two more."""
+    import textwrap
+
+    if width is None:
+        return [indent + text]
+    width = max(width, 20)
+    lines: list[str] = []
+    for item in text.split(" · "):
+        lead = indent if not lines else indent + "  "
+        if lines and len(lines[-1]) + 3 + len(item) <= width:
+            lines[-1] += " · " + item
+        elif len(lead) + len(item) <= width:
+            lines.append(lead + item)
+        else:
+            lines += textwrap.wrap(item, width=width, initial_indent=lead,
+                                   subsequent_indent=indent + "  ", break_on_hyphens=False)
+    return lines or [indent]
 
 
 def format_rejections(summary: Sequence[SummaryRow]) -> list[str]:
