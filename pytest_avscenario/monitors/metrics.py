@@ -740,7 +740,11 @@ class CollisionMonitor(Monitor):
         if not np.isfinite(depth).any():
             return None
         row, k = np.unravel_index(np.nanargmax(depth), depth.shape)
-        d, tc, who = float(depth[row, k]), float(t_contact[row, k]), traj.names[row + 1]
+        d, who = float(depth[row, k]), traj.names[row + 1]
+        # rho is the deepest overlap; the moment named is that agent's first contact (an
+        # earlier interval may overlap about as deeply: two passes through each other)
+        k = int(np.flatnonzero(np.isfinite(depth[row]))[0])
+        tc = float(t_contact[row, k])
         span = f"between the recorded steps t={traj.t[k]:.2f} and {traj.t[k + 1]:.2f} s"
         if motion == "interpolated":
             detail = (f"footprints overlap {span}: {who} meets the ego at t={tc:.3f} s "
