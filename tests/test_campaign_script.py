@@ -17,7 +17,7 @@ from pytest_avscenario.sim import behaviors as b
 from pytest_avscenario.trajectory import Trajectory
 
 @scenario(x=Uniform(0, 1), lane=IntRange(0, 3), samples=8, sampler="mab",
-          monitors=[distance(8.0)], shrink_budget=3)
+          monitors=[distance(8.0, kind="centre")], shrink_budget=3)
 def test_bandit(case):
     gap = 3.0 + 12.0 * case.x + case.lane
     return Trajectory.from_arrays([0.0, 0.1], {

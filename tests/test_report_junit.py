@@ -215,7 +215,7 @@ from pytest_avscenario import scenario, Uniform
 from pytest_avscenario.monitors import distance
 from pytest_avscenario.trajectory import Trajectory
 
-@scenario(x=Uniform(0, 1), samples=4, monitors=[distance(5.0)], accept=["distance"])
+@scenario(x=Uniform(0, 1), samples=4, monitors=[distance(5.0, kind="centre")], accept=["distance"])
 def test_gap(case):
     gap = 20 * case.x
     return Trajectory.from_arrays([0.0, 0.1], {"ego": {"x": [0.0, 0.0], "y": [0.0, 0.0]},
