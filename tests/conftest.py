@@ -7,6 +7,7 @@ modules a scenario run imports lazily are imported here, once, before any pytest
 """
 
 import importlib
+from pathlib import Path
 
 pytest_plugins = ["pytester"]
 
@@ -47,3 +48,23 @@ def _terminal_like_output(monkeypatch):
     # worker's name, which plugins read as "xdist is running me" (pytest-benchmark then warns)
     monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)
     monkeypatch.delenv("PYTEST_XDIST_WORKER_COUNT", raising=False)
+
+
+_SLOW = Path(__file__).with_name("slow_tests.txt")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(session, config, items):
+    """Mark the long runs listed in ``slow_tests.txt`` ``slow`` before ``-m`` selects; a line
+    naming no collected test is an error (a renamed test would silently join the fast loop)."""
+    listed = {line.strip() for line in _SLOW.read_text().splitlines()
+              if line.strip() and not line.startswith("#")}
+    seen = set()
+    for item in items:
+        if item.nodeid in listed:
+            item.add_marker(pytest.mark.slow)
+            seen.add(item.nodeid)
+    whole_run = not config.args or config.args == ["tests"] or config.args == [str(_SLOW.parent)]
+    if whole_run and not config.getoption("keyword") and listed - seen:
+        raise pytest.UsageError(f"{_SLOW.name} names tests that do not exist: "
+                                + ", ".join(sorted(listed - seen)))
