@@ -54,6 +54,7 @@ import time
 
 PROTOCOL = b"avs-osi/1"
 REVISION = 1
+RESEND_S = 0.5  # [s] while no command answers a step, its messages are published again this often
 
 DEFAULTS = {
     "clock": "/clock",
@@ -236,15 +237,25 @@ class Bridge:
         self.last_yaw = yaw
         self.odom_pub.publish(odom)
         self.objects_pub.publish(objects)
+        self.last_sent = ((self.clock_pub, clock), (self.odom_pub, odom), (self.objects_pub, objects))
         return ego
 
     def wait_for(self, t_ns: int):
         """The control command stamped ``t_ns``, or None after the timeout (stale ones dropped)."""
-        deadline = time.monotonic() + self.cfg["control_timeout_s"]
+        start = time.monotonic()
+        deadline = start + self.cfg["control_timeout_s"]
+        resend = start + RESEND_S
         while t_ns not in self.pending:
-            left = deadline - time.monotonic()
+            now = time.monotonic()
+            left = deadline - now
             if left <= 0:
                 return None
+            if now >= resend:
+                # the same messages again: a node whose subscriptions DDS had not matched yet
+                # (the first step of a run) missed them; a command answers a stamp only once
+                for pub, msg in self.last_sent:
+                    pub.publish(msg)
+                resend = now + RESEND_S
             self.rclpy.spin_once(self.node, timeout_sec=min(left, 0.05))
         command = self.pending.pop(t_ns)
         for stamp in [s for s in self.pending if s <= t_ns]:
