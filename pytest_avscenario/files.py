@@ -254,13 +254,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, durable: bool = Tru
         return
     dfd, name, shown = _parent(path, create=True)
     try:
-        try:
-            mode = os.stat(name, dir_fd=dfd, follow_symlinks=False).st_mode
-        except FileNotFoundError:
-            pass
-        else:
-            if not stat.S_ISREG(mode):
-                raise _unsafe(shown, mode)
+        _regular_or_absent(dfd, name, shown)
         tmp = f".{name}.{secrets.token_hex(4)}.tmp"
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o666, dir_fd=dfd)
         try:
@@ -368,19 +362,24 @@ def make_dirs(path: str | os.PathLike) -> Path:
     return Path(path)
 
 
+def _regular_or_absent(dfd: int, name: str, shown: str) -> None:
+    """Refuse (:class:`UnsafePath`) a target ``name`` in folder ``dfd`` that exists and is not
+    a regular file (a link, a FIFO, a folder): it is replaced only when it is one of ours."""
+    try:
+        mode = os.stat(name, dir_fd=dfd, follow_symlinks=False).st_mode
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(mode):
+        raise _unsafe(shown, mode)
+
+
 def move_file(src: str | os.PathLike, dst: str | os.PathLike) -> None:
     """Move the regular file ``src`` (of ours, e.g. a worker's picture) to ``dst`` under the
     same rules as :func:`atomic_write_bytes` for the target."""
     if _DIR_FD:
         dfd, name, shown = _parent(dst, create=True)
         try:
-            try:
-                mode = os.stat(name, dir_fd=dfd, follow_symlinks=False).st_mode
-            except FileNotFoundError:
-                pass
-            else:
-                if not stat.S_ISREG(mode):
-                    raise _unsafe(shown, mode)
+            _regular_or_absent(dfd, name, shown)
             try:
                 os.rename(src, name, dst_dir_fd=dfd)
                 return

@@ -48,7 +48,6 @@ def trace_bytes(world: Any) -> tuple[bytes, int]:
     """The ``.osi`` contents of ``world``'s recording (every step, agents present then; the
     lanes in the first message) and the number of frames."""
     from ..stack import frame, wire
-    from osi3 import osi_sensorview_pb2
 
     traj = world.trajectory
     if traj is None:
@@ -61,15 +60,7 @@ def trace_bytes(world: Any) -> tuple[bytes, int]:
         acc[:, :-1] = np.diff(traj.speed, axis=1) / np.diff(traj.t)
     out = bytearray()
     for k, t in enumerate(traj.t):
-        sv = osi_sensorview_pb2.SensorView()
-        t_ns = wire.ns(t)
-        wire.set_version(sv.version)
-        wire.set_timestamp(sv.timestamp, t_ns)
-        sv.host_vehicle_id.value = 1
-        gt = sv.global_ground_truth
-        wire.set_version(gt.version)
-        wire.set_timestamp(gt.timestamp, t_ns)
-        gt.host_vehicle_id.value = 1
+        sv, gt = frame.new_sensor_view(wire.ns(t))
         for i, name in enumerate(traj.names):
             if not traj.present[i, k]:
                 continue

@@ -193,10 +193,9 @@ def lane_ground_truth(view: Any) -> bytes:
     return sv.SerializeToString()
 
 
-def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
-    """The serialized ``osi3.SensorView`` of ``world`` now: header, host vehicle id (1),
-    every agent on the road (``ids``: agent -> OSI id), and the case's lanes ``static``
-    (:func:`lane_ground_truth`)."""
+def new_sensor_view(t_ns: int) -> tuple[Any, Any]:
+    """An empty ``osi3.SensorView`` at ``t_ns`` and its ``global_ground_truth``: versions,
+    timestamps and host vehicle id (1) set, no objects yet."""
     sv = _osi()["sensorview"].SensorView()
     wire.set_version(sv.version)
     wire.set_timestamp(sv.timestamp, t_ns)
@@ -205,6 +204,14 @@ def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
     wire.set_version(gt.version)
     wire.set_timestamp(gt.timestamp, t_ns)
     gt.host_vehicle_id.value = 1
+    return sv, gt
+
+
+def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
+    """The serialized ``osi3.SensorView`` of ``world`` now: header, host vehicle id (1),
+    every agent on the road (``ids``: agent -> OSI id), and the case's lanes ``static``
+    (:func:`lane_ground_truth`)."""
+    sv, gt = new_sensor_view(t_ns)
     index = world.lane_index
     lanes = index.lanes
     code = index.code
