@@ -244,8 +244,7 @@ class OSIStack:
         self.startup_timeout_s = float(startup_timeout_s)
         self.limits = limits
         self._world: Any = None
-        self._static = b""
-        self._ids: dict = {}
+        self._views: Any = None  # frame.SensorViews of the case
 
     def __repr__(self) -> str:
         return f"OSIStack({self.address!r})" if self.spawn is None else f"OSIStack(spawn={self.spawn!r})"
@@ -270,9 +269,9 @@ class OSIStack:
         if len(agents) > frame.MAX_AGENTS:
             raise SimError(f"{len(agents)} agents: the OSI ids of agents stop at {frame.MAX_AGENTS}",
                            test=world.name)
-        self._ids = {a: i + 1 for i, a in enumerate(agents)}  # stable for the case (frame doc)
+        ids = {a: i + 1 for i, a in enumerate(agents)}  # stable for the case (frame doc)
         view = world.view()
-        self._static = frame.lane_ground_truth(view)
+        self._views = frame.SensorViews(frame.lane_ground_truth(view), ids)
         ego = agents[0]
         lane_ids = {lane.id: frame.LANE_ID0 + i for i, lane in enumerate(view.lanes)}
         marks: dict[str, list] = {}
@@ -327,14 +326,13 @@ class OSIStack:
             raise SimError(f"{self!r} was not reset before its first step (the world calls "
                            "reset(world) before the run)", agent=getattr(ego, "name", ""))
         t_ns = wire.ns(w.t)
-        msg = frame.sensor_view(w, t_ns, self._static, self._ids)
+        msg = self._views.build(w, t_ns)
         kind, body = self._ask(wire.pack(wire.SENSOR_VIEW, msg), wire.ANSWERS,
                                "the SensorView", ego)
         if kind == wire.ERROR:
             self._fail(f"the stack answered Error: {body.decode(errors='replace')}", ego)
         if kind == wire.MOTION_REQUEST:
-            from osi3 import osi_motionrequest_pb2 as M
-
+            M = frame._osi()["motionrequest"]
             mr = self._checked(lambda: wire.parse(M.MotionRequest, body, "MotionRequest"), ego, "its answer")
             self._check_timestamp(mr, t_ns, "MotionRequest", ego)
             if mr.motion_request_type == M.MotionRequest.MOTION_REQUEST_TYPE_TRAJECTORY:
@@ -354,8 +352,7 @@ class OSIStack:
                 mr.desired_state, t_ns, float(ego.heading), float(ego.speed), float(ego.LENGTH),
                 w.dt), ego, "its MotionRequest")
             return "action", (a, d)
-        from osi3 import osi_trafficupdate_pb2 as T
-
+        T = frame._osi()["trafficupdate"]
         tu = self._checked(lambda: wire.parse(T.TrafficUpdate, body, "TrafficUpdate"), ego, "its answer")
         self._check_timestamp(tu, t_ns, "TrafficUpdate", ego)
         mine = [mo for mo in tu.update if mo.id.value == 1]

@@ -116,12 +116,14 @@ def json_body(body: bytes, what: str) -> dict:
 
 def parse(cls: Any, body: bytes, what: str) -> Any:
     """An OSI message of class ``cls`` from ``body``; :class:`ProtocolError` if it does not parse."""
-    from google.protobuf.message import DecodeError
-
     msg = cls()
     try:
         msg.ParseFromString(body)
-    except (DecodeError, RuntimeError, ValueError) as exc:
+    except Exception as exc:
+        from google.protobuf.message import DecodeError
+
+        if not isinstance(exc, (DecodeError, RuntimeError, ValueError)):
+            raise
         raise ProtocolError(f"{what}: unparseable bytes ({type(exc).__name__}: {exc}; "
                             f"{len(body)} bytes starting {body[:16]!r})") from None
     return msg
