@@ -93,11 +93,16 @@ class _Gone(Exception):
 
 
 class _Channel:
-    """One REQ socket to a stack, replaced after every timeout (lazy pirate)."""
+    """One REQ socket to a stack, replaced after every timeout (lazy pirate).
+
+    The answer is awaited in a blocking receive bounded by the socket's ``RCVTIMEO`` (set
+    only when it changes), not with ``poll`` before the receive: pyzmq's ``poll`` builds a
+    poller each call, and libzmq polls again inside the receive."""
 
     def __init__(self, address: str) -> None:
         self.address = address
         self.sock: Any = None
+        self._rcvtimeo = -1  # [ms] the socket's receive timeout now
 
     def request(self, frames: list[bytes], timeout_s: float, alive: Any = None) -> list[bytes]:
         import zmq
@@ -110,6 +115,7 @@ class _Channel:
         if self.sock is None:
             self.sock = zmq.Context.instance().socket(zmq.REQ)
             self.sock.setsockopt(zmq.LINGER, 0)
+            self._rcvtimeo = -1
             self.sock.connect(self.address)
             self.sock.send_multipart(frames)
         deadline = time.monotonic() + timeout_s
@@ -119,8 +125,14 @@ class _Channel:
                 self.drop()
                 raise _Timeout()
             wait = min(left, _POLL_S) if alive is not None else left
-            if self.sock.poll(int(math.ceil(wait * 1000))):
+            ms = max(1, int(math.ceil(wait * 1000)))
+            if ms != self._rcvtimeo:
+                self.sock.setsockopt(zmq.RCVTIMEO, ms)
+                self._rcvtimeo = ms
+            try:
                 return self.sock.recv_multipart()
+            except zmq.Again:
+                pass
             if alive is not None:
                 why = alive()
                 if why:

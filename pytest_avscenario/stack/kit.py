@@ -312,13 +312,16 @@ def serve(policy: Any, address: str, *, answer: str = "desired_state",
     # a stack the plugin spawned (it hands the address in AVS_OSI_ADDRESS) ends with the
     # process that started it, even when that one was killed and could not stop it
     parent = os.getppid() if os.environ.get("AVS_OSI_ADDRESS") == address else None
+    if parent is not None:
+        sock.setsockopt(zmq.RCVTIMEO, 1000)  # [ms] a blocking receive, not a poll before each
     try:
         while requests is None or n < requests:
-            if parent is not None:
-                while not sock.poll(1000):
-                    if os.getppid() != parent:
-                        return
-            frames = sock.recv_multipart()
+            try:
+                frames = sock.recv_multipart()
+            except zmq.Again:
+                if os.getppid() != parent:
+                    return
+                continue
             reply, session = handle(frames, session, policy, answer)
             sock.send_multipart(reply)
             n += 1
