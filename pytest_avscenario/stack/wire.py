@@ -22,7 +22,8 @@ __all__ = ["PROTOCOL", "REVISION", "ProtocolError", "ns", "timestamp_ns", "set_t
            "pack", "unpack", "osi_version", "OSI_VERSION"]
 
 PROTOCOL = b"avs-osi/1"
-REVISION = 1  # the protocol's own revision, checked in the handshake
+REVISION = 2  # the protocol's own revision, checked in the handshake (2: lanes in the first
+#              SensorView after a Reset only)
 
 #: message kinds (the second frame)
 RESET, READY, SENSOR_VIEW, TRAFFIC_UPDATE, MOTION_REQUEST, ERROR = (
