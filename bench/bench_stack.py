@@ -18,6 +18,9 @@ per transport, default 2000). All in one run, each against a process of its own:
 2. Per case: the vehicle-following case of example_tests/test_02 (nominal parameters, 12 s
    at 0.1 s = 120 steps, the lead's wobble included) with the autopilot in process and
    served through the kit; median wall time per case over repeats after a warm-up.
+3. The protocol's own work in this process, CPU per call in a hot loop: the SensorView built
+   afresh and kept (``frame.SensorViews``), the kit's answer, the decode, against observe +
+   autopilot in process.
 
 Every figure is given as wall time and as CPU time. CPU time is that of both processes,
 all their threads (ZeroMQ's I/O threads included): this process's from
@@ -315,6 +318,51 @@ def bench_case(repeats: int) -> dict:
     return out
 
 
+def bench_pieces(steps: int) -> None:
+    print("3. the protocol's own work, in this process (CPU per call, hot loop)")
+    from pytest_avscenario.stack import kit
+
+    w = following("autopilot")
+    w.run(seconds=0.1)
+    ego = w.agents[0]
+    ids = {a: i + 1 for i, a in enumerate(w.agents)}
+    static = frame.lane_ground_truth(w.view())
+    t_ns = wire.ns(w.t)
+    views = frame.SensorViews(static, ids)
+    views.build(w, t_ns)  # the first, with the lanes
+    view = w.view()
+    hello = {"protocol": wire.PROTOCOL.decode(), "revision": wire.REVISION, "dt": w.dt,
+             "host_vehicle_id": 1,
+             "agents": [{"id": i + 1, "name": a.name, "kind": a.kind} for i, a in enumerate(w.agents)],
+             "lanes": [{"id": frame.LANE_ID0 + i, "width": l.width, "speed_limit": l.speed_limit}
+                       for i, l in enumerate(view.lanes)],
+             "ego": {"route": [frame.LANE_ID0 + w.lane_index.code[l.index] for l in ego.plan],
+                     "route_index": ego.route_index}}
+    _, session = kit.handle(wire.pack(wire.RESET, hello), None, "autopilot")
+    request = wire.pack(wire.SENSOR_VIEW, frame.sensor_view(w, t_ns, static, ids))
+    kit.handle(request, session, "autopilot")  # the route, from the lanes
+    request = wire.pack(wire.SENSOR_VIEW, views.build(w, t_ns))
+    answer = kit.handle(request, session, "autopilot")[0]
+    M = frame._osi()["motionrequest"]
+
+    def decode() -> None:
+        mr = wire.parse(M.MotionRequest, answer[2], "MotionRequest")
+        frame.motion_to_action(mr.desired_state, t_ns, float(ego.heading), float(ego.speed),
+                               float(ego.LENGTH), w.dt)
+
+    pieces = [("plugin: SensorView built afresh (frame.sensor_view)", lambda: frame.sensor_view(w, t_ns, b"", ids)),
+              ("plugin: SensorView kept and updated (frame.SensorViews)", lambda: views.build(w, t_ns)),
+              ("kit: parse + Observation + autopilot + MotionRequest", lambda: kit.handle(request, session, "autopilot")),
+              ("plugin: MotionRequest decoded into (a, steering)", decode),
+              ("in process: world.observe + autopilot", lambda: session.driver.act(w.observe(ego)))]
+    for label, call in pieces:
+        call()
+        c0 = time.process_time()
+        for _ in range(steps):
+            call()
+        print(f"   {label}: {(time.process_time() - c0) / steps * 1e6:6.1f} µs CPU")
+
+
 def verdict(ok: bool) -> str:
     return "PASS" if ok else "MISS"
 
@@ -328,6 +376,7 @@ def main() -> None:
     bench_wire(args.steps)
     step = bench_step(args.steps // 4)
     case = bench_case(args.repeats)
+    bench_pieces(args.steps)
     print(f"load average at the end: {load()}")
     wall, cpu = step["ipc"]
     print(f"GOAL a protocol step over ipc <= {GOAL_STEP_US:g} µs: {wall:.1f} µs wall "
