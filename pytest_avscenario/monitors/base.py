@@ -281,6 +281,20 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
         done.add((f, key))
 
 
+#: values derived from a trajectory that several monitors read (lane projections, the pairs
+#: ahead of the ego, the ego's speed...), computed once per trajectory object
+_MEMO: "weakref.WeakKeyDictionary[Trajectory, dict]" = weakref.WeakKeyDictionary()
+
+
+def memo(traj: Trajectory) -> dict:
+    """A dict that lives as long as ``traj``, for values the monitors derive from it once and
+    share (a trajectory is immutable; a prefix or a copy is a new object, with a new dict)."""
+    got = _MEMO.get(traj)
+    if got is None:
+        got = _MEMO[traj] = {}
+    return got
+
+
 def fmt_t(traj: Trajectory, step: int | None) -> float | None:
     return None if step is None else float(traj.t[step])
 

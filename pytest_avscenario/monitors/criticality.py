@@ -20,7 +20,6 @@ heading, and a lead that brakes stops.
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +35,7 @@ from .base import (
     check_threshold,
     factory,
     fmt_t,
+    memo,
 )
 from .metrics import _pair_mask, _sat_separation
 
@@ -80,7 +80,6 @@ class LeadKinematics:
         return out
 
 
-_CACHE: "weakref.WeakKeyDictionary[Trajectory, LeadKinematics]" = weakref.WeakKeyDictionary()
 
 
 def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -98,7 +97,8 @@ def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     """The :class:`LeadKinematics` of ``traj`` (computed once per trajectory)."""
-    got = _CACHE.get(traj)
+    cache = memo(traj)
+    got = cache.get("criticality.lead")
     if got is not None:
         return got
     h = traj.heading[0]
@@ -127,7 +127,7 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
         a_e=ax[0, cols] * ce + ay[0, cols] * se,
         a_l=ax[o, cols] * ce + ay[o, cols] * se,
         width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps))
-    _CACHE[traj] = got
+    cache["criticality.lead"] = got
     return got
 
 
@@ -185,7 +185,8 @@ def required_deceleration_values(gap, v_e, v_l, a_l):
 
 
 def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance [m] and speed [m/s] after ``tau`` [s] at constant ``a``, stopping at 0."""
+    """Distance [m] and speed [m/s] after ``tau`` [s] at constant ``a``, stopping at 0 (the
+    definition :func:`_too_hard` computes inline; the tests hold the two to each other)."""
     with np.errstate(invalid="ignore", divide="ignore"):
         t_stop = np.where(a < 0, v / np.where(a < 0, -a, 1.0), np.inf)
     t = np.minimum(tau, t_stop)
@@ -205,33 +206,65 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
     once."""
     if k.gap.size == 0:
         return np.zeros(0)
-    g0, a_e, a_l = k.gap, k.a_e, k.a_l
-    v_e, v_l = np.maximum(k.v_e, 0.0), np.maximum(k.v_l, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        return _time_to_brake(k, float(max_decel), horizon, grid_s, fine)
 
-    def need(tau):
-        de, ve = _advance(v_e[..., None] if tau.ndim > v_e.ndim else v_e,
-                          a_e[..., None] if tau.ndim > a_e.ndim else a_e, tau)
-        dl, vl = _advance(v_l[..., None] if tau.ndim > v_l.ndim else v_l,
-                          a_l[..., None] if tau.ndim > a_l.ndim else a_l, tau)
-        g = (g0[..., None] if tau.ndim > g0.ndim else g0) + dl - de
-        al = np.where(vl <= 0, 0.0, a_l[..., None] if tau.ndim > a_l.ndim else a_l)
-        return required_deceleration_values(g, ve, vl, al)
+
+def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
+    """Whether braking at ``max_decel`` is no longer enough after keeping the accelerations
+    for ``tau`` [s]: ``required_deceleration_values(state after tau) > max_decel``, the same
+    arithmetic as :func:`_advance` and :func:`required_deceleration_values` (bit for bit,
+    so the grid finds the same moments) with the per-pair parts ``p`` computed once and the
+    comparison taken case by case instead of building the value. A pair with a NaN input
+    is never too hard (its gap is NaN at every ``tau``)."""
+    g0, v_e, a_e, ha_e, ts_e, v_l, a_l, ha_l, ts_l, nal, brakes = p
+    te = np.minimum(tau, ts_e)
+    de = v_e * te + ha_e * te * te
+    ve = np.maximum(v_e + a_e * te, 0.0)
+    tl = np.minimum(tau, ts_l)
+    dl = v_l * tl + ha_l * tl * tl
+    vl = np.maximum(v_l + a_l * tl, 0.0)
+    g = g0 + dl - de
+    moving = vl > 0
+    al = np.where(moving, a_l, 0.0)  # a standing lead stays (no reversing)
+    u = ve - vl
+    b1 = np.maximum(u * u / (2.0 * g) - al, 0.0)
+    # when a braking lead stands (0 standing, inf when it never does); where it is moving
+    # its acceleration is a_l's, so the per-pair sign and magnitude serve
+    t_lead = np.where(moving, np.where(brakes, vl / nal, np.inf), 0.0)
+    d_lead = np.where(moving, vl * t_lead / 2.0, 0.0)
+    b2 = ve * ve / (2.0 * (g + d_lead))
+    match_first = (u > 0) & (u <= (al + b1) * t_lead)
+    # out = b1 where the speeds match first, else b2 where the lead stops, else 0 (never
+    # above max_decel > 0); inf (too hard) where the gap is closed
+    return (g <= 0) | np.where(match_first, b1 > max_decel, (t_lead < np.inf) & (b2 > max_decel))
+
+
+def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: float,
+                   fine: int) -> np.ndarray:
+    v_e, v_l = np.maximum(k.v_e, 0.0), np.maximum(k.v_l, 0.0)
+    a_e, a_l = k.a_e, k.a_l
+    # the _advance stop times, per pair
+    ts_e = np.where(a_e < 0, v_e / np.where(a_e < 0, -a_e, 1.0), np.inf)
+    ts_l = np.where(a_l < 0, v_l / np.where(a_l < 0, -a_l, 1.0), np.inf)
+    cols = [k.gap, v_e, a_e, 0.5 * a_e, ts_e, v_l, a_l, 0.5 * a_l, ts_l, -a_l, a_l < 0]
+    p = tuple(c[:, None] for c in cols)
 
     grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
-    too_hard = need(np.broadcast_to(grid, (g0.size, grid.size))) > max_decel
+    too_hard = _too_hard(grid, p, max_decel)
     first = np.argmax(too_hard, axis=1)
     # too late already (the first grid point, now) or still enough at the horizon (never)
     res = np.where(too_hard[:, 0], 0.0, np.inf)
     todo = np.flatnonzero(too_hard.any(axis=1) & ~too_hard[:, 0])
     if todo.size:
-        g0, a_e, a_l, v_e, v_l = g0[todo], a_e[todo], a_l[todo], v_e[todo], v_l[todo]
+        p = tuple(c[todo] for c in p)
         lo, step = grid[first[todo] - 1], grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
         frac = np.arange(1, fine + 1) / fine
         for _ in range(2):
             pts = lo[:, None] + step * frac[None, :]
-            bad = need(pts) > max_decel
+            bad = _too_hard(pts, p, max_decel)
             j = np.argmax(bad, axis=1)  # the first too-late point; the one before is fine
             lo = lo + step * np.where(j > 0, frac[np.maximum(j - 1, 0)], 0.0)
             step = step / fine
@@ -298,31 +331,26 @@ class _LeadMeasure(Monitor):
             f"t={traj.t[step]:.2f} s (required {bound} {self.threshold:g} {self._unit})".rstrip())
 
 
-_REQUIRED: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
-
-
 def _required(traj: Trajectory) -> np.ndarray:
     """Required deceleration toward each agent ahead, over the pairs of
     :func:`lead_kinematics` (shared by a_req and BTN)."""
-    got = _REQUIRED.get(traj)
+    cache = memo(traj)
+    got = cache.get("criticality.required")
     if got is None:
         k = lead_kinematics(traj)
-        got = required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l)
-        _REQUIRED[traj] = got
+        got = cache["criticality.required"] = required_deceleration_values(
+            k.gap, k.v_e, k.v_l, k.a_l)
     return got
-
-
-_ETTC: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
 
 
 def _ettc(traj: Trajectory) -> np.ndarray:
     """Enhanced TTC toward each agent ahead, over the pairs of :func:`lead_kinematics`
     (shared by ETTC and TTS)."""
-    got = _ETTC.get(traj)
+    cache = memo(traj)
+    got = cache.get("criticality.ettc")
     if got is None:
         k = lead_kinematics(traj)
-        got = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
-        _ETTC[traj] = got
+        got = cache["criticality.ettc"] = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
     return got
 
 
@@ -479,20 +507,20 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
         return pet, t1, t2
     R = np.hypot(traj.length / 2, traj.width / 2)
     sin_min = math.sin(math.radians(min_angle_deg))
+    can = _CAN_CROSS[min_angle_deg] if min_angle_deg in _CAN_CROSS else _can_cross(min_angle_deg)
     ebins = _heading_bins(traj.heading[0, ie])
-    for a in range(1, traj.n_agents):
-        io = np.flatnonzero(ok[a])
-        if io.size == 0:
-            continue
-        # keep only samples whose heading can cross one of the other path's (traffic along
-        # the ego's lane never can, and is dropped here at O(T) cost)
-        obins = _heading_bins(traj.heading[a, io])
-        can = _CAN_CROSS[min_angle_deg] if min_angle_deg in _CAN_CROSS else _can_cross(min_angle_deg)
-        o_ok = can[obins][:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)
-        e_ok = can[ebins][:, np.bincount(obins[o_ok], minlength=_NBINS) > 0].any(axis=1)
-        if not o_ok.any() or not e_ok.any():
-            continue
-        io, ie_a = io[o_ok], ie[e_ok]
+    # keep only samples whose heading can cross one of the other path's (traffic along the
+    # ego's lane never can, and is dropped here for every agent at once)
+    obins = _heading_bins(np.where(ok[1:], traj.heading[1:], 0.0))
+    o_ok_all = ok[1:] & can[:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)[obins]
+    rows, cols = np.nonzero(o_ok_all)
+    if rows.size == 0:
+        return pet, t1, t2
+    seen = np.zeros((A1, _NBINS), dtype=bool)  # the heading bins each agent's kept samples use
+    seen[rows, obins[rows, cols]] = True
+    e_ok_all = (can[ebins][None, :, :] & seen[:, None, :]).any(axis=2)  # (A-1, ego samples)
+    for a in np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1:
+        io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[e_ok_all[a - 1]]
         xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
         reach = R[0] + R[a]
         xo, yo = traj.x[a, io], traj.y[a, io]
