@@ -72,6 +72,9 @@ class LeadKinematics:
     width_l: np.ndarray
     idx: np.ndarray
     shape: tuple[int, int]
+    #: each pair's other agent (its row in the ``(A-1, T)`` grid) and step: ``divmod(idx, T)``
+    row: np.ndarray | None = None
+    step: np.ndarray | None = None
 
     def scatter(self, values: np.ndarray) -> np.ndarray:
         """``values`` of the pairs back on the ``(A-1, T)`` grid, NaN elsewhere."""
@@ -107,26 +110,26 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     dy = traj.y[1:] - traj.y[0]
     lon = dx * c + dy * s
     lat = -dx * s + dy * c
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):
         lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
         same_lane = traj.lane[1:] == traj.lane[0][None, :]
         corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
         ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
-    idx = np.flatnonzero(ahead)
-    rows, cols = np.divmod(idx, traj.n_steps)
-    o = rows + 1  # the other agent's row in the trajectory
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ax = _derivative(traj.vx, traj.t)
-        ay = _derivative(traj.vy, traj.t)
-    ce, se = c[cols], s[cols]
+        idx = np.flatnonzero(ahead)
+        rows, cols = np.divmod(idx, traj.n_steps)
+        o = rows + 1  # the other agent's row in the trajectory
+        # velocities and their time derivatives, (vx, vy, ax, ay) x agents x steps, taken at
+        # the pairs for the ego and for the other, projected on the ego's heading at once
+        vel = np.stack([traj.vx, traj.vy])
+        kin = np.concatenate([vel, _derivative(vel, traj.t)])
+        both = np.stack([kin[:, 0, cols], kin[:, o, cols]])  # (ego / other, 4, pairs)
+        along = both[:, 0::2] * c[cols] + both[:, 1::2] * s[cols]  # (ego / other, v / a, pairs)
     got = LeadKinematics(
         gap=lon[rows, cols] - (traj.length[0] + traj.length[o]) / 2,
         lat=lat[rows, cols],
-        v_e=traj.vx[0, cols] * ce + traj.vy[0, cols] * se,
-        v_l=traj.vx[o, cols] * ce + traj.vy[o, cols] * se,
-        a_e=ax[0, cols] * ce + ay[0, cols] * se,
-        a_l=ax[o, cols] * ce + ay[o, cols] * se,
-        width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps))
+        v_e=along[0, 0], v_l=along[1, 0], a_e=along[0, 1], a_l=along[1, 1],
+        width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps),
+        row=rows, step=cols)
     cache["criticality.lead"] = got
     return got
 
@@ -217,13 +220,12 @@ def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
     so the grid finds the same moments) with the per-pair parts ``p`` computed once and the
     comparison taken case by case instead of building the value. A pair with a NaN input
     is never too hard (its gap is NaN at every ``tau``)."""
-    g0, v_e, a_e, ha_e, ts_e, v_l, a_l, ha_l, ts_l, nal, brakes = p
-    te = np.minimum(tau, ts_e)
-    de = v_e * te + ha_e * te * te
-    ve = np.maximum(v_e + a_e * te, 0.0)
-    tl = np.minimum(tau, ts_l)
-    dl = v_l * tl + ha_l * tl * tl
-    vl = np.maximum(v_l + a_l * tl, 0.0)
+    g0, v, a, ha, ts, a_l, nal, brakes = p
+    # ego (row 0) and lead (row 1) advanced at once: _advance's arithmetic on both
+    t = np.minimum(tau, ts)
+    d = v * t + ha * t * t
+    vv = np.maximum(v + a * t, 0.0)
+    de, dl, ve, vl = d[0], d[1], vv[0], vv[1]
     g = g0 + dl - de
     moving = vl > 0
     al = np.where(moving, a_l, 0.0)  # a standing lead stays (no reversing)
@@ -236,8 +238,9 @@ def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
     b2 = ve * ve / (2.0 * (g + d_lead))
     match_first = (u > 0) & (u <= (al + b1) * t_lead)
     # out = b1 where the speeds match first, else b2 where the lead stops, else 0 (never
-    # above max_decel > 0); inf (too hard) where the gap is closed
-    return (g <= 0) | np.where(match_first, b1 > max_decel, (t_lead < np.inf) & (b2 > max_decel))
+    # above max_decel > 0: and b2 is 0 where the lead never stops, d_lead being inf there);
+    # inf (too hard) where the gap is closed
+    return (g <= 0) | np.where(match_first, b1 > max_decel, b2 > max_decel)
 
 
 def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: float,
@@ -247,17 +250,21 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
     # the _advance stop times, per pair
     ts_e = np.where(a_e < 0, v_e / np.where(a_e < 0, -a_e, 1.0), np.inf)
     ts_l = np.where(a_l < 0, v_l / np.where(a_l < 0, -a_l, 1.0), np.inf)
-    cols = [k.gap, v_e, a_e, 0.5 * a_e, ts_e, v_l, a_l, 0.5 * a_l, ts_l, -a_l, a_l < 0]
-    p = tuple(c[:, None] for c in cols)
+    v, a, ts = np.stack([v_e, v_l]), np.stack([a_e, a_l]), np.stack([ts_e, ts_l])
+    # per pair, as columns against the grid: ego and lead stacked on a first axis
+    p = (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
+         a_l[:, None], (-a_l)[:, None], (a_l < 0)[:, None])
 
     grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
     too_hard = _too_hard(grid, p, max_decel)
     first = np.argmax(too_hard, axis=1)
     # too late already (the first grid point, now) or still enough at the horizon (never)
-    res = np.where(too_hard[:, 0], 0.0, np.inf)
-    todo = np.flatnonzero(too_hard.any(axis=1) & ~too_hard[:, 0])
+    now = too_hard[:, 0]
+    res = np.where(now, 0.0, np.inf)
+    todo = np.flatnonzero(first > 0)  # too hard first at a later grid point: refine
     if todo.size:
-        p = tuple(c[todo] for c in p)
+        if todo.size < first.size:
+            p = tuple(c[:, todo] if c.ndim == 3 else c[todo] for c in p)
         lo, step = grid[first[todo] - 1], grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
@@ -307,7 +314,7 @@ class _LeadMeasure(Monitor):
         nothing is ahead."""
         k = lead_kinematics(traj)
         out = np.full(traj.n_steps, np.inf)
-        np.minimum.at(out, k.idx % traj.n_steps, self._margins(self._values(traj)))
+        np.minimum.at(out, k.step, self._margins(self._values(traj)))
         return out
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
@@ -319,9 +326,9 @@ class _LeadMeasure(Monitor):
             return MonitorResult(self.name, math.inf, self.threshold, None, None,
                                  f"nothing ahead of the ego that makes {self._what} finite")
         # the smallest margin, earliest step first on ties (as the pairwise metrics)
-        order = np.lexsort((k.idx // traj.n_steps, k.idx % traj.n_steps, m))
+        order = np.lexsort((k.row, k.step, m))
         j = int(order[0])
-        row, step = divmod(int(k.idx[j]), traj.n_steps)
+        row, step = int(k.row[j]), int(k.step[j])
         v = values[j]
         who = traj.names[row + 1]
         bound = "<=" if self._upper else ">="
@@ -484,7 +491,7 @@ def _can_cross(min_angle_deg: float) -> np.ndarray:
     return (d + 1) * (180.0 / _NBINS) >= min_angle_deg
 
 
-_CAN_CROSS = {CROSSING_MIN_ANGLE_DEG: _can_cross(CROSSING_MIN_ANGLE_DEG)}
+_CAN_CROSS = {float(CROSSING_MIN_ANGLE_DEG): _can_cross(CROSSING_MIN_ANGLE_DEG)}
 
 
 def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
@@ -507,28 +514,32 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
         return pet, t1, t2
     R = np.hypot(traj.length / 2, traj.width / 2)
     sin_min = math.sin(math.radians(min_angle_deg))
-    can = _CAN_CROSS[min_angle_deg] if min_angle_deg in _CAN_CROSS else _can_cross(min_angle_deg)
-    ebins = _heading_bins(traj.heading[0, ie])
+    can = _CAN_CROSS.get(min_angle_deg)
+    if can is None:
+        can = _can_cross(min_angle_deg)
+    bins = _heading_bins(np.where(ok, traj.heading, 0.0))
+    ebins, obins = bins[0, ie], bins[1:]
     # keep only samples whose heading can cross one of the other path's (traffic along the
     # ego's lane never can, and is dropped here for every agent at once)
-    obins = _heading_bins(np.where(ok[1:], traj.heading[1:], 0.0))
     o_ok_all = ok[1:] & can[:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)[obins]
     rows, cols = np.nonzero(o_ok_all)
     if rows.size == 0:
         return pet, t1, t2
-    seen = np.zeros((A1, _NBINS), dtype=bool)  # the heading bins each agent's kept samples use
-    seen[rows, obins[rows, cols]] = True
-    e_ok_all = (can[ebins][None, :, :] & seen[:, None, :]).any(axis=2)  # (A-1, ego samples)
+    seen = np.zeros((A1, _NBINS), dtype=np.uint8)  # the heading bins each agent's kept samples use
+    seen[rows, obins[rows, cols]] = 1
+    # (A-1, ego samples): the ego's heading there can cross one of the agent's kept headings
+    e_ok_all = (seen @ can.view(np.uint8))[:, ebins] > 0
     for a in np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1:
         io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[e_ok_all[a - 1]]
         xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
         reach = R[0] + R[a]
         xo, yo = traj.x[a, io], traj.y[a, io]
         # samples of each path within reach of the other path's bounding box
-        ne = ((xe >= xo.min() - reach) & (xe <= xo.max() + reach)
-              & (ye >= yo.min() - reach) & (ye <= yo.max() + reach))
-        no = ((xo >= xe.min() - reach) & (xo <= xe.max() + reach)
-              & (yo >= ye.min() - reach) & (yo <= ye.max() + reach))
+        lo, hi = np.minimum.reduce, np.maximum.reduce
+        ne = ((xe >= lo(xo) - reach) & (xe <= hi(xo) + reach)
+              & (ye >= lo(yo) - reach) & (ye <= hi(yo) + reach))
+        no = ((xo >= lo(xe) - reach) & (xo <= hi(xe) + reach)
+              & (yo >= lo(ye) - reach) & (yo <= hi(ye) + reach))
         if not ne.any() or not no.any():
             continue
         i, j = ie_a[ne], io[no]

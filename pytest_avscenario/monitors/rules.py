@@ -110,9 +110,13 @@ class OnSidewalkMonitor(Monitor):
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         present = _ego_present(traj, self.name)
+        off = present & ~traj.on_road[0]
         f = lane_frame(traj, self.name)
-        beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
-        bad = present & ~traj.on_road[0] & (beyond > 0) & (beyond <= self.width)
+        if off.any():
+            beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
+            bad = off & (beyond > 0) & (beyond <= self.width)
+        else:
+            bad = off
         return _infringement(self.name, traj, bad, "drove on the sidewalk")
 
 
