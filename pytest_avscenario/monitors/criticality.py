@@ -98,6 +98,18 @@ def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
+def _derivative_at(v: np.ndarray, t: np.ndarray, rows: np.ndarray, cols: np.ndarray
+                   ) -> np.ndarray:
+    """:func:`_derivative` of ``v`` (``(..., agents, steps)``) at ``[..., rows, cols]`` only,
+    with the same differences (central inside, one-sided at the ends)."""
+    T = t.shape[0]
+    if T < 2:
+        return np.zeros(v.shape[:-2] + rows.shape)
+    lo = np.maximum(cols - 1, 0)
+    hi = np.minimum(cols + 1, T - 1)
+    return (v[..., rows, hi] - v[..., rows, lo]) / (t[hi] - t[lo])
+
+
 def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     """The :class:`LeadKinematics` of ``traj`` (computed once per trajectory)."""
     cache = memo(traj)
@@ -118,16 +130,16 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
         idx = np.flatnonzero(ahead)
         rows, cols = np.divmod(idx, traj.n_steps)
         o = rows + 1  # the other agent's row in the trajectory
-        # velocities and their time derivatives, (vx, vy, ax, ay) x agents x steps, taken at
-        # the pairs for the ego and for the other, projected on the ego's heading at once
+        # velocities and their time derivatives (as _derivative takes them, at the pairs'
+        # steps only) of the ego and the other, projected on the ego's heading at once
         vel = np.stack([traj.vx, traj.vy])
-        kin = np.concatenate([vel, _derivative(vel, traj.t)])
-        both = np.stack([kin[:, 0, cols], kin[:, o, cols]])  # (ego / other, 4, pairs)
-        along = both[:, 0::2] * c[cols] + both[:, 1::2] * s[cols]  # (ego / other, v / a, pairs)
+        who = np.stack([np.zeros_like(o), o])  # (ego / other, pairs)
+        kin = np.stack([vel[:, who, cols], _derivative_at(vel, traj.t, who, cols)])
+        along = kin[:, 0] * c[cols] + kin[:, 1] * s[cols]  # (v / a, ego / other, pairs)
     got = LeadKinematics(
         gap=lon[rows, cols] - (traj.length[0] + traj.length[o]) / 2,
         lat=lat[rows, cols],
-        v_e=along[0, 0], v_l=along[1, 0], a_e=along[0, 1], a_l=along[1, 1],
+        v_e=along[0, 0], v_l=along[0, 1], a_e=along[1, 0], a_l=along[1, 1],
         width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps),
         row=rows, step=cols)
     cache["criticality.lead"] = got
@@ -243,17 +255,27 @@ def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
     return (g <= 0) | np.where(match_first, b1 > max_decel, b2 > max_decel)
 
 
+_FRACTIONS: dict[int, np.ndarray] = {}
+
+
+def _fractions(fine: int) -> np.ndarray:
+    """``(1..fine) / fine``, made once per ``fine``."""
+    got = _FRACTIONS.get(fine)
+    if got is None:
+        got = _FRACTIONS[fine] = np.arange(1, fine + 1) / fine
+    return got
+
+
 def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: float,
                    fine: int) -> np.ndarray:
-    v_e, v_l = np.maximum(k.v_e, 0.0), np.maximum(k.v_l, 0.0)
-    a_e, a_l = k.a_e, k.a_l
-    # the _advance stop times, per pair
-    ts_e = np.where(a_e < 0, v_e / np.where(a_e < 0, -a_e, 1.0), np.inf)
-    ts_l = np.where(a_l < 0, v_l / np.where(a_l < 0, -a_l, 1.0), np.inf)
-    v, a, ts = np.stack([v_e, v_l]), np.stack([a_e, a_l]), np.stack([ts_e, ts_l])
-    # per pair, as columns against the grid: ego and lead stacked on a first axis
+    # ego (row 0) and lead (row 1) of every pair, as columns against the grid of moments
+    v = np.maximum(np.stack([k.v_e, k.v_l]), 0.0)
+    a = np.stack([k.a_e, k.a_l])
+    brakes = a < 0
+    ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)  # _advance's stop times
+    a_l = k.a_l
     p = (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
-         a_l[:, None], (-a_l)[:, None], (a_l < 0)[:, None])
+         a_l[:, None], (-a_l)[:, None], brakes[1, :, None])
 
     grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
     too_hard = _too_hard(grid, p, max_decel)
@@ -268,7 +290,7 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
         lo, step = grid[first[todo] - 1], grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
-        frac = np.arange(1, fine + 1) / fine
+        frac = _fractions(fine)
         for _ in range(2):
             pts = lo[:, None] + step * frac[None, :]
             bad = _too_hard(pts, p, max_decel)

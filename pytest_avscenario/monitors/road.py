@@ -192,11 +192,17 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
         return got
     lanes = lanes_of(traj, monitor)
     T = traj.n_steps
-    s, r, h, w = (np.full(T, np.nan) for _ in range(4))
     lane = traj.lane[0]
     ok = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
     # the ego changes lanes a few times a run: runs of one lane id, not a sort of every sample
     change = np.flatnonzero(lane[1:] != lane[:-1]) + 1
+    if T and not change.size and ok.all() and str(lane[0]) in lanes:
+        # one known lane all along (a scenario on one lane): project every sample at once
+        poly = lanes[str(lane[0])]
+        s, r, h = poly.project(traj.x[0], traj.y[0])
+        got = cache["road.frame"] = LaneFrame(s, r, h, np.full(T, poly.width))
+        return got
+    s, r, h, w = (np.full(T, np.nan) for _ in range(4))
     ids = set(lane[np.concatenate([[0], change])].tolist()) if T else set()
     for lid in ids:
         if lid not in lanes:

@@ -344,7 +344,12 @@ def _route_fraction(traj: Trajectory, name: str) -> tuple[float, int, float]:
         path = LanePolyline("route", xy, cum, 0.0)
     present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
     idx = np.flatnonzero(present)
-    s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx])
+    if path is route[0] and (traj.lane[0, idx] == path.id).all():
+        # the ego stayed on its one route lane: its lane frame is this projection already
+        f = lane_frame(traj, name)
+        s, r = f.s[idx], f.r[idx]
+    else:
+        s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx])
     s = np.clip(s, 0.0, path.length)
     s0 = float(s[0])
     near = np.abs(r) <= ROUTE_DEVIATION_M
