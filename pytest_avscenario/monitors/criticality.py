@@ -240,19 +240,35 @@ def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
     de, dl, ve, vl = d[0], d[1], vv[0], vv[1]
     g = g0 + dl - de
     moving = vl > 0
-    al = np.where(moving, a_l, 0.0)  # a standing lead stays (no reversing)
     u = ve - vl
-    b1 = np.maximum(u * u / (2.0 * g) - al, 0.0)
+    # required_deceleration_values takes a standing lead's acceleration as 0; a_l serves
+    # here because there t_lead = 0 makes match_first False whatever b1 is, and b1 decides
+    # nothing else
+    b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
     # when a braking lead stands (0 standing, inf when it never does); where it is moving
     # its acceleration is a_l's, so the per-pair sign and magnitude serve
     t_lead = np.where(moving, np.where(brakes, vl / nal, np.inf), 0.0)
-    d_lead = np.where(moving, vl * t_lead / 2.0, 0.0)
+    d_lead = vl * t_lead / 2.0  # 0 for a standing lead (vl = 0, t_lead = 0)
     b2 = ve * ve / (2.0 * (g + d_lead))
-    match_first = (u > 0) & (u <= (al + b1) * t_lead)
+    match_first = (u > 0) & (u <= (a_l + b1) * t_lead)
     # out = b1 where the speeds match first, else b2 where the lead stops, else 0 (never
     # above max_decel > 0: and b2 is 0 where the lead never stops, d_lead being inf there);
     # inf (too hard) where the gap is closed
     return (g <= 0) | np.where(match_first, b1 > max_decel, b2 > max_decel)
+
+
+def _pair_columns(k: LeadKinematics) -> tuple:
+    """What :func:`_too_hard` needs of every pair, as columns against a grid of moments: the
+    gap, and the ego (row 0) and lead (row 1) stacked: speed (no reversing), acceleration,
+    half of it, :func:`_advance`'s stop time; the lead's acceleration, its negative and
+    whether it brakes."""
+    v = np.maximum(np.stack([k.v_e, k.v_l]), 0.0)
+    a = np.stack([k.a_e, k.a_l])
+    brakes = a < 0
+    ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)
+    a_l = k.a_l
+    return (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
+            a_l[:, None], (-a_l)[:, None], brakes[1, :, None])
 
 
 _FRACTIONS: dict[int, np.ndarray] = {}
@@ -268,14 +284,7 @@ def _fractions(fine: int) -> np.ndarray:
 
 def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: float,
                    fine: int) -> np.ndarray:
-    # ego (row 0) and lead (row 1) of every pair, as columns against the grid of moments
-    v = np.maximum(np.stack([k.v_e, k.v_l]), 0.0)
-    a = np.stack([k.a_e, k.a_l])
-    brakes = a < 0
-    ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)  # _advance's stop times
-    a_l = k.a_l
-    p = (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
-         a_l[:, None], (-a_l)[:, None], brakes[1, :, None])
+    p = _pair_columns(k)
 
     grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
     too_hard = _too_hard(grid, p, max_decel)

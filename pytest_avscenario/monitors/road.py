@@ -51,10 +51,15 @@ class LanePolyline:
         """Arc length ``s`` [m] (extended linearly before the start and past the end), signed
         offset ``r`` [m] (positive left of travel) and the lane heading [rad] at the closest
         point of each of the points ``x``, ``y``."""
+        if self.xy.shape[0] == 2:  # a straight lane: its one segment extends both ways
+            return self._project_line(x, y)
+        return self._project_segments(x, y)
+
+    def _project_segments(self, x: np.ndarray, y: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` by a search of every segment (any polyline)."""
         a = self.xy[:-1]
         d = self.xy[1:] - a
-        if d.shape[0] == 1:  # a straight lane: its one segment extends both ways
-            return self._project_line(x, y)
         dd = np.einsum("ij,ij->i", d, d)
         px = x[:, None] - a[None, :, 0]
         py = y[:, None] - a[None, :, 1]
