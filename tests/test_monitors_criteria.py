@@ -5,6 +5,7 @@ on a simulated intersection."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -348,3 +349,99 @@ def test_score_criteria_read_from_text_and_checked():
             parse_accept(bad)
     with pytest.raises(ValueError):
         min_score(-0.1)
+
+
+
+# -- on map roads ------------------------------------------------------------------------------
+
+MAPS = Path(__file__).parent / "data" / "maps"
+
+
+def _swerve_to(y_target):
+    """A policy holding its speed (no acceleration) and steering the ego's centre onto the
+    line y = ``y_target`` [m] (a road along +x)."""
+    def policy(obs):
+        e = obs.ego
+        return 0.0, float(np.clip(0.08 * (y_target - e.y) - 0.8 * math.sin(e.heading), -0.2, 0.2))
+    return policy
+
+
+def _drift_to(r_target, after):
+    """A policy holding its speed and steering, from ``after`` [s] on, to ``r_target`` [m]
+    left of its lane's centre line (damped on the offset's rate)."""
+    prev = {}
+
+    def policy(obs):
+        rate = (obs.r - prev["r"]) / obs.dt if "r" in prev else 0.0
+        prev["r"] = obs.r
+        goal = r_target if obs.t >= after else 0.0
+        return 0.0, float(np.clip(0.06 * (goal - obs.r) - 0.35 * rate, -0.15, 0.15))
+    return policy
+
+
+def _metres(traj, at):
+    """Metres the ego drove into the samples ``at`` (from the sample before each)."""
+    d = np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0]))
+    return float(d[at[1:]].sum())
+
+
+def test_rules_and_criticality_on_a_map_road_with_lanes_both_ways():
+    """straight_500m.xodr: lane 1/0/-1 runs east at y = -1.535, lane 1/0/1 west at y = +1.535
+    (3.07 m wide each, the centre line y = 0 between them). The ego (10 m/s, no
+    acceleration) swerves into the westbound lane toward a car parked there at x = 150."""
+    from pytest_avscenario.sim import World
+
+    w = World(0, name="t_map")
+    road = w.map(MAPS / "straight_500m.xodr")
+    w.ego(road.lane("1/0/-1"), s=50, speed=10, driver=_swerve_to(1.535))
+    w.parked_car(road.lane("1/0/1"), s=350, name="parked")  # 350 m from x = 500: x = 150
+    traj = w.run(8)
+    assert set(traj.meta["lanes"]) >= {"1/0/1", "1/0/-1"} and traj.meta["ego_route"] == ["1/0/-1"]
+    # against the lane from the first sample whose centre is north of y = 0
+    west = traj.y[0] > 0
+    k = int(np.argmax(west))
+    assert west[k:].all()
+    for mon in (wrong_way(), outside_route_lanes()):
+        r = mon.evaluate(traj)
+        assert r.t == pytest.approx(traj.t[k]) and r.rho == pytest.approx(-_metres(traj, west))
+    assert off_road().evaluate(traj).rho == 0.0 and on_sidewalk().evaluate(traj).rho == 0.0
+    # along the 500-m route from x = 50 to where the ego ends
+    x0, x1 = traj.x[0, 0], traj.x[0, -1]
+    assert route_completion(1.0).evaluate(traj).rho == pytest.approx((x1 - x0) / (500 - x0) - 1)
+    assert min_speed_route(0.5).evaluate(traj).rho == math.inf  # no moving traffic
+    # the parked car ahead in its lane, at the end: gap g, speed v, no accelerations
+    g = traj.x[1, -1] - x1 - (traj.length[0] + traj.length[1]) / 2
+    v = float(np.hypot(traj.vx[0, -1], traj.vy[0, -1]))
+    d = (traj.width[0] + traj.width[1]) / 2 - abs(traj.y[1, -1] - traj.y[0, -1])
+    expect = {ettc(2.0): g / v - 2.0, required_deceleration(4.0): 4.0 - v * v / (2 * g),
+              brake_threat_number(1.0): 1.0 - v * v / (2 * g) / 8.0,
+              time_to_brake(1.0): (g - v * v / 16.0) / v - 1.0,  # until v²/(2(g - vτ)) > 8
+              time_to_steer(0.5): g / v - math.sqrt(2 * d / 5.0) - 0.5}
+    for mon, rho in expect.items():
+        r = mon.evaluate(traj)
+        assert r.agent == "parked" and r.t == pytest.approx(traj.t[-1])
+        assert r.rho == pytest.approx(rho, abs=2e-3 if mon.name == "time_to_brake" else 1e-4)
+    assert post_encroachment_time(1.0).evaluate(traj).rho == math.inf  # nothing crosses
+
+
+def test_on_sidewalk_is_the_maps_own_sidewalk():
+    """fabriksgatan.xodr: beside the 3.5-m driving lane 3/0/-1 (straight) lie a 0.3-m border
+    and a 2-m sidewalk. The ego drifts right off the road: the border is off the road but
+    not sidewalk; the sidewalk starts 1.75 + 0.3 m right of the lane's centre line."""
+    from pytest_avscenario.sim import World
+
+    w = World(0, name="t_map")
+    town = w.map(MAPS / "fabriksgatan.xodr")
+    w.ego(town.lane("3/0/-1"), s=10, speed=8, driver=_drift_to(-3.05, after=1.0))
+    traj = w.run(9)
+    assert traj.meta["lanes"]["3/0/-3"]["kind"] == "sidewalk"
+    r_off = traj.lane_offset[0]  # the simulator's own offset from the lane's centre line
+    assert set(traj.lane[0]) == {"3/0/-1"} and r_off.min() < -2.3
+    walk = (r_off < -(1.75 + 0.3)) & (r_off >= -(1.75 + 0.3 + 2.0))
+    r = on_sidewalk().evaluate(traj)
+    assert r.t == pytest.approx(traj.t[np.argmax(walk)]) and walk.sum() >= 5
+    assert r.rho == pytest.approx(-_metres(traj, walk))
+    off = off_road().evaluate(traj)
+    assert off.t == pytest.approx(traj.t[np.argmax(r_off < -1.75)]) and off.t < r.t
+    assert outside_route_lanes().evaluate(traj).t == off.t
+    assert wrong_way().evaluate(traj).rho == 0.0

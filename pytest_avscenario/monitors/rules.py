@@ -112,19 +112,39 @@ class OnSidewalkMonitor(Monitor):
         present = _ego_present(traj, self.name)
         off = present & ~traj.on_road[0]
         f = lane_frame(traj, self.name)
-        if off.any():
-            beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
-            bad = off & (beyond > 0) & (beyond <= self.width)
-        else:
+        if not off.any():
             bad = off
+        else:
+            lanes = lanes_of(traj, self.name)
+            walks = [k for k in lanes if lanes.kind(k) == "sidewalk"]
+            if walks:  # a map's own sidewalks: the centre inside one of them
+                bad = off & _inside_any(traj, [lanes[k] for k in walks], off)
+            else:
+                beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
+                bad = off & (beyond > 0) & (beyond <= self.width)
         return _infringement(self.name, traj, bad, "drove on the sidewalk")
+
+
+def _inside_any(traj: Trajectory, lanes: list[LanePolyline], where: np.ndarray) -> np.ndarray:
+    """``(T,)`` whether the ego's centre lies on one of ``lanes`` (between its ends, within
+    half its width of its centre line), at the samples ``where`` (False elsewhere)."""
+    idx = np.flatnonzero(where)
+    inside = np.zeros(idx.size, dtype=bool)
+    for lane in lanes:
+        s, r, _ = lane.project(traj.x[0, idx], traj.y[0, idx])
+        inside |= (s >= 0) & (s <= lane.length) & (np.abs(r) <= lane.width / 2)
+    out = np.zeros(traj.n_steps, dtype=bool)
+    out[idx] = inside
+    return out
 
 
 @factory
 def on_sidewalk(width: float = SIDEWALK_M, *, name: str = "on_sidewalk") -> Monitor:
-    """CARLA's ``OnSidewalkTest``: the ego's centre never leaves the road onto the sidewalk,
-    the ``width`` [m] band beyond the edge of the lane it last drove in. ρ = 0 when it holds,
-    else minus the metres driven there. Farther off the road is :func:`off_road`'s."""
+    """CARLA's ``OnSidewalkTest``: the ego's centre never leaves the road onto the sidewalk:
+    on a map, the map's own sidewalk lanes beside the lanes driven (the recording lists them,
+    ``kind`` "sidewalk"); on built roads, which draw none, the ``width`` [m] band beyond the
+    edge of the lane it last drove in. ρ = 0 when it holds, else minus the metres driven
+    there. Farther off the road is :func:`off_road`'s."""
     return OnSidewalkMonitor(width, name=name)
 
 
