@@ -4,6 +4,7 @@ on a simulated intersection."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from pytest_avscenario.monitors import (
     time_to_steer,
     wrong_way,
 )
+from pytest_avscenario.monitors import criticality as cr
 from pytest_avscenario.monitors.criticality import (
     ettc_values,
     required_deceleration_values,
@@ -355,6 +357,7 @@ def test_score_criteria_read_from_text_and_checked():
 # -- on map roads ------------------------------------------------------------------------------
 
 MAPS = Path(__file__).parent / "data" / "maps"
+SHARED_MAPS = Path(__file__).parents[1].parent / "shared" / "maps"
 
 
 def _swerve_to(y_target):
@@ -445,3 +448,70 @@ def test_on_sidewalk_is_the_maps_own_sidewalk():
     assert off.t == pytest.approx(traj.t[np.argmax(r_off < -1.75)]) and off.t < r.t
     assert outside_route_lanes().evaluate(traj).t == off.t
     assert wrong_way().evaluate(traj).rho == 0.0
+
+
+@pytest.mark.skipif(not (SHARED_MAPS / "highway_example_with_merge_and_split.xodr").is_file(),
+                    reason=f"no shared maps at {SHARED_MAPS}")
+def test_a_lead_past_a_lane_section_boundary_stays_ahead_and_traffic_rules_on_a_map():
+    """highway_example_with_merge_and_split.xodr: road 0's lane -1 is 0/0/-1 for its first
+    50 m, then 0/1/-1. A lead brakes to a stop past that boundary with the ego (IDM) behind
+    it, still on 0/0/-1; a car beside keeps going."""
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.sim import behaviors as b
+
+    w = World(0, name="t_map")
+    m = w.map(SHARED_MAPS / "highway_example_with_merge_and_split.xodr")
+    w.ego(m.lane("0/0/-1"), s=5, speed=10, driver="idm")
+    w.car(m.lane("0/0/-1"), s=30, speed=10, behavior=b.brake_at(1.0, decel=4.0), name="lead")
+    w.car(m.lane("0/0/-2"), s=20, speed=12, name="beside")
+    traj = w.run(9)
+    past = (traj.lane[1] == "0/1/-1") & (traj.lane[0] == "0/0/-1")
+    assert past.sum() > 20 and traj.meta["ego_route"][:2] == ["0/0/-1", "0/1/-1"]
+    # the same run with the lead's lane named as the ego's: the measures see the same lead
+    same = traj.lane.copy()
+    same[1, past] = "0/0/-1"
+    relabelled = dataclasses.replace(traj, lane=same)
+    for mon in (ettc(2.0), required_deceleration(4.0), brake_threat_number(), time_to_brake(1.0),
+                time_to_steer(0.5)):
+        got = mon.series(traj)
+        assert np.array_equal(got, mon.series(relabelled)), mon.name
+        if mon.name in ("required_deceleration", "brake_threat_number"):
+            assert np.isfinite(got[past]).all(), mon.name  # a value wherever a lead is ahead
+        assert mon.evaluate(traj).agent == "lead"
+    # blocked: standing (< 0.1 m/s) from its first slow sample to the end
+    slow = int(np.argmax(traj.speed[0] < 0.1))
+    assert (traj.speed[0, slow:] < 0.1).all()
+    assert blocked(1.0).evaluate(traj).rho == pytest.approx(1.0 - (traj.t[-1] - traj.t[slow]))
+    # min_speed_route: the ego's mean speed over the cars' mean speed
+    ratio = traj.speed[0].mean() / traj.speed[1:].mean(axis=0).mean()
+    assert min_speed_route(0.9).evaluate(traj).rho == pytest.approx(ratio - 0.9, rel=1e-9)
+    # the route's length is its lanes' lengths; the ego drove its step lengths from s = 5
+    length = sum(m.lane(i).length for i in traj.meta["ego_route"])
+    driven = float(np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0])).sum())
+    assert route_completion(1.0).evaluate(traj).rho == pytest.approx(
+        driven / (length - 5.0) - 1.0, abs=2e-3)
+    for mon in (wrong_way(), outside_route_lanes(), on_sidewalk(), off_road()):
+        assert mon.evaluate(traj).rho == 0.0
+
+
+
+def test_post_encroachment_time_at_a_map_junction():
+    """fabriksgatan.xodr's junction: the ego (IDM) crosses from the south arm to the north,
+    a car from the west arm to the east after it; their paths cross inside the junction's
+    connecting lanes (9/0/-1 and 12/0/-1)."""
+    from pytest_avscenario.sim import World
+
+    from test_monitors_criteria_shared import _pet_brute_force
+
+    w = World(3, name="t_map", driver="idm")
+    town = w.map(MAPS / "fabriksgatan.xodr")
+    w.ego(town.lane("0/0/1"), s=60, speed=8, route=town.route("0/0/1", "2/0/1"))
+    w.car(town.lane("3/0/-1"), s=60, speed=8, route=town.route("3/0/-1", "1/0/-1"), name="cross")
+    traj = w.run(9)
+    assert "9/0/-1" in traj.lane[0] and "12/0/-1" in traj.lane[1] and not traj.crashed.any()
+    pet, t_left, t_reached = cr.pet_values(traj)
+    # the smallest time apart of two samples whose footprints overlap, crossing
+    assert np.array_equal(pet, _pet_brute_force(traj)) and 1.0 < pet[0] < 4.0
+    r = post_encroachment_time(1.0).evaluate(traj)
+    assert r.agent == "cross" and r.rho == pytest.approx(pet[0] - 1.0)
+    assert r.t == t_reached[0] and t_reached[0] - t_left[0] == pytest.approx(pet[0])

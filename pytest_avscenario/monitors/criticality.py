@@ -3,7 +3,9 @@ collision (TTC with accelerations), required deceleration, brake threat number, 
 brake, time to steer, and post-encroachment time at crossings.
 
 The first five look at the road user ahead of the ego in its lane (same lane id when both
-are known, else overlapping lateral corridors, as :func:`.metrics.headway`), along the ego's
+are known, or a lane further along the ego's recorded route, so a lead past a map's lane
+section or road boundary stays ahead; else overlapping lateral corridors, as
+:func:`.metrics.headway`), along the ego's
 heading: bumper-to-bumper gap ``g`` [m], speeds ``v_e``, ``v_l`` [m/s] and accelerations
 ``a_e``, ``a_l`` [m/s²] (signed; the time derivative of the recorded velocities, projected on
 the ego's heading). Post-encroachment time looks at every road user whose path crosses the
@@ -56,7 +58,8 @@ TTB_HORIZON_S = 10.0
 
 @dataclass(frozen=True)
 class LeadKinematics:
-    """The pairs (ego, other agent) in which the other is ahead of the ego in its lane, as
+    """The pairs (ego, other agent) in which the other is ahead of the ego in its lane (or on
+    a lane further along its route), as
     1-D arrays over those pairs: gap [m] bumper to bumper along the ego's heading, lateral
     offset ``lat`` [m] of its centre from the ego's axis, speeds ``v_e``/``v_l`` [m/s] and
     accelerations ``a_e``/``a_l`` [m/s²] along the ego's heading, the other's width
@@ -110,6 +113,20 @@ def _derivative_at(v: np.ndarray, t: np.ndarray, rows: np.ndarray, cols: np.ndar
     return (v[..., rows, hi] - v[..., rows, lo]) / (t[hi] - t[lo])
 
 
+def _further_on_route(traj: Trajectory, route: list[str]) -> np.ndarray:
+    """``(A-1, T)``: whether the other agent is on a lane of the ego's route beyond the
+    route lane the ego is on (its lane ahead carries another id: the next lane section or
+    road of a map, the road past a junction)."""
+    where = {}
+    for k, lane_id in enumerate(route):
+        where.setdefault(lane_id, k)
+    ids = set(traj.lane.ravel().tolist()) & where.keys()
+    pos = np.full(traj.lane.shape, -1)
+    for lane_id in ids:
+        pos[traj.lane == lane_id] = where[lane_id]
+    return (pos[0] >= 0)[None, :] & (pos[1:] > pos[0][None, :])
+
+
 def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     """The :class:`LeadKinematics` of ``traj`` (computed once per trajectory)."""
     cache = memo(traj)
@@ -125,6 +142,9 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     with np.errstate(invalid="ignore", divide="ignore"):
         lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
         same_lane = traj.lane[1:] == traj.lane[0][None, :]
+        route = traj.meta.get("ego_route") or ()
+        if len(route) > 1:  # a lane change of id along the way (a map's next road or section)
+            same_lane |= _further_on_route(traj, [str(r) for r in route])
         corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
         ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
         idx = np.flatnonzero(ahead)
