@@ -373,12 +373,11 @@ class _LeadMeasure(Monitor):
         k = lead_kinematics(traj)
         values = self._values(traj)
         m = self._margins(values)
-        if m.size == 0 or not (m < np.inf).any():
+        # the smallest margin, earliest step first on ties (as the pairwise metrics)
+        j = int(np.lexsort((k.row, k.step, m))[0]) if m.size else -1
+        if j < 0 or not m[j] < math.inf:
             return MonitorResult(self.name, math.inf, self.threshold, None, None,
                                  f"nothing ahead of the ego that makes {self._what} finite")
-        # the smallest margin, earliest step first on ties (as the pairwise metrics)
-        order = np.lexsort((k.row, k.step, m))
-        j = int(order[0])
         row, step = int(k.row[j]), int(k.step[j])
         v = values[j]
         who = traj.names[row + 1]
@@ -526,11 +525,11 @@ CROSSING_MIN_ANGLE_DEG = 30.0
 
 
 #: heading bins over half a turn (|sin| of a heading difference repeats every pi)
-_NBINS = 36
+_NBINS = 32  # a power of two: the bin of a half turn is a bit mask of the floor
 
 
 def _heading_bins(h: np.ndarray) -> np.ndarray:
-    return (np.mod(h, np.pi) / (np.pi / _NBINS)).astype(int) % _NBINS
+    return np.floor(h * (_NBINS / np.pi)).astype(np.int64) & (_NBINS - 1)
 
 
 def _can_cross(min_angle_deg: float) -> np.ndarray:

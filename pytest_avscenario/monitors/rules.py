@@ -92,9 +92,12 @@ def _infringement(name: str, traj: Trajectory, bad: np.ndarray, what: str) -> Mo
 
 def _ego_present(traj: Trajectory, name: str) -> np.ndarray:
     present = traj.present[0]
-    if not present.any():
-        raise MonitorError(f"monitor {name!r}: the ego is never present")
-    check_present_finite(traj, name, ("x", "y"), [0])
+    cache = memo(traj)
+    if "rules.ego_checked" not in cache:
+        if not present.any():
+            raise MonitorError(f"monitor {name!r}: the ego is never present")
+        check_present_finite(traj, name, ("x", "y"), [0])
+        cache["rules.ego_checked"] = True
     return present
 
 
