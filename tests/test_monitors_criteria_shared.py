@@ -183,3 +183,20 @@ def test_post_encroachment_time_equals_a_search_of_every_sample_pair():
         pets.append(pet)
     pets = np.concatenate(pets)
     assert np.isfinite(pets).sum() >= 3 and np.isinf(pets).sum() >= 3  # both kinds of case
+
+
+def test_time_to_brake_for_a_verdict_refines_only_what_can_be_smallest():
+    rng = np.random.default_rng(4)
+    for case in range(30):
+        n = int(rng.integers(1, 40))
+        k = cr.LeadKinematics(
+            gap=rng.uniform(1.0, 90.0, n), lat=np.zeros(n), v_e=rng.uniform(5, 30, n),
+            v_l=rng.uniform(0, 20, n), a_e=rng.uniform(-1, 2, n),
+            a_l=rng.choice([0.0, -1.0, -4.0, 0.5], n), width_l=np.full(n, 2.0),
+            idx=np.arange(n), shape=(1, n))
+        full = cr.time_to_brake_values(k, 8.0)
+        fast = cr.time_to_brake_values(k, 8.0, smallest_only=True)
+        assert (fast <= full).all(), case  # the others are lower bounds...
+        smallest = full.min()
+        assert fast.min() == smallest, case  # ...above the exact smallest
+        assert np.array_equal(fast == smallest, full == smallest), case

@@ -230,7 +230,7 @@ def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray,
 
 def time_to_brake_values(k: LeadKinematics, max_decel: float,
                          horizon: float = TTB_HORIZON_S, grid_s: float = 0.5,
-                         fine: int = 64) -> np.ndarray:
+                         fine: int = 64, *, smallest_only: bool = False) -> np.ndarray:
     """Time to brake [s]: how long the ego can keep its acceleration before braking at
     ``max_decel`` is no longer enough (the required deceleration of the state it then
     reaches exceeds ``max_decel``); both keep their accelerations meanwhile, no one reverses.
@@ -238,11 +238,13 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
     (1-D over the pairs of ``k``).
     The first moment on a ``grid_s`` grid, refined twice on ``fine`` points within the
     bracket (to ``grid_s / fine²``, 0.12 ms by default), for every agent ahead and step at
-    once."""
+    once. With ``smallest_only`` a pair whose grid bracket lies wholly above another's keeps
+    the bracket's lower end instead of being refined: the smallest value, and which pairs
+    have it, are exact (what a monitor's verdict needs), the others are lower bounds."""
     if k.gap.size == 0:
         return np.zeros(0)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        return _time_to_brake(k, float(max_decel), horizon, grid_s, fine)
+        return _time_to_brake(k, float(max_decel), horizon, grid_s, fine, smallest_only)
 
 
 def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
@@ -303,7 +305,7 @@ def _fractions(fine: int) -> np.ndarray:
 
 
 def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: float,
-                   fine: int) -> np.ndarray:
+                   fine: int, smallest_only: bool = False) -> np.ndarray:
     p = _pair_columns(k)
 
     grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
@@ -313,6 +315,14 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
     now = too_hard[:, 0]
     res = np.where(now, 0.0, np.inf)
     todo = np.flatnonzero(first > 0)  # too hard first at a later grid point: refine
+    if smallest_only and todo.size:
+        # a refined value lies in [grid[first - 1], grid[first]); pairs whose lower end is
+        # above the smallest upper end (0 when some pair is too late already) cannot be
+        # the smallest nor tie with it
+        upper = 0.0 if now.any() else grid[first[todo]].min()
+        lower = grid[first[todo] - 1]
+        res[todo] = lower
+        todo = todo[lower <= upper]
     if todo.size:
         if todo.size < first.size:
             p = tuple(c[:, todo] if c.ndim == 3 else c[todo] for c in p)
@@ -356,6 +366,11 @@ class _LeadMeasure(Monitor):
         """The measure over the pairs of :func:`lead_kinematics` (1-D)."""
         raise NotImplementedError
 
+    def _smallest(self, traj: Trajectory) -> np.ndarray:
+        """:meth:`_values` where a measure's smallest margin (and the pairs that have it)
+        must be exact, the others may be bounds on the safe side of it."""
+        return self._values(traj)
+
     def _margins(self, v: np.ndarray) -> np.ndarray:
         m = (self.threshold - v) if self._upper else (v - self.threshold)
         return np.where(np.isnan(v), np.inf, m)
@@ -371,7 +386,7 @@ class _LeadMeasure(Monitor):
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "vx", "vy", "heading"))
         k = lead_kinematics(traj)
-        values = self._values(traj)
+        values = self._smallest(traj)
         m = self._margins(values)
         # the smallest margin, earliest step first on ties (as the pairwise metrics)
         j = int(np.lexsort((k.row, k.step, m))[0]) if m.size else -1
@@ -457,6 +472,9 @@ class TimeToBrakeMonitor(_LeadMeasure):
 
     def _values(self, traj):
         return time_to_brake_values(lead_kinematics(traj), self.max_decel)
+
+    def _smallest(self, traj):
+        return time_to_brake_values(lead_kinematics(traj), self.max_decel, smallest_only=True)
 
 
 class TimeToSteerMonitor(_LeadMeasure):
