@@ -270,7 +270,7 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
         done = _CHECKED[traj] = set()
         # most monitors read these: one pass over all of them for every agent, and a
         # field-by-field search below only when something is not finite
-        stacked = np.stack([getattr(traj, f) for f in _KINEMATIC])
+        stacked = np.array([getattr(traj, f) for f in _KINEMATIC])
         if not (traj.present & ~np.isfinite(stacked)).any():
             done.update((f, "all") for f in _KINEMATIC)
     key = "all" if agents is None else repr(agents)

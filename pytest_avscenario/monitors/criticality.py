@@ -152,9 +152,9 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
         o = rows + 1  # the other agent's row in the trajectory
         # velocities and their time derivatives (as _derivative takes them, at the pairs'
         # steps only) of the ego and the other, projected on the ego's heading at once
-        vel = np.stack([traj.vx, traj.vy])
-        who = np.stack([np.zeros_like(o), o])  # (ego / other, pairs)
-        kin = np.stack([vel[:, who, cols], _derivative_at(vel, traj.t, who, cols)])
+        vel = np.array([traj.vx, traj.vy])
+        who = np.array([np.zeros_like(o), o])  # (ego / other, pairs)
+        kin = np.array([vel[:, who, cols], _derivative_at(vel, traj.t, who, cols)])
         along = kin[:, 0] * c[cols] + kin[:, 1] * s[cols]  # (v / a, ego / other, pairs)
     got = LeadKinematics(
         gap=lon[rows, cols] - (traj.length[0] + traj.length[o]) / 2,
@@ -284,8 +284,8 @@ def _pair_columns(k: LeadKinematics) -> tuple:
     gap, and the ego (row 0) and lead (row 1) stacked: speed (no reversing), acceleration,
     half of it, :func:`_advance`'s stop time; the lead's acceleration, its negative and
     whether it brakes."""
-    v = np.maximum(np.stack([k.v_e, k.v_l]), 0.0)
-    a = np.stack([k.a_e, k.a_l])
+    v = np.maximum(np.array([k.v_e, k.v_l]), 0.0)
+    a = np.array([k.a_e, k.a_l])
     brakes = a < 0
     ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)
     a_l = k.a_l

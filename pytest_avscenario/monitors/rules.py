@@ -204,9 +204,19 @@ def _outside_route(traj: Trajectory, name: str) -> np.ndarray:
     lanes = lanes_of(traj, name)
     groups = {lanes.group(i) for i in route_ids} - {""}
     ok_ids = [k for k in lanes if k in route_ids or lanes.group(k) in groups]
-    on_route = np.isin(traj.lane[0], ok_ids)
+    on_route = _among(traj.lane[0], ok_ids)
     got = cache["rules.outside_route"] = traj.present[0] & (~traj.on_road[0] | ~on_route)
     return got
+
+
+def _among(lane: np.ndarray, ids: list[str]) -> np.ndarray:
+    """``np.isin(lane, ids)``; a few comparisons for a few ids (isin sorts strings)."""
+    if len(ids) > 6:
+        return np.isin(lane, ids)
+    out = np.zeros(lane.shape, dtype=bool)
+    for i in ids:
+        out |= lane == i
+    return out
 
 
 def _route_ids(traj: Trajectory, name: str) -> set[str]:
@@ -423,6 +433,9 @@ def standing_time(traj: Trajectory, min_speed: float) -> np.ndarray:
     if got is not None:
         return got
     slow = traj.present[0] & (_ego_speed(traj) < min_speed)
+    if not slow.any():
+        got = cache[key] = np.zeros(traj.n_steps)
+        return got
     began = slow & ~np.concatenate([[False], slow[:-1]])
     start = np.maximum.accumulate(np.where(began, traj.t, -np.inf))
     with np.errstate(invalid="ignore"):
