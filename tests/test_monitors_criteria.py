@@ -450,6 +450,18 @@ def test_on_sidewalk_is_the_maps_own_sidewalk():
     assert wrong_way().evaluate(traj).rho == 0.0
 
 
+def test_a_maps_shoulder_is_off_the_road_but_no_sidewalk():
+    """straight_500m.xodr has a 1.68-m shoulder beside each driving lane and no sidewalk."""
+    from pytest_avscenario.sim import World
+
+    w = World(0, name="t_map")
+    road = w.map(MAPS / "straight_500m.xodr")
+    w.ego(road.lane("1/0/-1"), s=50, speed=10, driver=_swerve_to(-1.535 - 1.535 - 0.84))
+    traj = w.run(6)
+    assert traj.y[0].min() < -3.4 and not traj.on_road[0].all()
+    assert off_road().evaluate(traj).rho < 0 and on_sidewalk().evaluate(traj).rho == 0.0
+
+
 @pytest.mark.skipif(not (SHARED_MAPS / "highway_example_with_merge_and_split.xodr").is_file(),
                     reason=f"no shared maps at {SHARED_MAPS}")
 def test_a_lead_past_a_lane_section_boundary_stays_ahead_and_traffic_rules_on_a_map():

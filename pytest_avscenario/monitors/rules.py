@@ -120,7 +120,8 @@ class OnSidewalkMonitor(Monitor):
         else:
             lanes = lanes_of(traj, self.name)
             walks = [k for k in lanes if lanes.kind(k) == "sidewalk"]
-            if walks:  # a map's own sidewalks: the centre inside one of them
+            if walks or traj.meta.get("road") == "map":
+                # a map's own sidewalks (none beside the lanes driven: no sidewalk to be on)
                 bad = off & _inside_any(traj, [lanes[k] for k in walks], off)
             else:
                 beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
@@ -145,8 +146,9 @@ def _inside_any(traj: Trajectory, lanes: list[LanePolyline], where: np.ndarray) 
 def on_sidewalk(width: float = SIDEWALK_M, *, name: str = "on_sidewalk") -> Monitor:
     """CARLA's ``OnSidewalkTest``: the ego's centre never leaves the road onto the sidewalk:
     on a map, the map's own sidewalk lanes beside the lanes driven (the recording lists them,
-    ``kind`` "sidewalk"); on built roads, which draw none, the ``width`` [m] band beyond the
-    edge of the lane it last drove in. ρ = 0 when it holds, else minus the metres driven
+    ``kind`` "sidewalk"; a shoulder or a border is off the road, not sidewalk); on built
+    roads, which draw none, the ``width`` [m] band beyond the edge of the lane it last drove
+    in. ρ = 0 when it holds, else minus the metres driven
     there. Farther off the road is :func:`off_road`'s."""
     return OnSidewalkMonitor(width, name=name)
 
