@@ -11,10 +11,12 @@ lane of any origin (built roads, OpenDRIVE maps) is a polyline there, so the mon
 nothing but these four facts per lane: the closest lane (the recorded ``lane``), its heading
 and width where the agent is, and whether the agent is on the drivable area (the recorded
 ``on_road``). A trajectory built by hand gives the same ``meta`` to use these monitors.
-Map lanes plug in by being written the same way: the monitors never ask where a lane came
-from.
+Map lanes plug in by being written the same way; a map's recording also lists the sidewalk
+lanes beside the lanes driven (``"kind": "sidewalk"``, :func:`~..sim.recording.map_sidewalks`),
+and ``meta["road"]`` says "map".
 
-Projections are computed once per trajectory and shared by every monitor that needs them.
+Projections are computed once per trajectory and shared by every monitor that needs them
+(:func:`.base.memo`); a lane's polyline is built when a monitor first reads it.
 """
 
 from __future__ import annotations
