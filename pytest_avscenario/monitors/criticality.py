@@ -606,11 +606,18 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
         lo, hi = np.minimum.reduce, np.maximum.reduce
         ne = ((xe >= lo(xo) - reach) & (xe <= hi(xo) + reach)
               & (ye >= lo(yo) - reach) & (ye <= hi(yo) + reach))
-        no = ((xo >= lo(xe) - reach) & (xo <= hi(xe) + reach)
-              & (yo >= lo(ye) - reach) & (yo <= hi(ye) + reach))
-        if not ne.any() or not no.any():
+        i = ie_a[ne]
+        if i.size == 0:
             continue
-        i, j = ie_a[ne], io[no]
+        if i.size * io.size > 4096:  # the other's samples near the ego's path, when many
+            xe, ye = xe[ne], ye[ne]
+            no = ((xo >= lo(xe) - reach) & (xo <= hi(xe) + reach)
+                  & (yo >= lo(ye) - reach) & (yo <= hi(ye) + reach))
+            if not no.any():
+                continue
+            j = io[no]
+        else:  # few pairs: the exact test below looks at them all
+            j = io
         dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
         dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
         near = dx * dx + dy * dy <= reach * reach
