@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AgentState", "Observation", "StopLine"]
+__all__ = ["AgentState", "Observation", "StopLine", "TrafficLight"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,16 @@ class StopLine:
 
 
 @dataclass(frozen=True)
+class TrafficLight:
+    """A traffic light on the ego's route ahead (within 150 m of the start of its lane)."""
+
+    route_index: int  # index into Observation.route of the lane its stop position is on
+    s: float  # [m] the stop position on that lane: stop the front bumper before it
+    state: str  # "green", "amber" or "red" now
+    signal: str = ""  # the map's signal id
+
+
+@dataclass(frozen=True)
 class Observation:
     """Everything a driver gets at one step.
 
@@ -85,3 +95,4 @@ class Observation:
     target_speed: float | None = None  # [m/s] what the scenario asked the ego to cruise at
     goal: dict[str, Any] | None = None  # e.g. {"kind": "park", "x":…, "y":…, "heading":…}
     sensor_range: float = 80.0  # [m]
+    traffic_lights: tuple[TrafficLight, ...] = ()  # the lights on the route ahead, nearest first

@@ -20,7 +20,7 @@ import numpy as np
 from .drivers import IDMDriver, declared_step, resolve
 from .errors import DriverError, SimError
 from .geometry import footprints_overlap
-from .observation import AgentState, Observation, StopLine as ObsStopLine
+from .observation import AgentState, Observation, StopLine as ObsStopLine, TrafficLight
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
 from .recording import Recorder
 from ..trajectory import Trajectory
@@ -87,6 +87,7 @@ class World:
         self._route_geoms: tuple = ()
         self._stop_cache: dict[int, tuple] = {}
         self._allway: Any = None  # arrival order at all-way stops (right_of_way.AllWayStop)
+        self._lights: Any = None  # the road's traffic lights (signals.TrafficLights), or False
         self.sensor_range = 80.0  # [m]
 
     def __repr__(self) -> str:
@@ -261,6 +262,63 @@ class World:
         if aw is None or aw.index is not self._index:
             aw = self._allway = AllWayStop(self)
         return aw
+
+    # -- traffic lights ----------------------------------------------------------------------------
+    @property
+    def traffic_lights(self) -> Any:
+        """The road's traffic lights (a :class:`~.signals.TrafficLights`, made on first use
+        from the map file's signals), or None on a road without any."""
+        got = self._lights
+        if got is None:
+            got = False
+            road = self.road
+            if getattr(road, "kind", "") == "map":
+                from .signals import TrafficLights, map_signals
+
+                try:
+                    found = map_signals(road.data)
+                except SimError as exc:
+                    raise SimError(str(exc), test=self.name) from None
+                lights = TrafficLights(found)
+                got = lights if lights.stops else False
+            elif getattr(road, "traffic_lights", None) is not None:
+                got = road.traffic_lights
+            self._lights = got
+        return got or None
+
+    def signals(self, *, green: float | None = None, amber: float | None = None,
+                all_red: float | None = None, cycle: float | None = None,
+                offset: Any = None) -> Any:
+        """The road's traffic lights with their fixed-time plan set: ``green``, ``amber``,
+        ``all_red`` [s] per controller's turn (defaults 10, 3, 2 s, CARLA's), or ``cycle``
+        [s] (a two-way junction's whole cycle), and ``offset`` [s] into every junction's cycle
+        at t = 0 (or ``{junction id: s}``) — sample it to vary the phase the ego arrives in.
+        Returns the :class:`~.signals.TrafficLights` (``state(signal, t)``, ``stops``)."""
+        if self.road is None:
+            raise SimError("world.signals(): build a road first (world.map(...))", test=self.name)
+        if self.trajectory is not None:
+            raise SimError("world.signals(): the world has already run", test=self.name)
+        lights = self.traffic_lights
+        if lights is None:
+            raise SimError(f"world.signals(): the {self.road.kind} road has no traffic lights "
+                           "(a map file with <signal type=\"1000001\"> elements has)",
+                           test=self.name)
+        return lights.configure(green=green, amber=amber, all_red=all_red, cycle=cycle,
+                                offset=offset, test=self.name)
+
+    def lights_ahead(self, agent: Any, horizon: float = 150.0) -> list[tuple[float, str, str]]:
+        """The traffic lights on ``agent``'s route ahead within ``horizon`` [m]: ``(distance
+        [m] from its centre to the stop position (negative once passed, until it leaves that
+        lane), state now, signal id)``, nearest first; [] on a road without lights."""
+        lights = self.traffic_lights
+        if lights is None or not agent.plan:
+            return []
+        key = (agent.route_index, len(agent.plan), id(agent.plan[agent.route_index]))
+        memo = getattr(agent, "_lights_memo", None)
+        if memo is None or memo[0] != key:
+            memo = agent._lights_memo = (key, lights.ahead(agent.plan, agent.route_index, horizon))
+        rs = float(agent.route_s)
+        return [(acc - rs, lights.state(sid, self.t), sid) for _, _, acc, sid in memo[1]]
 
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
@@ -774,7 +832,15 @@ class World:
             "agents": tuple(self._state(o) for _, _, o in near), "stop_lines": stops,
             "speed_limit": float(ego.plan[ri].geometry.speed_limit),
             "target_speed": ego.target_speed_request, "goal": ego.goal,
-            "sensor_range": self.sensor_range})
+            "sensor_range": self.sensor_range, "traffic_lights": self._lights_seen(ego)})
+
+    def _lights_seen(self, ego: Any) -> tuple:
+        lights = self.traffic_lights
+        if lights is None:
+            return ()
+        self.lights_ahead(ego)  # refreshes the memo of the stops ahead
+        return tuple(TrafficLight(j, s, lights.state(sid, self.t), sid)
+                     for j, s, _, sid in ego._lights_memo[1])
 
     def view(self) -> Any:
         """A read-only :class:`~.view.SceneView` of the simulation now: every lane of the road
