@@ -310,7 +310,7 @@ class _Agent:
 
     def light_stop(self, comfort_decel: float = control.IDM.b_comf) -> float | None:
         """Distance [m] from the front bumper to where the agent stops for the next traffic
-        light on its route, or None when no light stops it: red, and amber when it can stop
+        light on its route (negative when it is within :data:`LIGHT_MARGIN` of the line), or None when no light stops it: red, and amber when it can stop
         at ``comfort_decel`` [m/s^2] (see :func:`.signals.must_stop`). Having gone on at
         amber (or too close to stop on red) it keeps going through that light."""
         world = self.world
@@ -327,9 +327,8 @@ class _Agent:
             if state == GREEN:
                 went.discard(sid)
                 continue
-            d_stop = front - self.LIGHT_MARGIN
-            if must_stop(state, d_stop, v, comfort_decel, control.MAX_DECELERATION, sid in went):
-                return max(d_stop, 0.0)
+            if must_stop(state, front, v, comfort_decel, control.MAX_DECELERATION, sid in went):
+                return front - self.LIGHT_MARGIN  # negative once within the margin
             went.add(sid)
         return None
 
@@ -556,7 +555,7 @@ class IDMEgo(_Agent, IDMVehicle):
         v0 = abs(float(self.target_speed)) or 1e-3
         s_star = self.DISTANCE_WANTED + v * self.TIME_WANTED + v * v / (
             2.0 * math.sqrt(-self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN))
-        d = stop + self.DISTANCE_WANTED
+        d = max(stop + self.DISTANCE_WANTED, 0.1)
         a_stop = self.COMFORT_ACC_MAX * (1.0 - (v / v0) ** self.DELTA - (s_star / d) ** 2)
         return min(acc, a_stop)
 

@@ -382,10 +382,11 @@ class LightAhead:
 
 def must_stop(state: str, d: float, v: float, comfort_decel: float, max_decel: float,
               committed: bool) -> bool:
-    """Whether a driver ``d`` [m] before the point it stops at (front bumper), at ``v`` [m/s],
-    stops for a light in ``state``: never on green; on amber when it can stop at
-    ``comfort_decel`` [m/s^2] (else it goes on, ``committed``); on red unless it went on at
-    amber (``committed``), is past the point, or could not stop even at ``max_decel``."""
+    """Whether a driver whose front bumper is ``d`` [m] before a light's stop position, at
+    ``v`` [m/s], stops for a light in ``state``: never on green; on amber when it can stop
+    there at ``comfort_decel`` [m/s^2] (else it goes on, ``committed``); on red unless it
+    went on at amber (``committed``), is past the line, or could not stop even at
+    ``max_decel``. (Drivers aim a little before the line; the choice is made on the line.)"""
     if state == GREEN or committed or d <= 0.0:
         return False
     need = v * v / (2.0 * d)

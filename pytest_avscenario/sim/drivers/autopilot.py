@@ -372,10 +372,9 @@ class Autopilot:
             if light.state == GREEN:
                 self._light_went.discard(light.signal)
                 continue
-            target = front - o.stop_margin
-            if must_stop(light.state, target, v, o.comfort_decel, o.max_decel,
+            if must_stop(light.state, front, v, o.comfort_decel, o.max_decel,
                          light.signal in self._light_went):
-                out.append((target, f"{light.state} light"))
+                out.append((max(front - o.stop_margin, 0.0), f"{light.state} light"))
                 break
             self._light_went.add(light.signal)
         return out

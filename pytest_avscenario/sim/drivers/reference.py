@@ -601,10 +601,9 @@ class CarefulDriver:
             if light.state == GREEN:
                 went.discard(light.signal)
                 continue
-            target = front - 1.0
-            if must_stop(light.state, target, v, max(o.comfort_decel, AMBER_DECEL),
+            if must_stop(light.state, front, v, max(o.comfort_decel, AMBER_DECEL),
                          o.max_decel, light.signal in went):
-                return max(target, 0.0)
+                return max(front - 1.0, 0.0)
             went.add(light.signal)
         return None
 
