@@ -424,14 +424,17 @@ class TrafficLights:
         self.green, self.amber, self.all_red = DEFAULT_GREEN, DEFAULT_AMBER, DEFAULT_ALL_RED
         self.offsets: dict[str, float] = {}
         self.offset = 0.0
+        self.phase_share = 0.0
 
     def configure(self, *, green: float | None = None, amber: float | None = None,
                   all_red: float | None = None, cycle: float | None = None,
-                  offset: Any = None, test: str = "") -> "TrafficLights":
+                  offset: Any = None, phase: float | None = None,
+                  test: str = "") -> "TrafficLights":
         """Set the plan: ``green``, ``amber``, ``all_red`` [s] per turn; ``cycle`` [s] (a
         two-controller junction's whole cycle; sets green = cycle / 2 - amber - all_red);
         ``offset`` [s] into every junction's cycle at t = 0 (a number) or per junction
-        (``{junction id: s}``, others 0)."""
+        (``{junction id: s}``, others 0); ``phase`` the same as a share of each junction's
+        cycle (0..1, added to the offset: a sampler's unit range over every phase)."""
         from .errors import SimError
 
         def num(name: str, v: Any, positive: bool) -> float:
@@ -458,6 +461,12 @@ class TrafficLights:
                                f"than 2 x (amber + all_red) = {2 * (self.amber + self.all_red):g} s",
                                test=test)
             self.green = g
+        if phase is not None:
+            f = num("phase", phase, False)
+            if f > 1.0:
+                raise SimError(f"world.signals(phase={phase!r}): a share of the cycle, 0..1",
+                               test=test)
+            self.phase_share = f
         if offset is not None:
             if isinstance(offset, Mapping):
                 unknown = [k for k in offset if str(k) not in self.map.groups]
@@ -470,6 +479,28 @@ class TrafficLights:
                 self.offset = num("offset", offset, False)
         return self
 
+    def amber_at(self, signal: str, t: float) -> "TrafficLights":
+        """Shift the cycle of ``signal``'s junction so that ``signal`` turns amber at ``t``
+        [s] (after the plan's green; the junction's other controllers keep their turns)."""
+        from .errors import SimError
+
+        cid = self.controller_of.get(str(signal))
+        if cid is None:
+            raise SimError(f"amber_at({signal!r}): no traffic light {signal!r} with a controller; "
+                           f"the lights are {sorted(self.controller_of)[:8]}...")
+        g, j, _ = self.phase[cid]
+        self.offsets[g] = float(np.mod(self.green + j * self.slot - float(t), self.cycle_of(g))) \
+            - self.phase_share * self.cycle_of(g)
+        return self
+
+    def first_on(self, lanes: Iterable[Any]) -> str | None:
+        """The first traffic light ruling any of ``lanes`` (lanes or lane ids, in order)."""
+        for lane in lanes:
+            got = self.stops.get(getattr(lane, "id", lane))
+            if got:
+                return got[0][1]
+        return None
+
     @property
     def slot(self) -> float:
         """[s] one controller's turn: green, amber, all-red."""
@@ -480,6 +511,9 @@ class TrafficLights:
         n = len(self.map.groups[group])
         return max(n, 2) * self.slot
 
+    def _offset(self, group: str) -> float:
+        return self.offsets.get(group, self.offset) + self.phase_share * self.cycle_of(group)
+
     def codes(self, signal: str, t: Any) -> np.ndarray:
         """State codes (0 green, 1 amber, 2 red) of ``signal`` at times ``t`` [s]."""
         t = np.asarray(t, dtype=float)
@@ -487,8 +521,7 @@ class TrafficLights:
         if cid is None:
             return np.zeros(t.shape, dtype=np.int8)
         g, j, n = self.phase[cid]
-        off = self.offsets.get(g, self.offset)
-        tau = np.mod(t + off - j * self.slot, self.cycle_of(g))
+        tau = np.mod(t + self._offset(g) - j * self.slot, self.cycle_of(g))
         # a hair of slack: a phase boundary that a sum of steps reaches lands on its side
         tau = np.where(tau > self.cycle_of(g) - 1e-9, 0.0, tau)
         return np.where(tau < self.green - 1e-9, 0,
@@ -501,7 +534,7 @@ class TrafficLights:
             return GREEN
         g, j, n = self.phase[cid]
         cyc = self.cycle_of(g)
-        tau = math.fmod(t + self.offsets.get(g, self.offset) - j * self.slot, cyc)
+        tau = math.fmod(t + self._offset(g) - j * self.slot, cyc)
         if tau < 0:
             tau += cyc
         if tau > cyc - 1e-9:

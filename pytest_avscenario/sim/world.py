@@ -288,11 +288,12 @@ class World:
 
     def signals(self, *, green: float | None = None, amber: float | None = None,
                 all_red: float | None = None, cycle: float | None = None,
-                offset: Any = None) -> Any:
+                offset: Any = None, phase: float | None = None) -> Any:
         """The road's traffic lights with their fixed-time plan set: ``green``, ``amber``,
         ``all_red`` [s] per controller's turn (defaults 10, 3, 2 s, CARLA's), or ``cycle``
         [s] (a two-way junction's whole cycle), and ``offset`` [s] into every junction's cycle
-        at t = 0 (or ``{junction id: s}``) — sample it to vary the phase the ego arrives in.
+        at t = 0 (or ``{junction id: s}``), or ``phase`` the same as a share (0..1) of each
+        junction's cycle — sample it to vary the phase the ego arrives in.
         Returns the :class:`~.signals.TrafficLights` (``state(signal, t)``, ``stops``)."""
         if self.road is None:
             raise SimError("world.signals(): build a road first (world.map(...))", test=self.name)
@@ -304,7 +305,7 @@ class World:
                            "(a map file with <signal type=\"1000001\"> elements has)",
                            test=self.name)
         return lights.configure(green=green, amber=amber, all_red=all_red, cycle=cycle,
-                                offset=offset, test=self.name)
+                                offset=offset, phase=phase, test=self.name)
 
     def lights_ahead(self, agent: Any, horizon: float = 150.0) -> list[tuple[float, str, str]]:
         """The traffic lights on ``agent``'s route ahead within ``horizon`` [m]: ``(distance
