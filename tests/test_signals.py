@@ -224,3 +224,44 @@ def test_a_driver_that_ignores_the_light_runs_it_by_a_known_distance(tmp_path):
     assert driving_score(tr).penalty == pytest.approx(0.7)
     lights = tr.meta["lights"]
     assert [l["id"] for l in lights] == ["5"] and set(tr.signals) >= {"light.5"}
+
+
+def test_other_cars_stop_at_the_red_too(tmp_path):
+    w = World(3, driver="idm", name="signals")
+    road = w.map(str(signalled_road(tmp_path)))
+    w.signals(offset=13.0)  # red until t = 17 s
+    lane = road.lane("1/0/-1")
+    w.ego(lane, s=20.0, speed=5.0)
+    car = w.car(lane, s=150.0, speed=12.0)
+    tr = w.run(10.0)
+    i = tr.names.index(car.name)
+    front = tr.x[i, -1] + 2.5
+    assert 196.0 < front < 200.0 and tr.speed[i, -1] < 0.3
+
+
+def test_signals_need_a_road_with_lights(tmp_path):
+    w = World(0, name="signals")
+    w.straight_road()
+    with pytest.raises(SimError, match=r"in signals: world.signals\(\): the straight road has no traffic lights"):
+        w.signals()
+    w2 = World(0, name="signals")
+    w2.map(str(signalled_road(tmp_path)))
+    with pytest.raises(SimError, match=r"world.signals\(offset=...\): no signalled junction '9'"):
+        w2.signals(offset={"9": 1.0})
+
+
+def test_the_ego_sees_the_lights_on_its_route(tmp_path):
+    seen = []
+
+    def policy(obs):
+        seen.append(obs.traffic_lights)
+        return 0.0, 0.0
+
+    w = World(0, driver=policy, name="signals")
+    road = w.map(str(signalled_road(tmp_path)))
+    w.signals(offset=9.0)  # green for 1 s more, then amber
+    w.ego(road.lane("1/0/-1"), s=100.0, speed=10.0)
+    w.run(2.0, dt=0.5)
+    first, last = seen[0], seen[-1]
+    assert [(l.route_index, l.s, l.signal) for l in first] == [(0, pytest.approx(200.0), "5")]
+    assert first[0].state == "green" and last[0].state == "amber"
