@@ -33,6 +33,7 @@ from . import control
 from .drivers import action_pair
 from .errors import DriverError, SimError
 from .geometry import wrap_to_pi
+from .signals import GREEN, must_stop
 
 __all__ = ["Straight", "Arc", "Sine", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian",
            "agent_class"]
@@ -313,14 +314,12 @@ class _Agent:
         light on its route (negative when it is within :data:`LIGHT_MARGIN` of the line), or None when no light stops it: red, and amber when it can stop
         at ``comfort_decel`` [m/s^2] (see :func:`.signals.must_stop`). Having gone on at
         amber (or too close to stop on red) it keeps going through that light."""
-        world = self.world
-        if world.traffic_lights is None:
+        ahead = self.world.lights_ahead(self)
+        if not ahead:
             return None
-        from .signals import GREEN, must_stop
-
         went = self.__dict__.setdefault("_light_went", set())
         v = max(float(self.speed), 0.0)
-        for d, state, sid in world.lights_ahead(self):
+        for d, state, sid in ahead:
             front = d - self.LENGTH / 2
             if front < 0.0:
                 continue  # the front is past the line: it has gone

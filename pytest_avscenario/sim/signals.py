@@ -425,6 +425,8 @@ class TrafficLights:
         self.offsets: dict[str, float] = {}
         self.offset = 0.0
         self.phase_share = 0.0
+        self._memo_t: float | None = None
+        self._memo: dict[str, str] = {}
 
     def configure(self, *, green: float | None = None, amber: float | None = None,
                   all_red: float | None = None, cycle: float | None = None,
@@ -447,6 +449,7 @@ class TrafficLights:
                                f"{'> 0' if positive else '>= 0'}", test=test)
             return x
 
+        self._memo_t = None  # the plan changes: states computed so far are stale
         if amber is not None:
             self.amber = num("amber", amber, False)
         if all_red is not None:
@@ -489,6 +492,7 @@ class TrafficLights:
             raise SimError(f"amber_at({signal!r}): no traffic light {signal!r} with a controller; "
                            f"the lights are {sorted(self.controller_of)[:8]}...")
         g, j, _ = self.phase[cid]
+        self._memo_t = None
         self.offsets[g] = float(np.mod(self.green + j * self.slot - float(t), self.cycle_of(g))) \
             - self.phase_share * self.cycle_of(g)
         return self
@@ -529,6 +533,14 @@ class TrafficLights:
 
     def state(self, signal: str, t: float) -> str:
         """The state of ``signal`` at ``t`` [s] ("green", "amber", "red"); as :meth:`codes`."""
+        if t != self._memo_t:  # every agent asks about the same few lights each step
+            self._memo_t, self._memo = t, {}
+        got = self._memo.get(signal)
+        if got is None:
+            got = self._memo[signal] = self._state(signal, t)
+        return got
+
+    def _state(self, signal: str, t: float) -> str:
         cid = self.controller_of.get(signal)
         if cid is None:
             return GREEN

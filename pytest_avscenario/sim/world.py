@@ -311,15 +311,19 @@ class World:
         """The traffic lights on ``agent``'s route ahead within ``horizon`` [m]: ``(distance
         [m] from its centre to the stop position (negative once passed, until it leaves that
         lane), state now, signal id)``, nearest first; [] on a road without lights."""
-        lights = self.traffic_lights
-        if lights is None or not agent.plan:
+        lights = self._lights if self._lights is not None else self.traffic_lights
+        plan, ri = agent.plan, agent.route_index
+        if not lights or not plan:
             return []
-        key = (agent.route_index, len(agent.plan), id(agent.plan[agent.route_index]))
-        memo = getattr(agent, "_lights_memo", None)
-        if memo is None or memo[0] != key:
-            memo = agent._lights_memo = (key, lights.ahead(agent.plan, agent.route_index, horizon))
+        memo = agent.__dict__.get("_lights_memo")
+        if memo is None or memo[0] is not plan or memo[1] != ri:
+            memo = agent._lights_memo = (plan, ri, lights.ahead(plan, ri, horizon))
+        if not memo[2]:
+            return []
         rs = float(agent.route_s)
-        return [(acc - rs, lights.state(sid, self.t), sid) for _, _, acc, sid in memo[1]]
+        t = self.t
+        state = lights.state
+        return [(acc - rs, state(sid, t), sid) for _, _, acc, sid in memo[2]]
 
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
@@ -839,9 +843,10 @@ class World:
         lights = self.traffic_lights
         if lights is None:
             return ()
-        self.lights_ahead(ego)  # refreshes the memo of the stops ahead
+        if not self.lights_ahead(ego):  # (refreshes the memo of the stops ahead)
+            return ()
         return tuple(TrafficLight(j, s, lights.state(sid, self.t), sid)
-                     for j, s, _, sid in ego._lights_memo[1])
+                     for j, s, _, sid in ego._lights_memo[2])
 
     def view(self) -> Any:
         """A read-only :class:`~.view.SceneView` of the simulation now: every lane of the road
