@@ -265,3 +265,23 @@ def test_the_ego_sees_the_lights_on_its_route(tmp_path):
     first, last = seen[0], seen[-1]
     assert [(l.route_index, l.s, l.signal) for l in first] == [(0, pytest.approx(200.0), "5")]
     assert first[0].state == "green" and last[0].state == "amber"
+
+
+def test_a_built_intersection_with_signals_takes_turns_and_is_obeyed():
+    from pytest_avscenario.monitors import ran_stop
+    from pytest_avscenario.sim import behaviors as b
+
+    w = World(0, driver="autopilot", name="signals")
+    inter = w.intersection(control="signals")
+    lights = w.signals(offset=10.0)  # north-south amber at t=0, red from 3 s; east-west green from 5 s
+    assert lights.state("south", 4.0) == "red" and lights.state("west", 6.0) == "green"
+    w.ego(inter.stop_line("south").before(60), speed=10.0, route=inter.route("south"))
+    w.car(inter.approach("west"), s=40, speed=10.0, behavior=b.turn("straight"))
+    tr = w.run(15.0)
+    res = ran_red_light().evaluate(tr)
+    assert 0.0 < res.rho < 3.0 and tr.speed[0, -1] < 0.3  # it waits at the red
+    assert tr.x[1, -1] > 20.0  # the car from the west crossed on its green
+    assert ran_stop().evaluate(tr).rho == math.inf  # no stop signs at a signalled junction
+    assert {l["id"] for l in tr.meta["lights"]} == {"north", "east", "south", "west"}
+    with pytest.raises(SimError, match=r"control='yield'"):
+        World(0, name="signals").intersection(control="yield")

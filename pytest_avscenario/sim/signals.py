@@ -41,7 +41,7 @@ import numpy as np
 
 from .opendrive import DRIVABLE, MapData, MapError
 
-__all__ = ["SignalData", "StopPosition", "ControllerData", "MapSignals", "map_signals",
+__all__ = ["intersection_lights", "SignalData", "StopPosition", "ControllerData", "MapSignals", "map_signals",
            "TrafficLights", "LightAhead", "GREEN", "AMBER", "RED", "STATES", "must_stop",
            "TRAFFIC_LIGHT", "STOP_SIGN", "STOP_LINE", "AMBER_DECEL"]
 
@@ -573,17 +573,20 @@ class TrafficLights:
         return out
 
     def record(self, t: np.ndarray, lanes: Iterable[str]) -> tuple[dict[str, np.ndarray], list[dict]]:
-        """The recording of the lights that rule any of ``lanes``: per light a ``light.<id>``
-        series of state codes over ``t``, and the meta entries ``{"id", "controller", "x",
-        "y", "heading", "stops": [{"lane", "s", "x", "y", "heading", "width"}]}``."""
+        """The recording of the lights of every junction one of whose lights rules any of
+        ``lanes`` (the whole junction, so pictures show all its heads): per light a
+        ``light.<id>`` series of state codes over ``t``, and the meta entries ``{"id",
+        "controller", "x", "y", "heading", "stops": [{"lane", "s", "x", "y", "heading",
+        "width"}]}``."""
         lanes = set(lanes)
+        groups = {self.phase[self.controller_of[sid]][0] for sid, sg in self.lights.items()
+                  if sid in self.controller_of and any(p.lane in lanes for p in sg.stops)}
         series, meta = {}, []
         for sid, sg in self.lights.items():
-            if sid not in self.controller_of:
+            cid = self.controller_of.get(sid)
+            if cid is None or self.phase[cid][0] not in groups:
                 continue
-            mine = [p for p in sg.stops if p.lane in lanes]
-            if not mine:
-                continue
+            mine = sg.stops
             series[f"light.{sid}"] = self.codes(sid, t).astype(float)
             meta.append({"id": sid, "controller": self.controller_of[sid],
                          "x": round(sg.x, 3), "y": round(sg.y, 3), "heading": round(sg.heading, 4),
@@ -591,3 +594,40 @@ class TrafficLights:
                                     "y": round(p.y, 3), "heading": round(p.heading, 4),
                                     "width": round(p.width, 3)} for p in mine]})
         return series, meta
+
+
+def intersection_lights(inter: Any) -> TrafficLights:
+    """The lights of a built four-way intersection (``world.intersection(control="signals")``):
+    one per arm, standing at the right kerb beside its stop line and ruling every incoming
+    lane of the arm at the stop line; north and south on one controller, east and west on
+    the other, taking turns (the map plan: green, amber, all-red)."""
+    from .roads import _UNIT
+
+    p_ = inter.prefix
+    signals: dict[str, SignalData] = {}
+    o = inter.origin
+    s_line = inter.approach_length - inter.crosswalk_width - 1.0
+    for d, lanes in inter._in.items():
+        u = np.array(_UNIT[d])
+        right_in = np.array([-u[1], u[0]])
+        outer = inter.median / 2 + inter.n_lanes * inter.lane_width
+        head = o + u * (inter.half + inter.crosswalk_width + 1.0) + right_in * (outer + 1.5)
+        sid = f"{p_}{d}"
+        stops = []
+        for lane in lanes:
+            g = lane.geometry
+            x, y = g.position(s_line, 0.0)
+            stops.append(StopPosition(sid, lane.id, s_line, float(x), float(y),
+                                      float(g.heading_at(s_line)), float(g.width_at(s_line))))
+        signals[sid] = SignalData(sid, f"{d} approach", "1000001", "-1", TRAFFIC_LIGHT, "",
+                                  s_line, 0.0, "+", True, float(head[0]), float(head[1]),
+                                  float(math.atan2(u[1], u[0])), (), tuple(stops))
+    group = inter.name or "intersection"
+    controllers = {
+        f"{p_}north-south": ControllerData(f"{p_}north-south", "north-south",
+                                           (f"{p_}north", f"{p_}south"), group, 0),
+        f"{p_}east-west": ControllerData(f"{p_}east-west", "east-west",
+                                         (f"{p_}east", f"{p_}west"), group, 1),
+    }
+    return TrafficLights(MapSignals("", signals, controllers,
+                                    {group: (f"{p_}north-south", f"{p_}east-west")}))

@@ -159,19 +159,21 @@ class World:
     def intersection(self, lanes: int = 1, approach_length: float = 100.0, *,
                      lane_width: float = 3.5, speed_limit: float = 13.9,
                      crosswalk_width: float = 3.0, corner: float = 6.0,
-                     median: float = 0.0) -> Any:
+                     median: float = 0.0, control: str = "stop") -> Any:
         """A four-way intersection at the origin, ``lanes`` (1 or 2) lanes per approach.
 
         ``approach_length`` [m] per arm; ``corner`` [m] is the clearance between the outermost
         lane and the box edge (sets the turn radii); ``median`` [m] separates the two
-        directions of every arm. For several intersections use :meth:`road_network`.
+        directions of every arm. ``control`` is ``"stop"`` (an all-way stop) or
+        ``"signals"``: traffic lights, north-south and east-west taking turns
+        (:meth:`signals` sets their plan). For several intersections use :meth:`road_network`.
         """
         from .roads import Intersection
 
         net = self._new_network("intersection")
         return self._finish_road(Intersection(self, net, lanes, float(approach_length),
                                               lane_width, speed_limit, crosswalk_width,
-                                              corner, median), net)
+                                              corner, median, control=control), net)
 
     def road_network(self) -> Any:
         """An empty :class:`~.network.Network`: place intersections anywhere
