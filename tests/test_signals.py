@@ -285,3 +285,47 @@ def test_a_built_intersection_with_signals_takes_turns_and_is_obeyed():
     assert {l["id"] for l in tr.meta["lights"]} == {"north", "east", "south", "west"}
     with pytest.raises(SimError, match=r"control='yield'"):
         World(0, name="signals").intersection(control="yield")
+
+
+def test_a_served_stack_sees_the_lights_through_osi_and_drives_as_in_process(tmp_path):
+    """The lights ride the OSI SensorView (``traffic_light``, its colour and assigned lanes)
+    and their stop positions the Reset: the autopilot served out of process stops at the red
+    exactly as in process."""
+    pytest.importorskip("zmq")
+    pytest.importorskip("osi3")
+    import os
+    import subprocess
+    import sys
+
+    from osi3 import osi_sensorview_pb2
+
+    from pytest_avscenario.stack import OSIStack, client, frame
+
+    root = Path(__file__).resolve().parents[1]
+
+    def drive(driver):
+        w = World(4, driver=driver, name="signals::osi")
+        inter = w.intersection(control="signals")
+        w.signals(offset=10.0)
+        w.ego(inter.stop_line("south").before(60), speed=10.0, route=inter.route("south"))
+        return w, w.run(8.0)
+
+    address = f"ipc://{tmp_path}/autopilot.sock"
+    proc = subprocess.Popen([sys.executable, "-m", "pytest_avscenario.stack.autopilot", address],
+                            env={**os.environ, "PYTHONPATH": str(root)},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        w, here = drive("autopilot")
+        _, remote = drive(OSIStack(address, timeout_s=30))
+    finally:
+        proc.kill()
+        proc.wait(timeout=10)
+        client.stop_all()
+    assert np.nanmax(np.abs(here.x - remote.x)) <= 1e-9
+    assert np.nanmax(np.abs(here.y - remote.y)) <= 1e-9
+    assert here.speed[0, -1] < 0.3 and 0 < ran_red_light().evaluate(remote).rho < 3.0
+    sv = osi_sensorview_pb2.SensorView.FromString(frame.sensor_view(w, 0, b"", {a: i + 1 for i, a in enumerate(w.agents)}))
+    lights = {tl.source_reference[0].identifier[0]: tl for tl in sv.global_ground_truth.traffic_light}
+    assert set(lights) == {"north", "east", "south", "west"}
+    assert lights["south"].classification.color == lights["south"].classification.COLOR_RED
+    assert len(lights["south"].classification.assigned_lane_id) == 1

@@ -140,6 +140,12 @@ class Session:
         self.sensor_range = float(ego.get("sensor_range", 80.0))
         self.route: tuple = ()
         self.stop_lines: dict[int, tuple] = {}
+        # traffic lights: stop positions by lane OSI id -> [(s, light OSI id, signal id)]
+        self.light_stops: dict[int, list] = {}
+        for light in hello.get("traffic_lights", ()):
+            for lane, s in light["stops"]:
+                self.light_stops.setdefault(int(lane), []).append(
+                    (float(s), int(light["id"]), str(light["signal"])))
         # a name is made afresh for each case, as the world makes it; an object is reused and
         # its per-case hook called (with no world: the stack has only what the wire carries)
         self.driver = resolve(policy)
@@ -163,7 +169,7 @@ class Session:
 
     def observation(self, sv: Any) -> Any:
         """The Observation the world would have handed an in-process driver."""
-        from ..sim.observation import AgentState, Observation, StopLine
+        from ..sim.observation import AgentState, Observation, StopLine, TrafficLight
         from ..sim.world import _frozen
 
         gt = sv.global_ground_truth
@@ -214,13 +220,24 @@ class Session:
             stops = tuple(StopLine(j, float(sm), kind) for j in range(ri, len(self.route))
                           for sm, kind in self.lanes[self.route_ids[j]].get("stop_marks", ()))
             self.stop_lines[ri] = stops
+        lights: tuple = ()
+        if self.light_stops:
+            from osi3 import osi_trafficlight_pb2 as TL
+
+            C = TL.TrafficLight.Classification
+            names = {C.COLOR_GREEN: "green", C.COLOR_YELLOW: "amber", C.COLOR_RED: "red"}
+            lit = {tl.id.value: names.get(tl.classification.color, "red")
+                   for tl in gt.traffic_light}
+            lights = tuple(TrafficLight(j, s, lit.get(oid, "red"), sid)
+                           for j in range(ri, len(self.route))
+                           for s, oid, sid in sorted(self.light_stops.get(self.route_ids[j], ())))
         return _frozen(Observation, {
             "t": t, "dt": self.dt, "ego": state(self.host, ego_mo, "ego"), "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
             "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
             "speed_limit": _number(self.lanes[self.route_ids[ri]].get("speed_limit")),
             "target_speed": self.target_speed, "goal": self.goal,
-            "sensor_range": self.sensor_range})
+            "sensor_range": self.sensor_range, "traffic_lights": lights})
 
     def answer(self, sv: Any) -> bytes:
         """The serialized MotionRequest answering one SensorView."""
