@@ -79,7 +79,8 @@ class Observation:
     ``route_index`` the lane of it the ego is on now and ``s``/``r`` its longitudinal and
     signed lateral position in that lane's frame. ``agents`` are the other agents within
     ``sensor_range`` metres, nearest first. ``goal`` is a target pose for manoeuvres such as
-    parking (``None`` otherwise).
+    parking (``None`` otherwise). ``traffic_lights`` are the lights on the route ahead, each
+    with where traffic stops for it and its state now (empty on a road without lights).
     """
 
     t: float  # [s]
