@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pytest_avscenario.monitors import driving_score, ran_red_light
+from pytest_avscenario.monitors import MonitorError, driving_score, ran_red_light
 from pytest_avscenario.sim.errors import SimError
 from pytest_avscenario.sim.opendrive import MapError, load
 from pytest_avscenario.sim.signals import TrafficLights, map_signals, must_stop
@@ -153,27 +153,43 @@ T = np.arange(0.0, 10.0 + 1e-9, 0.1)
 
 
 def test_a_car_running_the_red_at_a_known_speed():
-    # 10 m/s from x=0: the front bumper (x + 2.5) crosses s=50 at t=4.75 s; red from 4 s,
-    # when the front was at 42.5 m: 7.5 m before the line
+    # 10 m/s from x=0, 5 m long: CARLA's tail point (x - 0.8 x 2.5 = x - 2) crosses s=50 at
+    # t=5.2 s; red from 4 s, when it was at 38 m: 12 m before the line
     res = ran_red_light().evaluate(light_run(10.0 * T, red_from=4.0, amber_from=3.0))
-    assert res.rho == pytest.approx(-7.5, abs=1e-9)
-    assert res.t == pytest.approx(4.75, abs=1e-9) and res.agent == "ego"
+    assert res.rho == pytest.approx(-12.0, abs=1e-9)
+    assert res.t == pytest.approx(5.2, abs=1e-9) and res.agent == "ego"
     assert "ran the red light 7" in res.detail
+    # judged at the front bumper (x + 2.5): it crosses at 4.75 s, 7.5 m before the line at red
+    front = ran_red_light("front").evaluate(light_run(10.0 * T, red_from=4.0, amber_from=3.0))
+    assert front.rho == pytest.approx(-7.5, abs=1e-9) and front.t == pytest.approx(4.75, abs=1e-9)
+
+
+def test_caught_over_the_line_by_the_change_is_charged_by_the_tail_only():
+    # red from 5 s: the front crossed at 4.75 s (amber), the tail crosses at 5.2 s (red)
+    run = light_run(10.0 * T, red_from=5.0, amber_from=3.0)
+    assert ran_red_light().evaluate(run).rho == pytest.approx(-2.0, abs=1e-9)
+    assert ran_red_light("front").evaluate(run).rho == pytest.approx(2.5, abs=1e-9)
+    with pytest.raises(MonitorError, match=r"point='rear'"):
+        ran_red_light("rear")
 
 
 def test_a_car_crossing_on_amber_has_the_distance_past_the_line_at_red():
     res = ran_red_light().evaluate(light_run(10.0 * T, red_from=6.0, amber_from=4.5))
-    assert res.rho == pytest.approx(12.5, abs=1e-9)  # front at 62.5 m at t=6 s
+    assert res.rho == pytest.approx(8.0, abs=1e-9)  # the tail point at 58 m at t=6 s
     assert "on amber" in res.detail
+    front = ran_red_light("front").evaluate(light_run(10.0 * T, red_from=6.0, amber_from=4.5))
+    assert front.rho == pytest.approx(12.5, abs=1e-9)  # the front at 62.5 m
 
 
 def test_a_car_stopping_at_the_red_keeps_a_positive_margin():
     # braking at a constant rate from 10 m/s to stand with its front 1 m before the line
     a = 10.0 ** 2 / (2 * 46.5)
     x = np.where(T < 10.0 / a, 10.0 * T - 0.5 * a * T ** 2, 46.5)
-    res = ran_red_light().evaluate(light_run(x, red_from=4.0, amber_from=3.0))
+    res = ran_red_light("front").evaluate(light_run(x, red_from=4.0, amber_from=3.0))
     assert res.rho == pytest.approx(1.0, abs=1e-9) and res.ok
     assert res.t is None
+    # its tail point stands 1 + 4.5 m before the line
+    assert ran_red_light().evaluate(light_run(x, 4.0, 3.0)).rho == pytest.approx(5.5, abs=1e-9)
 
 
 def test_no_light_on_the_route_holds_with_infinite_margin():
@@ -187,7 +203,7 @@ def test_the_driving_score_charges_a_red_light_0_7():
     ran = driving_score(light_run(10.0 * T, red_from=4.0, amber_from=3.0))
     kept = driving_score(light_run(10.0 * T, red_from=6.0, amber_from=4.5))
     assert [i["kind"] for i in ran.infractions] == ["red_light"]
-    assert ran.infractions[0]["factor"] == 0.7 and ran.infractions[0]["t"] == pytest.approx(4.75)
+    assert ran.infractions[0]["factor"] == 0.7 and ran.infractions[0]["t"] == pytest.approx(5.2)
     assert ran.penalty == pytest.approx(0.7) and kept.penalty == 1.0
 
 
@@ -206,8 +222,8 @@ def test_drivers_stop_on_red_and_go_on_green(tmp_path, driver):
     path = signalled_road(tmp_path)
     # offset 13 s: red from t=0 to 17 s, then green; the line is 77.5 m ahead of the front
     red = _run(path, driver, offset=13.0)
-    res = ran_red_light().evaluate(red)
-    assert 0.0 < res.rho < 6.0, res.detail
+    res = ran_red_light("front").evaluate(red)
+    assert 0.0 < res.rho < 3.0, res.detail
     k = int(np.searchsorted(red.t, 13.0))
     assert red.speed[0, k] < 0.5  # standing at the line while red
     green = _run(path, driver, offset=0.0, seconds=6.0)  # green 10 s: drives through
@@ -215,12 +231,12 @@ def test_drivers_stop_on_red_and_go_on_green(tmp_path, driver):
 
 
 def test_a_driver_that_ignores_the_light_runs_it_by_a_known_distance(tmp_path):
-    # a policy that holds 12 m/s: front at 120 + 2.5 + 12 t; red from t=0 (offset 13 s), so
-    # it had all of the 77.5 m to stop and crosses at t = 77.5 / 12
+    # a policy that holds 12 m/s: its tail point at 120 - 2 + 12 t; red from t=0 (offset
+    # 13 s), so it had all of the 82 m to stop and crosses at t = 82 / 12
     tr = _run(signalled_road(tmp_path), lambda obs: (0.0, 0.0), offset=13.0, seconds=8.0)
     res = ran_red_light().evaluate(tr)
-    assert res.rho == pytest.approx(-77.5, abs=0.05)
-    assert res.t == pytest.approx(77.5 / 12.0, abs=0.01)
+    assert res.rho == pytest.approx(-82.0, abs=0.05)
+    assert res.t == pytest.approx(82.0 / 12.0, abs=0.01)
     assert driving_score(tr).penalty == pytest.approx(0.7)
     lights = tr.meta["lights"]
     assert [l["id"] for l in lights] == ["5"] and set(tr.signals) >= {"light.5"}
@@ -278,7 +294,7 @@ def test_a_built_intersection_with_signals_takes_turns_and_is_obeyed():
     w.ego(inter.stop_line("south").before(60), speed=10.0, route=inter.route("south"))
     w.car(inter.approach("west"), s=40, speed=10.0, behavior=b.turn("straight"))
     tr = w.run(15.0)
-    res = ran_red_light().evaluate(tr)
+    res = ran_red_light("front").evaluate(tr)
     assert 0.0 < res.rho < 3.0 and tr.speed[0, -1] < 0.3  # it waits at the red
     assert tr.x[1, -1] > 20.0  # the car from the west crossed on its green
     assert ran_stop().evaluate(tr).rho == math.inf  # no stop signs at a signalled junction
@@ -323,7 +339,7 @@ def test_a_served_stack_sees_the_lights_through_osi_and_drives_as_in_process(tmp
         client.stop_all()
     assert np.nanmax(np.abs(here.x - remote.x)) <= 1e-9
     assert np.nanmax(np.abs(here.y - remote.y)) <= 1e-9
-    assert here.speed[0, -1] < 0.3 and 0 < ran_red_light().evaluate(remote).rho < 3.0
+    assert here.speed[0, -1] < 0.3 and 0 < ran_red_light("front").evaluate(remote).rho < 3.0
     sv = osi_sensorview_pb2.SensorView.FromString(frame.sensor_view(w, 0, b"", {a: i + 1 for i, a in enumerate(w.agents)}))
     lights = {tl.source_reference[0].identifier[0]: tl for tl in sv.global_ground_truth.traffic_light}
     assert set(lights) == {"north", "east", "south", "west"}

@@ -1,25 +1,30 @@
 """Running a red light, under the name CARLA ScenarioRunner gives it (``RunningRedLightTest``).
 
 CARLA charges a red light when the vehicle crosses the light's stop line while the light is
-red. Here the recording carries the lights (``sim/signals.py``, ``sim/recording.py``):
+red, judged at its tail: the short segment from 0.8 half-lengths behind its centre to 1 m
+behind its rear must not meet the line across the lane while red — a car whose front is
+over the line when the light turns red but clears the junction is not charged, one whose
+rear crosses on red is. Here the same point (``point="tail"``: 0.8 half-lengths behind the
+centre, the default) or the front bumper (``point="front"``: entering on red, as traffic
+codes that forbid entering the junction write it) crosses the stop position. Here the recording carries the lights (``sim/signals.py``, ``sim/recording.py``):
 ``meta["lights"]`` lists each light ruling a recorded lane ``{"id", "controller", "x", "y",
 "heading", "stops": [{"lane", "s" [m along it], "x", "y", "heading", "width"}]}`` and
 ``signals["light.<id>"]`` its state at every sample (0 green, 1 amber, 2 red). The monitor
-places each stop position on the ego's route (``meta["ego_route"]``) and measures how far the
-ego's front bumper is from it.
+places each stop position on the ego's route (``meta["ego_route"]``) and measures how far that
+point of the ego is from it.
 
 Robustness is in metres, continuous where it matters to a falsifier (the crossing that comes
 just before or just after the light turns red):
 
-* the ego crossed the stop position on red: ρ = minus the distance its front bumper was
-  before the stop position when the light turned red (the room it had to stop and did not
+* the ego crossed the stop position on red: ρ = minus the distance the point was before
+  the stop position when the light turned red (the room it had to stop and did not
   use) — a car that crosses at the moment of the change has ρ = 0⁻;
 * it crossed on green or amber: ρ = how far past the stop position it was when the light
   next turned red (+inf when it did not in the recording);
 * it stood or approached while the light was red: ρ is also at most the least distance to
   the stop position it kept while red (the margin of its stop).
 
-The worst stop position on the route decides; ``t`` is the moment the front bumper crossed a
+The worst stop position on the route decides; ``t`` is the moment the point crossed a
 stop position on red (interpolated between samples), the agent the ego. A state sampled at
 ``t[k]`` holds on ``(t[k-1], t[k]]``; a crossing and a change to red within one sample
 interval count as crossed before the change. Distances before and after the crossing are
@@ -35,13 +40,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..trajectory import Trajectory
-from .base import Monitor, MonitorResult, check_name, check_present_finite, factory
+from .base import Monitor, MonitorError, MonitorResult, check_name, check_present_finite, factory
 from .road import LanePolyline, route_of
 
-__all__ = ["ran_red_light", "red_light_crossings", "LightPass", "RED_CODE"]
+__all__ = ["ran_red_light", "red_light_crossings", "LightPass", "RED_CODE", "TAIL_FRACTION"]
 
 #: the recorded code of a red light
 RED_CODE = 2
+#: CARLA's tail point: this many half-lengths behind the vehicle's centre
+TAIL_FRACTION = 0.8
+_POINTS = ("tail", "front")
 #: [m] how far before a stop position the ego's approach is followed on its route
 APPROACH_M = 150.0
 #: [m] a sample farther than this from the route's centre line is not on the approach
@@ -89,9 +97,11 @@ def _route_stops(traj: Trajectory, name: str) -> tuple[list[LanePolyline], list[
     return route, out
 
 
-def red_light_crossings(traj: Trajectory, name: str = "ran_red_light") -> list[LightPass]:
+def red_light_crossings(traj: Trajectory, name: str = "ran_red_light",
+                        point: str = "tail") -> list[LightPass]:
     """How the ego met every light's stop position on its route (:class:`LightPass` each, in
-    route order); [] when the recording has no light on the route."""
+    route order), judged at its ``point`` ("tail", CARLA's, or "front"); [] when the
+    recording has no light on the route."""
     route, stops = _route_stops(traj, name)
     if not stops:
         return []
@@ -107,6 +117,7 @@ def red_light_crossings(traj: Trajectory, name: str = "ran_red_light") -> list[L
     present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
     odo = _odometer(traj)
     half = float(traj.length[0]) / 2
+    ahead = half if point == "front" else -TAIL_FRACTION * half  # the point, from the centre
     t = traj.t
     out = []
     for S, lid, lane_id in stops:
@@ -121,9 +132,9 @@ def red_light_crossings(traj: Trajectory, name: str = "ran_red_light") -> list[L
         if poly.xy.shape[0] < 2 or idx.size == 0:
             continue
         s, r, _ = poly.project(traj.x[0, idx], traj.y[0, idx])
-        d = np.full(t.shape, np.nan)  # front bumper before the stop position [m]
+        d = np.full(t.shape, np.nan)  # the point before the stop position [m]
         on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
-        d[idx[on]] = (S - cum[lo]) - (s[on] + half)
+        d[idx[on]] = (S - cum[lo]) - (s[on] + ahead)
         before = np.isfinite(d) & (d > 0)
         if not before.any():
             continue  # never before this stop position on its approach (started past it)
@@ -183,13 +194,17 @@ class RanRedLightMonitor(Monitor):
     threshold = 0.0
     invariant = False  # a light not yet crossed is not judged
 
-    def __init__(self, *, name: str = "ran_red_light"):
+    def __init__(self, point: str = "tail", *, name: str = "ran_red_light"):
         self.name = check_name(name)
+        if point not in _POINTS:
+            raise MonitorError(f"{name}: point={point!r}: 'tail' (CARLA's: 0.8 half-lengths "
+                               "behind the centre) or 'front' (the front bumper)")
+        self.point = point
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         if traj.present[0].any():
             check_present_finite(traj, self.name, ("x", "y"), [0])
-        got = red_light_crossings(traj, self.name)
+        got = red_light_crossings(traj, self.name, self.point)
         if not got:
             return MonitorResult(self.name, math.inf, 0.0, None, traj.names[0],
                                  "no traffic light on the ego's route")
@@ -203,10 +218,12 @@ class RanRedLightMonitor(Monitor):
 
 
 @factory
-def ran_red_light(*, name: str = "ran_red_light") -> Monitor:
+def ran_red_light(point: str = "tail", *, name: str = "ran_red_light") -> Monitor:
     """CARLA's ``RunningRedLightTest``: the ego never crosses a traffic light's stop position
-    while the light is red. ρ [m]: minus how far before the stop position the ego was when
-    the light turned red, for a light it ran; how far past the stop position it was when a
-    light it crossed on green or amber turned red; at most the margin it kept before a stop
-    position while red. +inf with no light on its route."""
-    return RanRedLightMonitor(name=name)
+    while the light is red, judged at its ``point``: ``"tail"`` (CARLA's, 0.8 half-lengths
+    behind its centre: a car caught over the line by the change may clear the junction) or
+    ``"front"`` (its front bumper: no entering on red). ρ [m], that point's distance: minus
+    how far before the stop position it was when the light turned red, for a light it ran;
+    how far past it was when a light it crossed on green or amber turned red; at most the
+    margin it kept before a stop position while red. +inf with no light on its route."""
+    return RanRedLightMonitor(point, name=name)
