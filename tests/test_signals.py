@@ -17,8 +17,9 @@ from pytest_avscenario.sim.signals import TrafficLights, map_signals, must_stop
 from pytest_avscenario.sim.world import World
 from pytest_avscenario.trajectory import Trajectory
 
-MAPS = Path(__file__).resolve().parents[1].parent / "shared" / "maps"
-needs_maps = pytest.mark.skipif(not (MAPS / "Town06.xodr").is_file(), reason="../shared/maps absent")
+ROOT = Path(__file__).resolve().parents[1]
+TOWN06 = ROOT / "example_tests" / "maps" / "Town06.xodr"
+STRAIGHT = ROOT / "tests" / "data" / "maps" / "straight_500m.xodr"
 
 # a light at s=200 for the eastbound lane (no validity: its orientation's lanes) and one at
 # s=300 for the westbound lane (validity lane 1), on two controllers of one junction's plan
@@ -38,7 +39,7 @@ CONTROLLERS = """<controller id="10" name="c10" sequence="0"><control signalId="
 
 
 def signalled_road(tmp_path: Path, signals: str = SIGNALS, controllers: str = CONTROLLERS) -> Path:
-    text = (MAPS / "straight_500m.xodr").read_text()
+    text = STRAIGHT.read_text()
     text = text.replace("</road>", signals + "</road>", 1)
     text = text.replace("</OpenDRIVE>", controllers + "</OpenDRIVE>", 1)
     path = tmp_path / "signalled.xodr"
@@ -46,9 +47,8 @@ def signalled_road(tmp_path: Path, signals: str = SIGNALS, controllers: str = CO
     return path
 
 
-@needs_maps
 def test_town06_lights_with_their_stop_positions_and_junction_controllers():
-    found = map_signals(load(MAPS / "Town06.xodr"))
+    found = map_signals(load(TOWN06))
     lights = found.of_kind("traffic_light")
     assert len(lights) == 19 and len(found.signals) == 19
     assert len([c for c in found.controllers.values() if not c.id.startswith("signal:")]) == 19
@@ -114,9 +114,8 @@ def test_the_phase_plan_takes_turns_and_shifts_with_the_offset(tmp_path):
         lights.configure(cycle=5)
 
 
-@needs_maps
 def test_controllers_of_one_junction_are_never_green_together():
-    lights = TrafficLights(map_signals(load(MAPS / "Town06.xodr"))).configure(offset=7.0)
+    lights = TrafficLights(map_signals(load(TOWN06))).configure(offset=7.0)
     t = np.arange(0.0, 120.0, 0.1)
     for group, cids in lights.map.groups.items():
         green = np.array([lights.codes(lights.map.controllers[c].signals[0], t) == 0 for c in cids])

@@ -601,17 +601,13 @@ def intersection_lights(inter: Any) -> TrafficLights:
     one per arm, standing at the right kerb beside its stop line and ruling every incoming
     lane of the arm at the stop line; north and south on one controller, east and west on
     the other, taking turns (the map plan: green, amber, all-red)."""
-    from .roads import _UNIT
-
     p_ = inter.prefix
     signals: dict[str, SignalData] = {}
-    o = inter.origin
     s_line = inter.approach_length - inter.crosswalk_width - 1.0
     for d, lanes in inter._in.items():
-        u = np.array(_UNIT[d])
-        right_in = np.array([-u[1], u[0]])
-        outer = inter.median / 2 + inter.n_lanes * inter.lane_width
-        head = o + u * (inter.half + inter.crosswalk_width + 1.0) + right_in * (outer + 1.5)
+        kerb = lanes[-1].geometry  # the outermost lane: the head stands right of it
+        head = kerb.position(s_line, -(kerb.width_at(s_line) / 2 + 1.5))
+        facing = float(kerb.heading_at(s_line)) + math.pi
         sid = f"{p_}{d}"
         stops = []
         for lane in lanes:
@@ -621,7 +617,8 @@ def intersection_lights(inter: Any) -> TrafficLights:
                                       float(g.heading_at(s_line)), float(g.width_at(s_line))))
         signals[sid] = SignalData(sid, f"{d} approach", "1000001", "-1", TRAFFIC_LIGHT, "",
                                   s_line, 0.0, "+", True, float(head[0]), float(head[1]),
-                                  float(math.atan2(u[1], u[0])), (), tuple(stops))
+                                  math.atan2(math.sin(facing), math.cos(facing)), (),
+                                  tuple(stops))
     group = inter.name or "intersection"
     controllers = {
         f"{p_}north-south": ControllerData(f"{p_}north-south", "north-south",
