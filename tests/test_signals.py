@@ -344,3 +344,39 @@ def test_a_served_stack_sees_the_lights_through_osi_and_drives_as_in_process(tmp
     assert set(lights) == {"north", "east", "south", "west"}
     assert lights["south"].classification.color == lights["south"].classification.COLOR_RED
     assert len(lights["south"].classification.assigned_lane_id) == 1
+
+
+SIGNAL_CAMPAIGN = """
+from pytest_avscenario import Uniform, scenario
+from pytest_avscenario.monitors import ran_red_light
+
+def ignore_lights(obs):
+    return 0.0, 0.0  # holds its speed: a driver that never looks at the lights
+
+@scenario(phase=Uniform(0.0, 1.0), samples=6, sampler="halton", monitors=[ran_red_light()])
+def test_light(case, world):
+    inter = world.intersection(control="signals")
+    world.signals(phase=case.phase)
+    world.ego(inter.stop_line("south").before(40), speed=10.0, route=inter.route("south"),
+              driver=ignore_lights)
+    world.run(seconds=8)
+"""
+
+
+def test_a_campaign_over_the_phase_judges_ran_red_light_and_charges_the_score(pytester):
+    import json
+
+    pytester.makepyfile(test_signal=SIGNAL_CAMPAIGN)
+    result = pytester.runpytest("--avs-db=none", "--avs-seed=1", "--avs-shrink-budget=0",
+                                "--avs-reference-max=0", "--avs-case-pictures=0",
+                                "--avs-export=none", "--avs-gifs=0", "--junitxml=out.xml")
+    # crossing 4.2 s in (its tail 42 m from the line at 10 m/s): a red then in the 30-s
+    # cycle (green 10, amber 3, red 17) is run in the phases that put it there
+    outcomes = result.parseoutcomes()
+    assert outcomes.get("failed", 0) >= 1 and outcomes.get("passed", 0) >= 1
+    result.stdout.fnmatch_lines(["*ran_red_light: rho -*ego ran the red light south on south.in[[]0[]]*"])
+    summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
+    (test,) = summary["tests"]
+    assert test["violations"] == {"ran_red_light": outcomes["failed"]}
+    xml = (pytester.path / "out.xml").read_text()
+    assert xml.count('name="avs.infractions" value="red_light"') == outcomes["failed"]
