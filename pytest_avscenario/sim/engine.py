@@ -311,9 +311,10 @@ class _Agent:
 
     def light_stop(self, comfort_decel: float = control.IDM.b_comf) -> float | None:
         """Distance [m] from the front bumper to where the agent stops for the next traffic
-        light on its route (negative when it is within :data:`LIGHT_MARGIN` of the line), or None when no light stops it: red, and amber when it can stop
-        at ``comfort_decel`` [m/s^2] (see :func:`.signals.must_stop`). Having gone on at
-        amber (or too close to stop on red) it keeps going through that light."""
+        light on its route (negative within :data:`LIGHT_MARGIN` of the line), or None when
+        no light stops it. It stops on red, and on amber when it can stop at
+        ``comfort_decel`` [m/s^2] (see :func:`.signals.must_stop`); having gone on at amber
+        (or too close to stop on red) it keeps going through that light."""
         ahead = self.world.lights_ahead(self)
         if not ahead:
             return None
