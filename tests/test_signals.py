@@ -380,3 +380,21 @@ def test_a_campaign_over_the_phase_judges_ran_red_light_and_charges_the_score(py
     assert test["violations"] == {"ran_red_light": outcomes["failed"]}
     xml = (pytester.path / "out.xml").read_text()
     assert xml.count('name="avs.infractions" value="red_light"') == outcomes["failed"]
+
+
+def test_a_maps_stop_sign_is_a_stop_line_drivers_stop_at_and_ran_stop_judges(tmp_path):
+    from pytest_avscenario.monitors import ran_stop
+
+    path = signalled_road(tmp_path)  # signal 7, type 206, at s=400 for the eastbound lane
+
+    def drive(driver):
+        w = World(0, driver=driver, name="signals")
+        road = w.map(str(path))
+        w.ego(road.lane("1/0/-1"), s=300.0, speed=10.0)
+        assert [(sl.lane.id, sl.s) for sl in road.stop_lines] == [("1/0/-1", pytest.approx(400.0))]
+        return w.run(16.0)
+
+    stopped = ran_stop().evaluate(drive("autopilot"))
+    assert stopped.ok and "stopped at the stop line of 1/0/-1" in stopped.detail
+    ran = ran_stop().evaluate(drive(lambda obs: (0.0, 0.0)))
+    assert ran.rho == pytest.approx(0.5 - 10.0, abs=1e-6)

@@ -210,7 +210,29 @@ class World:
         self._road.neighbour_vehicles_connected_lanes = True
         self._index = road.make_index()
         self.road = road
+        self._map_stop_signs(road)
         return road
+
+    def _map_stop_signs(self, road: Any) -> None:
+        """The map's stop signs (``<signal type="206">``) and stop lines (``"294"``) as stop
+        marks: drivers stop there and ``ran_stop`` judges them, as at a built all-way stop."""
+        from .signals import STOP_LINE, STOP_SIGN, map_signals
+
+        try:
+            found = map_signals(road.data)
+        except SimError as exc:
+            raise SimError(str(exc), test=self.name) from None
+        by_id = road._built.by_id
+        marked = set()
+        for sg in found.signals.values():
+            if sg.kind not in (STOP_SIGN, STOP_LINE):
+                continue
+            for p in sg.stops:
+                lane = by_id.get(p.lane)
+                if lane is not None and (p.lane, round(p.s, 3)) not in marked:
+                    marked.add((p.lane, round(p.s, 3)))
+                    self._index.add_stop(lane, p.s, "stop")
+                    road.stop_lines.append(StopLine(lane, p.s, sg.id))
 
     # -- the interface of the engine, roads and behaviours to the world ------------------------
     # Agents, roads and behaviours go through these few members, never through the world's
