@@ -6,8 +6,11 @@ behind its rear must not meet the line across the lane while red — a car whose
 over the line when the light turns red but clears the junction is not charged, one whose
 rear crosses on red is. Here the same point (``point="tail"``: 0.8 half-lengths behind the
 centre, the default) or the front bumper (``point="front"``: entering on red, as traffic
-codes that forbid entering the junction write it) crosses the stop position. Here the recording carries the lights (``sim/signals.py``, ``sim/recording.py``):
-``meta["lights"]`` lists each light ruling a recorded lane ``{"id", "controller", "x", "y",
+codes that forbid entering the junction write it) crosses the stop position.
+
+The recording carries the lights (``sim/signals.py``, ``sim/recording.py``):
+``meta["lights"]`` lists the lights of every junction whose lights rule a recorded lane
+``{"id", "controller", "x", "y",
 "heading", "stops": [{"lane", "s" [m along it], "x", "y", "heading", "width"}]}`` and
 ``signals["light.<id>"]`` its state at every sample (0 green, 1 amber, 2 red). The monitor
 places each stop position on the ego's route (``meta["ego_route"]``) and measures how far that
