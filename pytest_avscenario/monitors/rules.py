@@ -10,9 +10,7 @@ the infringement: metres driven while infringing (sidewalk, wrong way, outside t
 lanes), the speed [m/s] at a stop line above the standing speed, the fraction of the route
 left, seconds standing beyond the allowed time. A rule that holds has ρ >= 0 (0 where no
 margin is measured). ``off_road`` (CARLA's ``OffRoadTest``) lives in :mod:`.metrics`.
-
-The world has no traffic signals, so there is no ``ran_red_light``: a run-through of a
-signal would need the signal's state in the recording.
+``ran_red_light`` (CARLA's ``RunningRedLightTest``) lives in :mod:`.signals`.
 """
 
 from __future__ import annotations

@@ -112,6 +112,12 @@ class Recorder:
         meta.update(road_meta(w.lane_index, set(lane.ravel().tolist()) | set(meta["ego_route"])))
         if w.road.kind == "map":  # the sidewalks beside those lanes, for on_sidewalk
             meta["lanes"].update(map_sidewalks(w.road.data, meta["lanes"]))
+        lights = w.traffic_lights
+        if lights is not None:  # the lights ruling the lanes recorded: states per sample
+            series, entries = lights.record(t, meta["lanes"])
+            if entries:
+                signals.update(series)
+                meta["lights"] = entries
         decisions = _decisions(ego, self.reasons, float(t[-1]) if n else 0.0)
         if decisions is not None:
             meta["decisions"] = decisions

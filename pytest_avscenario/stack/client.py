@@ -300,6 +300,7 @@ class OSIStack:
             "lanes": [{"id": lane_ids[l.id], "name": l.id, "width": l.width,
                        "speed_limit": l.speed_limit, "kind": l.kind,
                        "stop_marks": marks.get(l.id, [])} for l in view.lanes],
+            "traffic_lights": _lights_hello(world, lane_ids),
             "ego": {"route": [lane_ids[l.id] for l in ego.plan], "route_index": ego.route_index,
                     "target_speed": ego.target_speed_request, "goal": ego.goal,
                     "sensor_range": world.sensor_range},
@@ -458,3 +459,15 @@ class OSIStack:
         except wire.ProtocolError as exc:
             self._fail(f"answer to {what}: {exc}", ego)
         raise AssertionError("unreachable")
+
+
+def _lights_hello(world: Any, lane_ids: dict[str, int]) -> list[dict]:
+    """The traffic lights' static facts for the Reset: OSI id, signal id and stop positions
+    ``[lane OSI id, s [m]]`` (their state comes with every SensorView)."""
+    lights = world.traffic_lights
+    if lights is None:
+        return []
+    return [{"id": osi_id, "signal": sid,
+             "stops": [[lane_ids[p.lane], p.s] for p in lights.lights[sid].stops
+                       if p.lane in lane_ids]}
+            for sid, osi_id in frame.light_ids(lights).items()]

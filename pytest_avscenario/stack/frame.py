@@ -10,7 +10,9 @@ that never reaches the wire (see docs/osi-protocol.md, "Frames").
 Ids: an agent's OSI id is 1 + its place in ``world.agents`` (the ego first, so the host
 vehicle is 1), stable for a whole case whether or not the agent is on the road yet; lane i
 of ``world.view().lanes`` is ``LANE_ID0 + i`` and its right and left boundaries are
-``BOUNDARY_ID0 + 2i`` and ``+ 2i + 1``. Names travel in ``source_reference``.
+``BOUNDARY_ID0 + 2i`` and ``+ 2i + 1``; traffic light k (the world's lights by signal id)
+is ``LIGHT_ID0 + k``, its state in ``classification.color``, its stop positions in the
+Reset (OSI's TrafficLight has no field for them). Names travel in ``source_reference``.
 
 A MotionRequest's desired state is turned into the ego's (acceleration, steering) by the
 one-step inverse of highway-env's kinematic bicycle model (:func:`motion_to_action`), and
@@ -29,13 +31,14 @@ from typing import Any
 
 from . import wire
 
-__all__ = ["LANE_ID0", "BOUNDARY_ID0", "HEIGHT_M", "wrap_yaw", "set_object", "object_state",
+__all__ = ["LANE_ID0", "BOUNDARY_ID0", "LIGHT_ID0", "light_ids", "add_traffic_lights", "HEIGHT_M", "wrap_yaw", "set_object", "object_state",
            "lane_ground_truth", "sensor_view", "SensorViews", "motion_to_action", "action_to_motion",
            "MIN_TURN_SPEED", "trajectory_to_action", "action_to_trajectory", "TAU_ACC", "TAU_HEADING",
            "TAU_LATERAL"]
 
 LANE_ID0 = 10_000
 BOUNDARY_ID0 = 20_000
+LIGHT_ID0 = 40_000  # traffic light k of the world's lights (sorted by signal id)
 MAX_AGENTS = LANE_ID0 - 1  # agent ids stay below the lanes'
 
 #: heights [m] of the boxes OSI wants (the world is flat; z only places the box centre)
@@ -209,6 +212,42 @@ def new_sensor_view(t_ns: int) -> tuple[Any, Any]:
     return sv, gt
 
 
+def light_ids(lights: Any) -> dict[str, int]:
+    """The OSI id of every traffic light of a :class:`~..sim.signals.TrafficLights`."""
+    return {sid: LIGHT_ID0 + k for k, sid in enumerate(sorted(lights.controller_of))}
+
+
+_COLOURS: dict[str, int] = {}
+
+
+def add_traffic_lights(gt: Any, lights: Any, t: float, lane_ids: dict[str, int]) -> None:
+    """Append every traffic light of ``lights`` in its state at ``t`` [s] to the
+    ``osi3.GroundTruth`` ``gt``: its head's position and yaw, the colour of its lit lamp, the
+    OSI ids of the lanes it stops (``lane_ids``: lane name -> OSI id) and its signal id."""
+    from osi3 import osi_trafficlight_pb2 as TL
+
+    C = TL.TrafficLight.Classification
+    colour = {"green": C.COLOR_GREEN, "amber": C.COLOR_YELLOW, "red": C.COLOR_RED}
+    for sid, osi_id in light_ids(lights).items():
+        sg = lights.lights[sid]
+        tl = gt.traffic_light.add()
+        tl.id.value = osi_id
+        b = tl.base
+        b.dimension.length, b.dimension.width, b.dimension.height = 0.3, 0.3, 1.0
+        b.position.x, b.position.y, b.position.z = float(sg.x), float(sg.y), 4.5
+        b.orientation.yaw = wrap_yaw(float(sg.heading))
+        cl = tl.classification
+        cl.color = colour[lights.state(sid, t)]
+        cl.icon = C.ICON_NONE
+        cl.mode = C.MODE_CONSTANT
+        for p in sg.stops:
+            if p.lane in lane_ids:
+                cl.assigned_lane_id.add().value = lane_ids[p.lane]
+        ref = tl.source_reference.add()
+        ref.reference, ref.type = _SOURCE, "signal"
+        ref.identifier.append(sid)
+
+
 def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
     """The serialized ``osi3.SensorView`` of ``world`` now: header, host vehicle id (1),
     every agent on the road (``ids``: agent -> OSI id), and the case's lanes ``static``
@@ -244,6 +283,7 @@ class SensorViews:
         self._stamps: tuple = ()
         self._slots: list = []  # per mover: (position, orientation, velocity, acceleration)
         self._first = True  # the lanes not sent yet
+        self._light_lanes: dict | None = None  # lane name -> OSI id, for the lights' lanes
 
     def build(self, world: Any, t_ns: int) -> bytes:
         index = world.lane_index
@@ -266,6 +306,13 @@ class SensorViews:
             ori.yaw = h if -math.pi <= h <= math.pi else wrap_yaw(h)
             vel.x, vel.y = v * c, v * s
             acc.x, acc.y = u * c, u * s
+        lights = world.traffic_lights
+        if lights is not None:  # every light in its state now (they change within a case)
+            gt = self._sv.global_ground_truth
+            del gt.traffic_light[:]
+            if self._light_lanes is None:
+                self._light_lanes = {l.id: LANE_ID0 + code[l.index] for l in index.order}
+            add_traffic_lights(gt, lights, world.t, self._light_lanes)
         if self._first:
             self._first = False
             return self._sv.SerializeToString() + self.static

@@ -141,6 +141,12 @@ class Session:
         self.route: tuple = ()
         self.stop_lines: dict[int, tuple] = {}
         self._limits: dict[int, float] = {}  # route index -> speed limit [m/s]
+        # traffic lights: stop positions by lane OSI id -> [(s, light OSI id, signal id)]
+        self.light_stops: dict[int, list] = {}
+        for light in hello.get("traffic_lights", ()):
+            for lane, s in light["stops"]:
+                self.light_stops.setdefault(int(lane), []).append(
+                    (float(s), int(light["id"]), str(light["signal"])))
         # a name is made afresh for each case, as the world makes it; an object is reused and
         # its per-case hook called (with no world: the stack has only what the wire carries)
         self.driver = resolve(policy)
@@ -220,12 +226,23 @@ class Session:
         limit = self._limits.get(ri)
         if limit is None:
             limit = self._limits[ri] = _number(self.lanes[self.route_ids[ri]].get("speed_limit"))
+        lights: tuple = ()
+        if self.light_stops:
+            from osi3 import osi_trafficlight_pb2 as TL
+
+            C = TL.TrafficLight.Classification
+            names = {C.COLOR_GREEN: "green", C.COLOR_YELLOW: "amber", C.COLOR_RED: "red"}
+            lit = {tl.id.value: names.get(tl.classification.color, "red")
+                   for tl in gt.traffic_light}
+            lights = tuple(sim["TrafficLight"](j, s, lit.get(oid, "red"), sid)
+                           for j in range(ri, len(self.route))
+                           for s, oid, sid in sorted(self.light_stops.get(self.route_ids[j], ())))
         return frozen(sim["Observation"], {
             "t": t, "dt": self.dt, "ego": ego, "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
             "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
             "speed_limit": limit, "target_speed": self.target_speed, "goal": self.goal,
-            "sensor_range": self.sensor_range})
+            "sensor_range": self.sensor_range, "traffic_lights": lights})
 
     def answer(self, sv: Any) -> bytes:
         """The serialized MotionRequest answering one SensorView."""
@@ -254,11 +271,11 @@ def _sim() -> dict[str, Any]:
     """The simulator's pieces an answer needs, imported on first use (not once a step)."""
     if not _SIM:
         from ..sim.drivers import action_pair
-        from ..sim.observation import AgentState, Observation, StopLine
+        from ..sim.observation import AgentState, Observation, StopLine, TrafficLight
         from ..sim.world import _frozen
 
         _SIM.update(action_pair=action_pair, AgentState=AgentState, Observation=Observation,
-                    StopLine=StopLine, frozen=_frozen)
+                    StopLine=StopLine, TrafficLight=TrafficLight, frozen=_frozen)
     return _SIM
 
 
