@@ -262,7 +262,7 @@ def stop_an_xdist_run(pytester, stop) -> tuple[str, int]:
 
 def assert_stopped_whole(pytester, out: str, status: int) -> None:
     """Status 2, one line per worker saying where it stopped and nothing more of theirs, every
-    finished item's row (on disk, in JUnit, in pytest's count), the report written whole, each
+    finished case's row (on disk, in JUnit, in pytest's count), the report written whole, each
     worker's end given to the plugins, and no worker process left behind."""
     assert status == pytest.ExitCode.INTERRUPTED, out
     workers = sorted(line for line in out.splitlines() if "avscenario: worker gw" in line)
@@ -275,7 +275,10 @@ def assert_stopped_whole(pytester, out: str, status: int) -> None:
     assert 10 <= len(rows) < 300
     assert len({r["item"] for r in rows}) == len(rows)
     assert junit_cases(pytester.path / "out.xml") == len(rows)
-    assert re.search(rf"\b{len(rows)} passed\b", out.splitlines()[-1]), out
+    # pytest counts an item passed at its call report; a case's row travels with its setup
+    # report (the case runs there): a worker stopped between the two has one row more
+    passed = int(re.search(r"\b(\d+) passed\b", out.splitlines()[-1]).group(1))
+    assert passed <= len(rows) <= passed + 2, out
     summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["tests"][0]["samples"] == len(rows)
     assert summary["tests"][0]["epsilon"] > 0  # the ε-coverage of the rows that came (scipy)
