@@ -126,6 +126,12 @@ def pytest_keyboard_interrupt(excinfo):
     _AT["modules"] = set(sys.modules)
     _write("interrupt", modules=len(sys.modules))
 
+if _WHO == "ctl" and os.environ.get("AVS_BENCH_PRELOADED"):
+    # --preloaded: the end-of-run imports made before the run, as the preload thread makes
+    # them while the workers run when they have time to: what is left for the interrupt
+    from pytest_avscenario.pytest_plugin import preload
+    preload._import([*preload.REPORT_MODULES, *preload.COVERAGE_MODULES, *preload.HYPOTHESIS_MODULES])
+
 @atexit.register
 def _at_exit():
     if "modules" in _AT:
@@ -134,7 +140,7 @@ def _at_exit():
 """
 
 
-def ctrl_c_xdist(at: int, repeat: int, how: str, as_is: bool) -> None:
+def ctrl_c_xdist(at: int, repeat: int, how: str, as_is: bool, preloaded: bool = False) -> None:
     """``repeat`` runs of the 300-case campaign under ``-n 2``, each signalled at ``at`` rows
     (``how``: "int" SIGINT to the process group as a terminal's Ctrl-C, "term" SIGTERM to the
     group, "term-controller" SIGTERM to pytest's process alone, as ``kill PID`` does)."""
@@ -143,6 +149,9 @@ def ctrl_c_xdist(at: int, repeat: int, how: str, as_is: bool) -> None:
     import threading
 
     env = dict(os.environ)
+    if preloaded:
+        env["AVS_BENCH_PRELOADED"] = "1"
+        print("the controller's end-of-run imports made before the run (--preloaded)")
     with tempfile.TemporaryDirectory(prefix="avs-bench-ctrl-c-") as tmp:
         if not as_is:
             # a user's steady state: compiled modules cached (pytest's rewritten ones too).
@@ -208,12 +217,42 @@ def ctrl_c_xdist(at: int, repeat: int, how: str, as_is: bool) -> None:
             if ctl_in and ctl_out:
                 print(f"    CPU after the interrupt: controller {ctl_out['cpu'] - ctl_in['cpu']:.2f} s "
                       f"(to its atexit), all processes {cpu_all - sum(s['cpu'] for s in at_interrupt.values()):.2f} s "
-                      f"(to their ends); the whole run {cpu_all:.2f} s. The controller reached pytest's "
+                      f"(to their ends; {len(at_interrupt)} of 3 reached pytest's interrupt handling, a "
+                      f"process that did not counts whole); the whole run {cpu_all:.2f} s. The controller reached pytest's "
                       f"interrupt handling {ctl_in['t'] - signalled:.2f} s after the signal and imported "
                       f"{ctl_out['new']} modules after it ({', '.join(ctl_out['packages'][:8]) or 'none'}"
                       f"{' ...' if len(ctl_out['packages']) > 8 else ''})", flush=True)
             else:
                 print("    (the controller's stamps are missing: it did not reach pytest's interrupt handling)")
+
+
+def whole_xdist(repeat: int, as_is: bool) -> None:
+    """The same 300-case campaign under ``-n 2`` run to its end: wall and CPU (all processes),
+    to show what the controller's imports made while the workers run cost a finished run."""
+    import resource
+
+    env = dict(os.environ)
+    with tempfile.TemporaryDirectory(prefix="avs-bench-whole-") as tmp:
+        if not as_is:
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            env["PYTHONPYCACHEPREFIX"] = os.path.join(tmp, "pycache")
+        for run in range(repeat + (0 if as_is else 1)):
+            path = Path(tmp) / f"run{run}"
+            path.mkdir()
+            (path / "test_stop.py").write_text(SLEEPING)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            load = os.getloadavg()[0]
+            t0 = time.monotonic()
+            status = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2",
+                                     "--avs-db=none", "test_stop.py"], cwd=path, env=env,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode
+            wall = time.monotonic() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+            if run == 0 and not as_is:
+                continue
+            print(f"whole run, 300 cases under -n 2 (load {load:.1f}): wall {wall:.2f} s, CPU {cpu:.2f} s "
+                  f"(all processes), rows {rows(path)}, status {status}", flush=True)
 
 
 def show(samples: int, r: dict[str, float]) -> None:
@@ -236,10 +275,18 @@ def main() -> None:
                         help="--ctrl-c-xdist: keep the environment's bytecode setting (this machine "
                              "sets PYTHONDONTWRITEBYTECODE: every run compiles, and pytest rewrites, "
                              "Hypothesis and the plugin afresh)")
+    parser.add_argument("--preloaded", action="store_true",
+                        help="--ctrl-c-xdist: the controller makes its end-of-run imports before the "
+                             "run (what an interrupt costs once the preload thread is done)")
+    parser.add_argument("--whole-xdist", action="store_true",
+                        help="the --ctrl-c-xdist campaign run to its end (wall and CPU)")
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    if args.ctrl_c_xdist:
-        ctrl_c_xdist(args.at if args.at != parser.get_default("at") else 60, args.repeat, args.signal, args.as_is)
+    if args.whole_xdist:
+        whole_xdist(args.repeat, args.as_is)
+    elif args.ctrl_c_xdist:
+        ctrl_c_xdist(args.at if args.at != parser.get_default("at") else 60, args.repeat, args.signal, args.as_is,
+                     args.preloaded)
     elif args.scaling:
         for samples in (2_000, 20_000):
             show(samples, stop_once(samples, int(samples * 0.9)))
