@@ -19,10 +19,17 @@ collections at its end, then the interpreter's, walked the whole heap of a large
 The machine is shared: the load average is printed with the numbers.
 
 ``--ctrl-c-xdist``: a 300-case campaign whose body sleeps 50 ms, run with ``-n 2`` in a process
-group of its own; once ``errors.jsonl`` holds ``--at`` rows (default 30) the whole group gets
-SIGINT, as a terminal's Ctrl-C reaches the controller and its workers. It prints the seconds
-to exit and the lines printed after the signal (issue #33 item 6: ~12 s and ~280 lines of
-worker tracebacks before).
+group of its own; once ``errors.jsonl`` holds ``--at`` rows (default 60) the whole group gets
+SIGINT, as a terminal's Ctrl-C reaches the controller and its workers (``--signal term``:
+SIGTERM to the group; ``term-controller``: SIGTERM to pytest's process alone). Per run
+(``--repeat``, default 3) it prints the seconds from the signal to exit (issue #33 item 6: ≤ 3 s),
+the lines printed after it and how many are the one-per-worker lines, the rows against JUnit's
+test cases, the CPU time spent after the interrupt (from a conftest's stamps at
+``pytest_keyboard_interrupt`` and at exit in each process), and the modules the controller
+imported after it. The runs use a warm bytecode cache in a temp dir (``--as-is`` keeps the
+environment's setting); ``--preloaded`` makes the controller's end-of-run imports before the
+run (what an interrupt costs once ``pytest_plugin/preload.py`` is done). ``--whole-xdist`` runs
+the same campaign to its end (wall, CPU).
 """
 
 from __future__ import annotations
