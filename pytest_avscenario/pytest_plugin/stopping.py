@@ -21,7 +21,10 @@
   of an xdist controller) happens whole: a SIGTERM or Ctrl-C arriving meanwhile is raised when
   it ends, so the error table and the JUnit file never hold different parts of a run.
 * :func:`end_workers` — an interrupted xdist controller ends its workers, says in one line per
-  worker where it stopped, and reports what they sent until they ended.
+  worker where it stopped, reports what they sent until they ended, and lets each exit as soon
+  as its end is read (the controller's report and the workers' exits overlap; the controller
+  waits for their processes at its own end). The controller's end-of-run imports are made
+  while the workers run (:mod:`.preload`), so the report after a Ctrl-C loads nothing.
 * :func:`shorten_interrupt` — a Ctrl-C's traceback cut to its last frame before pytest renders
   it (unless ``--full-trace``), in the controller and each worker.
 * :class:`ExitGuard` — ``os._exit()`` in an item of a serial run with scenario items (in a
