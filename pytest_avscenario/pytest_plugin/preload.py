@@ -8,21 +8,23 @@ end, those imports were most of the seconds a Ctrl-C under ``-n 2`` took to reac
 prompt (bench/bench_stop.py ``--ctrl-c-xdist``): the user waited for scipy to load so that an
 interrupted run's report could be written.
 
-:class:`Preload` makes them in a thread of the controller, from the moment a worker's
-collection shows scenario cases (while the workers start running them the controller only
-waits). It imports only what the end of this run imports anyway — scipy only once a test
-with a continuous parameter has reported its first row, Hypothesis only while its pytest
-plugin is active — so a run pays nothing more in all, and pays it before its end: a run that
-finishes reaches its prompt sooner too. At the end of the session, before the report, the
-controller waits for the thread (it would wait for those imports in any case); an import
-that fails here is tried again, and reported, where the end of the run needs it.
+:class:`Preload` makes them in a thread of the controller once its first row has been handled
+(while the workers run the cases the controller only waits). Not before: by then the
+controller's own thread has made its per-row imports (numpy, the report package), and the
+two threads never initialize the same modules at once — a package whose modules import each
+other, imported from two threads at the same time, can stop one of them with a deadlock
+error. It imports only what the end of this run imports anyway — scipy only once a test with
+a continuous parameter has reported, Hypothesis only while its pytest plugin is active — so a
+run pays nothing more in all, and pays it before its end: a run that finishes reaches its
+prompt sooner too. At the end of the session, before the report, the controller waits for the
+thread (it would wait for those imports in any case); an import that fails here is tried
+again, and reported, where the end of the run needs it.
 """
 
 from __future__ import annotations
 
 import importlib
 import queue
-import re
 import threading
 from typing import Any
 
@@ -53,11 +55,6 @@ COVERAGE_MODULES = ("scipy.spatial", "scipy.stats")
 #: what Hypothesis's pytest plugin imports in its terminal summary, every run
 HYPOTHESIS_MODULES = ("hypothesis.internal.observability",)
 
-#: a scenario case's id inside an item's brackets (``halton-007``, ``replay-2``, ``example-0``,
-#: beside the ids of other parametrizations); plain tests' ids that look alike only start
-#: the imports early
-_CASE_ID = re.compile(r"\[(?:[^\]]*-)?(?:[A-Za-z_]\w*-\d{3,}|(?:replay|example)-\d+)(?:-[^\]]*)?\]$")
-
 _DONE = object()
 
 
@@ -70,14 +67,6 @@ class Preload:
         self.coverage = False  # scipy is asked for already
         self.jobs: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self.thread: threading.Thread | None = None
-        self.looked = False  # a worker's collection was looked at
-
-    def pytest_xdist_node_collection_finished(self, node: Any, ids: Any) -> None:
-        # every worker collects the same items: the first one's ids tell
-        if not self.looked:
-            self.looked = True
-            if any(_CASE_ID.search(nodeid) for nodeid in ids):
-                self._start()
 
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> Any:
