@@ -19,10 +19,17 @@ collections at its end, then the interpreter's, walked the whole heap of a large
 The machine is shared: the load average is printed with the numbers.
 
 ``--ctrl-c-xdist``: a 300-case campaign whose body sleeps 50 ms, run with ``-n 2`` in a process
-group of its own; once ``errors.jsonl`` holds ``--at`` rows (default 30) the whole group gets
-SIGINT, as a terminal's Ctrl-C reaches the controller and its workers. It prints the seconds
-to exit and the lines printed after the signal (issue #33 item 6: ~12 s and ~280 lines of
-worker tracebacks before).
+group of its own; once ``errors.jsonl`` holds ``--at`` rows (default 60) the whole group gets
+SIGINT, as a terminal's Ctrl-C reaches the controller and its workers (``--signal term``:
+SIGTERM to the group; ``term-controller``: SIGTERM to pytest's process alone). Per run
+(``--repeat``, default 3) it prints the seconds from the signal to exit (issue #33 item 6: ≤ 3 s),
+the lines printed after it and how many are the one-per-worker lines, the rows against JUnit's
+test cases, the CPU time spent after the interrupt (from a conftest's stamps at
+``pytest_keyboard_interrupt`` and at exit in each process), and the modules the controller
+imported after it. The runs use a warm bytecode cache in a temp dir (``--as-is`` keeps the
+environment's setting); ``--preloaded`` makes the controller's end-of-run imports before the
+run (what an interrupt costs once ``pytest_plugin/preload.py`` is done). ``--whole-xdist`` runs
+the same campaign to its end (wall, CPU).
 """
 
 from __future__ import annotations
@@ -107,44 +114,152 @@ def test_x(case):
     time.sleep(0.05)
 """
 
+# Stamps in each process of the run (controller "ctl", workers "gw0"...): the process's CPU
+# time and its modules when the interrupt reaches pytest, and its CPU time at exit; the
+# controller also lists the packages it imported after the interrupt.
+STAMPS = """
+import atexit, json, os, sys, time
+import pytest
 
-def ctrl_c_xdist(at: int) -> None:
+_WHO = os.environ.get("PYTEST_XDIST_WORKER", "ctl")
+_AT = {}
+
+def _write(what, **data):
+    with open(os.path.join(os.path.dirname(__file__), "stamps.jsonl"), "a") as f:
+        f.write(json.dumps(dict(who=_WHO, what=what, t=time.monotonic(), cpu=time.process_time(), **data)) + "\\n")
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_keyboard_interrupt(excinfo):
+    _AT["modules"] = set(sys.modules)
+    _write("interrupt", modules=len(sys.modules))
+
+if _WHO == "ctl" and os.environ.get("AVS_BENCH_PRELOADED"):
+    # --preloaded: the end-of-run imports made before the run, as the preload thread makes
+    # them while the workers run when they have time to: what is left for the interrupt
+    from pytest_avscenario.pytest_plugin import preload
+    preload._import([*preload.REPORT_MODULES, *preload.COVERAGE_MODULES, *preload.HYPOTHESIS_MODULES])
+
+@atexit.register
+def _at_exit():
+    if "modules" in _AT:
+        new = sorted(set(sys.modules) - _AT["modules"])
+        _write("exit", new=len(new), packages=sorted({m.split(".")[0] for m in new}))
+"""
+
+
+def ctrl_c_xdist(at: int, repeat: int, how: str, as_is: bool, preloaded: bool = False) -> None:
+    """``repeat`` runs of the 300-case campaign under ``-n 2``, each signalled at ``at`` rows
+    (``how``: "int" SIGINT to the process group as a terminal's Ctrl-C, "term" SIGTERM to the
+    group, "term-controller" SIGTERM to pytest's process alone, as ``kill PID`` does)."""
+    import json
+    import resource
     import threading
 
+    env = dict(os.environ)
+    if preloaded:
+        env["AVS_BENCH_PRELOADED"] = "1"
+        print("the controller's end-of-run imports made before the run (--preloaded)")
     with tempfile.TemporaryDirectory(prefix="avs-bench-ctrl-c-") as tmp:
-        path = Path(tmp)
-        (path / "test_stop.py").write_text(SLEEPING)
+        if not as_is:
+            # a user's steady state: compiled modules cached (pytest's rewritten ones too).
+            # The cache lives in the temp dir, so nothing is written beside the sources; a
+            # first run (not counted) fills it
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            env["PYTHONPYCACHEPREFIX"] = os.path.join(tmp, "pycache")
+        print(f"bytecode cache: {'as the environment says (PYTHONDONTWRITEBYTECODE=' + env.get('PYTHONDONTWRITEBYTECODE', '') + ')' if as_is else 'warm (PYTHONPYCACHEPREFIX in a temp dir, filled by a first run not counted)'}")
+        runs = repeat + (0 if as_is else 1)
+        for run in range(runs):
+            path = Path(tmp) / f"run{run}"
+            path.mkdir()
+            (path / "test_stop.py").write_text(SLEEPING)
+            (path / "conftest.py").write_text(STAMPS)
 
-        def group_with_ctrl_c() -> None:
-            signal.signal(signal.SIGINT, signal.SIG_DFL)  # as a terminal's foreground job has it
-            os.setsid()
+            def group_with_ctrl_c() -> None:
+                signal.signal(signal.SIGINT, signal.SIG_DFL)  # as a terminal's foreground job has it
+                os.setsid()
 
-        proc = subprocess.Popen([sys.executable, "-u", "-m", "pytest", "-p", "no:cacheprovider", "-n", "2",
-                                 "--avs-db=none", "--junitxml=out.xml", "test_stop.py"], cwd=path,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, preexec_fn=group_with_ctrl_c)
-        lines: list[tuple[float, str]] = []
-        reader = threading.Thread(target=lambda: lines.extend(
-            (time.monotonic(), raw.decode(errors="replace")) for raw in proc.stdout))
-        reader.start()
-        try:
-            while (n := rows(path)) < at:
-                if proc.poll() is not None:
-                    raise SystemExit(f"the run ended before {at} rows ({n})")
-                time.sleep(0.05)
-            signalled = time.monotonic()
-            os.killpg(proc.pid, signal.SIGINT)
-            status = proc.wait(300)
-            ended = time.monotonic()
-        finally:
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
-        reader.join()
-        after = [text for t, text in lines if t >= signalled]
-        junit = (path / "out.xml").read_text().count("<testcase ")
-        print(f"Ctrl-C under -n 2 at {n} rows: exit {ended - signalled:.1f} s, status {status}, "
-              f"{len(after)} lines printed after it ({sum(len(t.splitlines()) for _, t in lines)} in all), "
-              f"rows {rows(path)}, JUnit test cases {junit}", flush=True)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            load = os.getloadavg()[0]
+            proc = subprocess.Popen([sys.executable, "-u", "-m", "pytest", "-p", "no:cacheprovider", "-n", "2",
+                                     "--avs-db=none", "--junitxml=out.xml", "test_stop.py"], cwd=path, env=env,
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, preexec_fn=group_with_ctrl_c)
+            lines: list[tuple[float, str]] = []
+            reader = threading.Thread(target=lambda: lines.extend(
+                (time.monotonic(), raw.decode(errors="replace")) for raw in proc.stdout))
+            reader.start()
+            try:
+                while (n := rows(path)) < at:
+                    if proc.poll() is not None:
+                        raise SystemExit(f"the run ended before {at} rows ({n})")
+                    time.sleep(0.02)
+                signalled = time.monotonic()
+                if how == "int":
+                    os.killpg(proc.pid, signal.SIGINT)
+                elif how == "term":
+                    os.killpg(proc.pid, signal.SIGTERM)
+                else:
+                    proc.send_signal(signal.SIGTERM)
+                status = proc.wait(300)
+                ended = time.monotonic()
+            finally:
+                if proc.poll() is None:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()
+            reader.join()
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu_all = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+            stamps = [json.loads(line) for line in (path / "stamps.jsonl").read_text().splitlines()]
+            at_interrupt = {s["who"]: s for s in stamps if s["what"] == "interrupt"}
+            at_exit = {s["who"]: s for s in stamps if s["what"] == "exit"}
+            ctl_in, ctl_out = at_interrupt.get("ctl"), at_exit.get("ctl")
+            said = "".join(text for t, text in lines if t >= signalled).splitlines()
+            workers = [line for line in said if "avscenario: worker gw" in line]
+            junit = (path / "out.xml").read_text().count("<testcase ")
+            if run == 0 and not as_is:
+                print(f"(first run, filling the bytecode cache: exit {ended - signalled:.2f} s after the signal)")
+                continue
+            print(f"{how} at {n} rows (load {load:.1f}): exit {ended - signalled:.2f} s after the signal, "
+                  f"status {status}; {len(said)} lines after it, {len(workers)} of them 'avscenario: worker' "
+                  f"lines; rows {rows(path)} = JUnit test cases {junit}", flush=True)
+            if ctl_in and ctl_out:
+                print(f"    CPU after the interrupt: controller {ctl_out['cpu'] - ctl_in['cpu']:.2f} s "
+                      f"(to its atexit), all processes {cpu_all - sum(s['cpu'] for s in at_interrupt.values()):.2f} s "
+                      f"(to their ends; {len(at_interrupt)} of 3 reached pytest's interrupt handling, a "
+                      f"process that did not counts whole); the whole run {cpu_all:.2f} s. The controller reached pytest's "
+                      f"interrupt handling {ctl_in['t'] - signalled:.2f} s after the signal and imported "
+                      f"{ctl_out['new']} modules after it ({', '.join(ctl_out['packages'][:8]) or 'none'}"
+                      f"{' ...' if len(ctl_out['packages']) > 8 else ''})", flush=True)
+            else:
+                print("    (the controller's stamps are missing: it did not reach pytest's interrupt handling)")
+
+
+def whole_xdist(repeat: int, as_is: bool) -> None:
+    """The same 300-case campaign under ``-n 2`` run to its end: wall and CPU (all processes),
+    to show what the controller's imports made while the workers run cost a finished run."""
+    import resource
+
+    env = dict(os.environ)
+    with tempfile.TemporaryDirectory(prefix="avs-bench-whole-") as tmp:
+        if not as_is:
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            env["PYTHONPYCACHEPREFIX"] = os.path.join(tmp, "pycache")
+        for run in range(repeat + (0 if as_is else 1)):
+            path = Path(tmp) / f"run{run}"
+            path.mkdir()
+            (path / "test_stop.py").write_text(SLEEPING)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            load = os.getloadavg()[0]
+            t0 = time.monotonic()
+            status = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2",
+                                     "--avs-db=none", "test_stop.py"], cwd=path, env=env,
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode
+            wall = time.monotonic() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+            if run == 0 and not as_is:
+                continue
+            print(f"whole run, 300 cases under -n 2 (load {load:.1f}): wall {wall:.2f} s, CPU {cpu:.2f} s "
+                  f"(all processes), rows {rows(path)}, status {status}", flush=True)
 
 
 def show(samples: int, r: dict[str, float]) -> None:
@@ -159,10 +274,26 @@ def main() -> None:
     parser.add_argument("--at", type=int, default=30_000)
     parser.add_argument("--scaling", action="store_true")
     parser.add_argument("--ctrl-c-xdist", action="store_true")
+    parser.add_argument("--repeat", type=int, default=3, help="--ctrl-c-xdist: measured runs")
+    parser.add_argument("--signal", choices=("int", "term", "term-controller"), default="int",
+                        help="--ctrl-c-xdist: SIGINT to the group (a terminal's Ctrl-C), SIGTERM to "
+                             "the group, or SIGTERM to pytest's process alone")
+    parser.add_argument("--as-is", action="store_true",
+                        help="--ctrl-c-xdist: keep the environment's bytecode setting (this machine "
+                             "sets PYTHONDONTWRITEBYTECODE: every run compiles, and pytest rewrites, "
+                             "Hypothesis and the plugin afresh)")
+    parser.add_argument("--preloaded", action="store_true",
+                        help="--ctrl-c-xdist: the controller makes its end-of-run imports before the "
+                             "run (what an interrupt costs once the preload thread is done)")
+    parser.add_argument("--whole-xdist", action="store_true",
+                        help="the --ctrl-c-xdist campaign run to its end (wall and CPU)")
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    if args.ctrl_c_xdist:
-        ctrl_c_xdist(args.at if args.at != parser.get_default("at") else 30)
+    if args.whole_xdist:
+        whole_xdist(args.repeat, args.as_is)
+    elif args.ctrl_c_xdist:
+        ctrl_c_xdist(args.at if args.at != parser.get_default("at") else 60, args.repeat, args.signal, args.as_is,
+                     args.preloaded)
     elif args.scaling:
         for samples in (2_000, 20_000):
             show(samples, stop_once(samples, int(samples * 0.9)))

@@ -210,18 +210,36 @@ def test_the_space_plot_scales_its_axis_once_not_per_value(monkeypatch):
     assert labels == ["c0", "c1", "c2"] and [round(v) for v in values[:3]] == [0, 1, 2]
 
 
-def test_ctrl_c_under_xdist_says_one_line_per_worker_and_keeps_every_row(pytester):
-    # #33 item 6: Ctrl-C at a terminal reaches the controller and both workers; before, pytest
-    # rendered the whole traceback of the interrupt in every process (the time it took), and
-    # nothing said where the workers stopped
-    pytester.makepyfile("""
+MANY_SLEEPING = """
 import time
 from pytest_avscenario import scenario, Uniform
 
 @scenario(x=Uniform(0, 1), samples=300, sampler="halton")
 def test_many(case):
     time.sleep(0.05)
-""")
+"""
+
+# which processes were the workers, and what each worker's end told other plugins (the hook
+# through which pytest-cov takes a worker's coverage data)
+WORKERS_NOTED = """
+import os
+
+def pytest_configure(config):
+    if hasattr(config, "workerinput"):
+        with open(config.rootpath / "worker-pids.txt", "a") as f:
+            f.write(f"{os.getpid()}\\n")
+
+def pytest_testnodedown(node, error):
+    with open(node.config.rootpath / "nodes-down.txt", "a") as f:
+        f.write(f"{node.gateway.id} {error}\\n")
+"""
+
+
+def stop_an_xdist_run(pytester, stop) -> tuple[str, int]:
+    """A 300-case run under -n 2 in a process group of its own (as a terminal's foreground
+    job), stopped by ``stop(pid)`` once 10 rows are on disk; its output and exit status."""
+    pytester.makepyfile(MANY_SLEEPING)
+    pytester.makeconftest(WORKERS_NOTED)
 
     def own_group_with_ctrl_c():
         ctrl_c_as_at_a_terminal()
@@ -233,14 +251,21 @@ def test_many(case):
         preexec_fn=own_group_with_ctrl_c)
     try:
         wait_for_rows(pytester, proc, 10)
-        os.killpg(proc.pid, signal.SIGINT)
+        stop(proc.pid)
         out = proc.communicate(timeout=120)[0].decode()
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == pytest.ExitCode.INTERRUPTED, out
-    workers = sorted(line for line in out.splitlines() if line.startswith("avscenario: worker gw")
-                     or "avscenario: worker gw" in line)
+            proc.wait()
+    return out, proc.returncode
+
+
+def assert_stopped_whole(pytester, out: str, status: int) -> None:
+    """Status 2, one line per worker saying where it stopped and nothing more of theirs, every
+    finished case's row (on disk, in JUnit, in pytest's count), the report written whole, each
+    worker's end given to the plugins, and no worker process left behind."""
+    assert status == pytest.ExitCode.INTERRUPTED, out
+    workers = sorted(line for line in out.splitlines() if "avscenario: worker gw" in line)
     assert len(workers) == 2, out
     assert all(re.search(r"worker gw[01] interrupted (at test_\S+\.py::test_many\[halton-\d+\]|between tests)", w)
                for w in workers), workers
@@ -248,6 +273,30 @@ def test_many(case):
     assert len(out.splitlines()) < 40, out  # the header, the table, the summary: no tracebacks
     rows = rows_of(pytester.path)
     assert 10 <= len(rows) < 300
+    assert len({r["item"] for r in rows}) == len(rows)
     assert junit_cases(pytester.path / "out.xml") == len(rows)
+    # pytest counts an item passed at its call report; a case's row travels with its setup
+    # report (the case runs there): a worker stopped between the two has one row more
+    passed = int(re.search(r"\b(\d+) passed\b", out.splitlines()[-1]).group(1))
+    assert passed <= len(rows) <= passed + 2, out
     summary = json.loads((pytester.path / "avs-report" / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["tests"][0]["samples"] == len(rows)
+    assert summary["tests"][0]["epsilon"] > 0  # the ε-coverage of the rows that came (scipy)
+    assert sorted((pytester.path / "nodes-down.txt").read_text().split()) == ["None", "None", "gw0", "gw1"]
+    for pid in map(int, (pytester.path / "worker-pids.txt").read_text().split()):
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)  # ended and reaped before pytest returned
+
+
+def test_ctrl_c_under_xdist_says_one_line_per_worker_and_keeps_every_row(pytester):
+    # #33 item 6: Ctrl-C at a terminal reaches the controller and both workers; before, pytest
+    # rendered the whole traceback of the interrupt in every process (the time it took), and
+    # nothing said where the workers stopped; the time to the prompt is bench/bench_stop.py's
+    out, status = stop_an_xdist_run(pytester, lambda pid: os.killpg(pid, signal.SIGINT))
+    assert_stopped_whole(pytester, out, status)
+
+
+def test_sigterm_to_an_xdist_controller_alone_stops_the_run_as_ctrl_c_does(pytester):
+    # `kill PID` (a CI runner's cancel): only the controller is told; it ends its workers
+    out, status = stop_an_xdist_run(pytester, lambda pid: os.kill(pid, signal.SIGTERM))
+    assert_stopped_whole(pytester, out, status)

@@ -39,10 +39,6 @@ RERUN_DIR = "rerun"
 #: the prefix of a worker's temporary picture folder (the controller moves what is inside)
 STAGING_PREFIX = "avs-cases-"
 
-#: an interrupted run of at least this many items freezes its heap out of the garbage
-#: collector's work (see ``pytest_keyboard_interrupt``)
-FREEZE_ITEMS = 5_000
-
 
 class RunState:
     """The controller's view of the run: the error table and what the summary needs."""
@@ -72,7 +68,6 @@ class RunState:
         #: then says ``"interrupted": true`` and the exit status is never 0
         self.stopped: str | None = None
         self.hurry = False  # the run was interrupted: no pictures in its report
-        self.collected = 0  # items this process collected
 
     @property
     def directory(self) -> Path | None:
@@ -117,7 +112,6 @@ class RunState:
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.note_order(item.nodeid for item in session.items)
-        self.collected = len(session.items)
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
         # Ctrl-C, SIGTERM (read as Ctrl-C), pytest.exit(), or a session told to stop
@@ -127,16 +121,16 @@ class RunState:
         # index.html, the error table, the cards, JUnit) and leaves out the pictures, whose
         # drawing grows with the rows and would outlast a CI runner's grace before SIGKILL
         self.hurry = True
-        if max(self.collected, len(self.rows)) >= FREEZE_ITEMS:
-            # what exists now lives to the end of the run; in the permanent generation, the
-            # collections pytest runs at its end (five full ones while unconfiguring), those
-            # the report triggers and the interpreter's at exit no longer walk it — seconds
-            # per 10,000 items of a large campaign, which the grace before SIGKILL lacks.
-            # (Garbage cycles made before now are not looked at again: an interrupted run
-            # does not report unraisable exceptions of theirs.)
-            import gc
+        # what exists now lives to the end of the run; in the permanent generation, the
+        # collections pytest runs at its end (five full ones while unconfiguring), those the
+        # report triggers and the interpreter's at exit no longer walk it — seconds per 10,000
+        # items of a large campaign, and 0.7 s of an xdist controller's exit with scipy and
+        # Hypothesis loaded (bench/bench_stop.py), which a Ctrl-C waits for. (Garbage cycles
+        # made before now are not looked at again: an interrupted run does not report
+        # unraisable exceptions of theirs.)
+        import gc
 
-            gc.freeze()
+        gc.freeze()
 
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         data = getattr(report, "avs_row", None)

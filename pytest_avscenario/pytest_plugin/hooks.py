@@ -82,6 +82,10 @@ def pytest_configure(config: pytest.Config) -> None:
     config.pluginmanager.register(state, "avscenario-run")
     if config.pluginmanager.hasplugin("xdist"):
         config.pluginmanager.register(_XdistHooks(config), "avscenario-xdist")
+        if not hasattr(config, "workerinput") and getattr(config.option, "dist", "no") != "no":
+            from .preload import Preload  # the controller's end-of-run imports, made meanwhile
+
+            config.pluginmanager.register(Preload(config), "avscenario-preload")
 
 
 def _open_db(config: pytest.Config, path: Any) -> Any:

@@ -22,3 +22,4 @@ sent_key = pytest.StashKey[bool]()  # item -> its row went out with a report alr
 guard_key = pytest.StashKey[Any]()  # the stopping.TermGuard of this process
 sentinel_key = pytest.StashKey[Any]()  # the lastresort.Sentinel of this process (made on first use)
 driver_key = pytest.StashKey[Any]()  # the identity of the --avs-driver driver (a dict)
+let_go_key = pytest.StashKey[list]()  # workers an interrupted xdist controller let exit early (stopping)

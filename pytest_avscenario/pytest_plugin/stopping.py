@@ -21,7 +21,10 @@
   of an xdist controller) happens whole: a SIGTERM or Ctrl-C arriving meanwhile is raised when
   it ends, so the error table and the JUnit file never hold different parts of a run.
 * :func:`end_workers` — an interrupted xdist controller ends its workers, says in one line per
-  worker where it stopped, and reports what they sent until they ended.
+  worker where it stopped, reports what they sent until they ended, and lets each exit as soon
+  as its end is read (the controller's report and the workers' exits overlap; the controller
+  waits for their processes at its own end). The controller's end-of-run imports are made
+  while the workers run (:mod:`.preload`), so the report after a Ctrl-C loads nothing.
 * :func:`shorten_interrupt` — a Ctrl-C's traceback cut to its last frame before pytest renders
   it (unless ``--full-trace``), in the controller and each worker.
 * :class:`ExitGuard` — ``os._exit()`` in an item of a serial run with scenario items (in a
@@ -41,6 +44,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import re
@@ -548,6 +552,11 @@ def shorten_interrupt(config: pytest.Config, excinfo: Any) -> None:
         traceback = excinfo.traceback
         if len(traceback) > 1:
             excinfo.traceback = traceback[-1:]
+        # and rendered as Python renders it: pytest prints only its crash line (file, line,
+        # "KeyboardInterrupt"), the same either way, but its own rendering of even one frame
+        # parses that frame's whole file first (threading.py or this module: 0.1-0.2 s of
+        # CPU in the controller and in each worker at once)
+        excinfo.getrepr = functools.partial(type(excinfo).getrepr, excinfo, style="native")
     except Exception:  # noqa: BLE001 - an ExceptionInfo of another shape: render it as it is
         pass
 
@@ -607,12 +616,64 @@ def end_workers(config: pytest.Config, wait_s: float = 5.0) -> None:
         except queue.Empty:
             break
         if name in ("workerfinished", "errordown"):
-            running.discard(kwargs.get("node"))
+            node = kwargs.get("node")
+            running.discard(node)
+            if name == "workerfinished":
+                # what xdist does first with a worker's end: plugins take its output (the
+                # coverage data pytest-cov's workers collected, say). Its "node down" lines
+                # and worker restarts are left out: the run is stopping
+                try:
+                    config.hook.pytest_testnodedown(node=node, error=None)
+                except Exception:  # noqa: BLE001 - one plugin's trouble: the others still end
+                    pass
+            _let_go(config, node)
         elif name == "testreport":
             try:
                 report(**kwargs)
             except Exception:  # noqa: BLE001 - one report we cannot read: the others still count
                 pass
+
+
+def _let_go(config: pytest.Config, node: Any) -> None:
+    """A worker whose end the controller has read exits now, while the controller writes the
+    report (xdist would let it go only after the report: its interpreter's end, a second or
+    so on a busy machine, was one more wait after a Ctrl-C); the controller still waits for
+    its process at its own end (:func:`_wait_let_go`), as xdist does."""
+    from .stash import let_go_key
+
+    gateway = getattr(node, "gateway", None)
+    if gateway is None or not hasattr(gateway, "exit"):
+        return
+    try:
+        gateway.exit()  # execnet: the worker is told to exit; waiting for it is left to us
+    except Exception:  # noqa: BLE001 - a gateway gone already: xdist's teardown copes
+        return
+    gone = config.stash.get(let_go_key, None)
+    if gone is None:
+        gone = config.stash[let_go_key] = []
+        config.add_cleanup(lambda: _wait_let_go(gone))
+    gone.append(gateway)
+
+
+def _wait_let_go(gateways: list[Any], wait_s: float = 10.0) -> None:
+    """Wait for the workers let go early (what xdist's teardown waits for, and with its
+    time limit: one still running then is killed)."""
+    import time
+
+    deadline = time.monotonic() + wait_s
+    for gateway in gateways:
+        popen = getattr(getattr(gateway, "_io", None), "popen", None)
+        try:
+            gateway.join(max(0.0, deadline - time.monotonic()))  # its receiving thread
+            if popen is not None:
+                popen.wait(max(0.0, deadline - time.monotonic()))
+        except Exception:  # noqa: BLE001 - past the time limit, or an odd gateway
+            if popen is not None and popen.poll() is None:
+                try:
+                    popen.kill()
+                    popen.wait()
+                except OSError:
+                    pass
 
 
 def _say_where_workers_stopped(config: pytest.Config, nodes: list[Any], running: dict[Any, str]) -> None:
