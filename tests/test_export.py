@@ -13,7 +13,7 @@ xmlschema = pytest.importorskip("xmlschema")
 
 from pytest_avscenario.export import export_case, schema_path  # noqa: E402
 from pytest_avscenario.export.openscenario import rear_axle  # noqa: E402
-from pytest_avscenario.export.replay import replay  # noqa: E402
+from pytest_avscenario.export.replay import replay, replay_world  # noqa: E402
 from pytest_avscenario.sim import behaviors as b  # noqa: E402
 from pytest_avscenario.sim.highway import arc, straight  # noqa: E402
 from pytest_avscenario.sim.world import World  # noqa: E402
@@ -68,13 +68,17 @@ def test_braking_lead_exports_valid_files_that_parse_back_to_the_case(tmp_path, 
     text = ET.tostring(root, encoding="unicode")
     assert "gap [m]" in open(res.files["xosc"]).read()  # the unit travels as a comment
     assert "replace that action with your own controller" in open(res.files["xosc"]).read()
-    # Init: the rear axle of each agent as recorded at t = 0, its speed
+    # Init: the rear axle of each agent as recorded at t = 0, by road and lane (lane i of the
+    # world is OpenDRIVE lane -(i + 1) of road 1; s along it from x = 0), its speed
     tr = w.trajectory
     for i, name in enumerate(tr.names):
         priv = root.find(f"Storyboard/Init/Actions/Private[@entityRef='{name}']")
-        pos = priv.find(".//WorldPosition")
+        pos = priv.find(".//LanePosition")
         x, y = rear_axle(tr.x[i, 0], tr.y[i, 0], tr.heading[i, 0], tr.length[i])
-        assert (float(pos.get("x")), float(pos.get("y"))) == pytest.approx((x, y))
+        lane = int(str(tr.lane[i, 0]).strip("lane[]"))
+        assert (pos.get("roadId"), int(pos.get("laneId"))) == ("1", -(lane + 1))
+        assert (float(pos.get("s")), float(pos.get("offset"))) == pytest.approx((x, y + 3.5 * lane))
+        assert float(pos.find("Orientation").get("h")) == tr.heading[i, 0]
         assert float(priv.find(".//AbsoluteTargetSpeed").get("value")) == tr.speed[i, 0]
     brake = root.find(".//Event[@name='car1_brake']")
     assert float(brake.find(".//SpeedActionDynamics").get("value")) == 6.0
@@ -131,10 +135,22 @@ def test_every_road_kind_and_manoeuvre_exports_valid(tmp_path, schemas, build):
         assert "in the 1.0 file only" in res.trajectories["car2"]
         assert "SpeedProfileAction" not in open(res.files["xosc_1_0"]).read()
         assert open(res.files["xodr"]).read().count("<laneSection") == 3
-    elif build == "intersection":
-        assert "connecting roads are not" in open(res.files["xodr"]).read()
-        assert "connecting roads are not" in res.to_json()["notes"][0]  # the row says it too
+    elif build == "intersection":  # the junction with its 12 connecting roads, one per turn
+        road = ET.parse(res.files["xodr"]).getroot()
+        conns = road.findall("junction/connection")
+        assert len(conns) == 12 and len(road.findall("road[@junction='100']")) == 12
+        assert "notes" not in res.to_json()
+        # the turning car has no equivalent: its trajectory, but placed by road and lane, with
+        # its route through the junction: south arm (3) -> its left-turn connector -> west arm (4)
         assert set(res.trajectories) == {"ego", "car1"}
+        sce = ET.parse(res.files["xosc"]).getroot()
+        ego = sce.find("Storyboard/Init/Actions/Private[@entityRef='ego']")
+        assert ego.find(".//TeleportAction//LanePosition").get("roadId") == "3"
+        way = [(p.get("roadId"), p.get("laneId")) for p in ego.findall(".//Waypoint//LanePosition")]
+        conn = next(c.get("connectingRoad") for c in conns
+                    if road.find(f"road[@id='{c.get('connectingRoad')}']").get("name")
+                    == "south to west (left)")
+        assert way == [("3", "1"), (conn, "-1"), ("4", "-1")]
     else:
         assert "TimeHeadwayCondition" in text and "RelativeDistanceCondition" in text
 
@@ -277,6 +293,37 @@ def test_the_example_vehicle_following_export_replays_to_the_same_collision(tmp_
     again = replay(res.files["xosc"])
     second = np.flatnonzero(again.crashed[0])
     assert second.size and abs(int(second[0]) - int(first[0])) <= 1
+
+
+def test_an_intersection_export_replays_to_the_same_collision(tmp_path, monkeypatch):
+    # the example suite's scenario 7: the oncoming car's left turn (it waits until the ego is
+    # 30 m from the centre) has no OpenSCENARIO equivalent, so it follows its recorded
+    # trajectory; both start by road and lane on the junction's arms and keep their routes
+    from pathlib import Path
+
+    from pytest_avscenario.case import Case
+
+    examples = Path(__file__).resolve().parent.parent / "example_tests"
+    monkeypatch.syspath_prepend(str(examples))
+    from test_07_oncoming_left_turn import test_oncoming_left_turn as scenario
+
+    case = Case(dict(d_ego=20.0, ego_speed=8.0, d_adv=20.0, adv_speed=7.0, adv_go_within=30.0),
+                0, 5, "halton")
+    w = World(5, rng=case.rng, driver=blind)
+    scenario(case, w)
+    first = np.flatnonzero(w.trajectory.crashed[0])
+    assert first.size, "this case must collide for the test to mean anything"
+    res = export_case(w, dict(case.params), tmp_path, "oncoming_left_turn", osi=False)
+    assert "Turn has no OpenSCENARIO equivalent" in res.trajectories["car1"]
+    world, _, _ = replay_world(res.files["xosc"])  # from the files alone
+    assert world.road.kind == "intersection"
+    assert [l.id for l in world.agent("car1").plan] == [l.id for l in w.agent("car1").plan]
+    again = replay(res.files["xosc"])
+    second = np.flatnonzero(again.crashed[0])
+    assert second.size and abs(int(second[0]) - int(first[0])) <= 1
+    k = int(first[0])
+    assert np.abs(again.x[:, :k] - w.trajectory.x[:, :k]).max() < 1e-6
+    assert np.abs(again.y[:, :k] - w.trajectory.y[:, :k]).max() < 1e-6
 
 
 def test_export_ini_value_is_checked_and_named(pytester):
