@@ -326,6 +326,52 @@ def test_an_intersection_export_replays_to_the_same_collision(tmp_path, monkeypa
     assert np.abs(again.y[:, :k] - w.trajectory.y[:, :k]).max() < 1e-6
 
 
+def test_a_map_export_references_its_map_and_replays_to_the_same_collision(tmp_path, monkeypatch,
+                                                                          schemas):
+    # the example suite's fabriksgatan left turn: the map file is copied once beside the
+    # exports (content-named) and referenced by the .xosc; agents start by road and lane on
+    # it; the oncoming car keeps its lane along its route through the junction (an action)
+    from pathlib import Path
+
+    from scenariogeneration import xosc
+
+    from pytest_avscenario.case import Case
+
+    examples = Path(__file__).resolve().parent.parent / "example_tests"
+    monkeypatch.syspath_prepend(str(examples))
+    from test_maps_fabriksgatan_left_turn import test_fabriksgatan_left_turn as scenario
+
+    case = Case(dict(d_ego=5.0, ego_speed=8.0, d_adv=20.0, adv_speed=12.0), 0, 5, "halton")
+    w = World(5, rng=case.rng)
+    scenario(case, w)
+    first = np.flatnonzero(w.trajectory.crashed[0])
+    assert first.size, "this case must collide for the test to mean anything"
+    res = export_case(w, dict(case.params), tmp_path, "left_turn", osi=False)
+    again_res = export_case(w, dict(case.params), tmp_path, "left_turn_again", osi=False)
+    assert not res.errors, res.errors
+    for kind in ("xosc", "xosc_1_0"):
+        assert list(schemas[kind].iter_errors(res.files[kind])) == []
+    m = re.fullmatch(r"fabriksgatan-[0-9a-f]{8}\.xodr", Path(res.files["xodr"]).name)
+    assert m and again_res.files["xodr"] == res.files["xodr"]  # one copy for every case
+    assert Path(res.files["xodr"]).read_bytes() == (examples / "maps/fabriksgatan.xodr").read_bytes()
+    assert res.to_json()["xodr"] == Path(res.files["xodr"]).name
+    sce = xosc.ParseOpenScenario(res.files["xosc"])  # scenariogeneration reads it back
+    assert sce.roadnetwork.road_file == Path(res.files["xodr"]).name
+    root = ET.parse(res.files["xosc"]).getroot()
+    ego = root.find("Storyboard/Init/Actions/Private[@entityRef='ego']")
+    start = ego.find(".//TeleportAction//LanePosition")
+    assert (start.get("roadId"), start.get("laneId")) == ("0", "1")  # lane 0/0/1, as built
+    assert abs(float(start.get("offset"))) < 0.01
+    way = [(p.get("roadId"), p.get("laneId")) for p in ego.findall(".//Waypoint//LanePosition")]
+    assert way == [("0", "1"), ("10", "-1"), ("3", "1")]  # the scenario's route, as written
+    assert set(res.trajectories) == {"ego"} and "oncoming" in res.actions
+    again = replay(res.files["xosc"])  # the map, the agents and their routes from the files
+    second = np.flatnonzero(again.crashed[0])
+    assert second.size and abs(int(second[0]) - int(first[0])) <= 1
+    k = int(first[0])
+    assert np.abs(again.x[:, :k] - w.trajectory.x[:, :k]).max() < 1e-6
+
+
 def test_export_ini_value_is_checked_and_named(pytester):
     pytester.makeini("[pytest]\navs_export = lots\n")
     pytester.makepyfile(test_lead=BRAKING_LEAD)

@@ -58,6 +58,21 @@ def schema_path(name: str = "OpenSCENARIO_1_3_1.xsd") -> Path:
     raise FileNotFoundError(f"scenariogeneration installs no {name}")
 
 
+def _map_copy(path: Path, directory: Path) -> Path:
+    """The map file copied beside the exports as ``<name>-<8 hex of its content>.xodr``:
+    written once per folder (every case on that map references the one copy), the same map
+    the same name, two maps of one name never in each other's place."""
+    import hashlib
+
+    from ..files import atomic_write_bytes
+
+    blob = path.read_bytes()
+    target = directory / f"{path.stem}-{hashlib.sha256(blob).hexdigest()[:8]}.xodr"
+    if not target.is_file() or target.stat().st_size != len(blob):
+        atomic_write_bytes(target, blob, durable=False)
+    return target
+
+
 def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathLike[str],
                 stem: str, *, units: Mapping[str, str] | None = None, title: str = "",
                 osi: bool = True) -> ExportResult:
@@ -72,9 +87,15 @@ def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathL
         from .opendrive import road_xodr
         from .openscenario import scenario_xosc
 
-        road, rmap = road_xodr(world.road)  # the same road, the same file
-        xodr_path = directory / f"{stem}.xodr"
-        atomic_write_bytes(xodr_path, road, durable=False)
+        if getattr(world.road, "kind", "") == "map":  # its map file, once beside the cases
+            from .opendrive import map_roadmap
+
+            rmap = map_roadmap(world.road)
+            xodr_path = _map_copy(Path(rmap.map_path), directory)
+        else:
+            road, rmap = road_xodr(world.road)  # the same road, the same file
+            xodr_path = directory / f"{stem}.xodr"
+            atomic_write_bytes(xodr_path, road, durable=False)
         out.files["xodr"] = str(xodr_path)
         sce = scenario_xosc(world, params, units=units, road_file=xodr_path.name, rmap=rmap,
                             title=stem, description=title or stem)

@@ -129,7 +129,11 @@ def _road(rid: int, x: float, y: float, h: float, geometries: list[Any], section
     return xodr.Road(rid, pv, lanes, name=name)
 
 
-def road_xodr(road: Any, name: str = "road") -> tuple[bytes, RoadMap]:
+#: the header name of every road this module writes (a replay tells them from map files so)
+HEADER_NAME = "pytest-avscenario built road"
+
+
+def road_xodr(road: Any, name: str = HEADER_NAME) -> tuple[bytes, RoadMap]:
     """The OpenDRIVE document (UTF-8 bytes) of a world's road and where its lanes went.
 
     ``road`` is the world's road object (``world.road``); an unknown kind (a road network of
@@ -368,15 +372,13 @@ def lane_position(rmap: RoadMap, lane_id: str, x: float, y: float) -> tuple[int,
     line positive); None when the lane was not written or the point is off its road's ends."""
     ref = rmap.lanes.get(str(lane_id))
     if ref is None:
-        return None
+        return rmap.locate(str(lane_id), x, y) if rmap.locate is not None else None
     rid, lid = ref
     if rid in rmap.refs and (rid, lid) in rmap.centre_t:
         s, t, out = _project(rmap.refs[rid], x, y)
         if out > 1e-6:
             return None
         return rid, lid, s, t - rmap.centre_t[(rid, lid)]
-    if rmap.locate is not None:
-        return rmap.locate(str(lane_id), x, y)
     return None
 
 
@@ -395,3 +397,86 @@ def world_xy(rmap: RoadMap, road_id: int, lane_id: int, s: float, offset: float)
         y = y0 - (math.cos(h) - math.cos(h0)) / k
     t = rmap.centre_t[(road_id, lane_id)] + offset
     return x - t * math.sin(h), y + t * math.cos(h)
+
+
+# ------------------------------------------------------------------ a map-based world's road
+
+_SECTIONS: dict[str, dict[tuple[str, int], tuple[float, float]]] = {}
+
+
+def _sections(data: Any) -> dict[tuple[str, int], tuple[float, float]]:
+    """``(road, section index) -> (s start, s end)`` of a map file, read once per file."""
+    got = _SECTIONS.get(data.digest)
+    if got is None:
+        got = {}
+        for _, road in ET.iterparse(data.path):
+            if road.tag != "road":
+                continue
+            length = float(road.get("length"))
+            starts = [float(sec.get("s")) for sec in road.findall("lanes/laneSection")]
+            for k, s0 in enumerate(starts):
+                got[(road.get("id"), k)] = (s0, min(starts[k + 1], length) if k + 1 < len(starts)
+                                            else length)
+            road.clear()
+        _SECTIONS[data.digest] = got
+    return got
+
+
+def _lane_samples(data: Any, lane: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The road's s [m] at each of ``lane``'s centre samples, ascending, and the samples
+    (N, 2) in that order."""
+    s0, s1 = _sections(data)[(lane.road, lane.section)]
+    ss = np.linspace(s0, s1, len(lane.s))
+    xy = lane.xy if lane.forward else lane.xy[::-1]
+    return ss, xy
+
+
+def map_roadmap(road: Any) -> RoadMap:
+    """The :class:`RoadMap` of a map-based world (``world.map(path)``): nothing is written,
+    the export references the map file; ``locate`` places a world point by road, lane, s and
+    offset on it."""
+    data = road.data
+    rmap = RoadMap(kind="map", map_path=str(data.path))
+
+    def locate(lane_id: str, x: float, y: float) -> tuple[str, int, float, float] | None:
+        lane = data.lanes.get(lane_id)
+        if lane is None:
+            return None
+        ss, xy = _lane_samples(data, lane)
+        ref = data.reference[lane.road]
+        d = np.hypot(xy[:, 0] - x, xy[:, 1] - y)
+        j = min(int(np.argmin(d)), len(ss) - 2)
+        seg = xy[j + 1] - xy[j]
+        f = float(np.clip(np.dot([x - xy[j, 0], y - xy[j, 1]], seg) / max(np.dot(seg, seg), 1e-12),
+                          0.0, 1.0))
+        s = float(ss[j] + f * (ss[j + 1] - ss[j]))
+        for _ in range(4):  # onto the reference line's normal through the point
+            rx, ry, rh = (float(v[0]) for v in ref(np.array([s])))
+            s = float(np.clip(s + math.cos(rh) * (x - rx) + math.sin(rh) * (y - ry), ss[0], ss[-1]))
+        rx, ry, rh = (float(v[0]) for v in ref(np.array([s])))
+        t = -math.sin(rh) * (x - rx) + math.cos(rh) * (y - ry)
+        cx, cy = np.interp(s, ss, xy[:, 0]), np.interp(s, ss, xy[:, 1])
+        tc = -math.sin(rh) * (cx - rx) + math.cos(rh) * (cy - ry)
+        return lane.road, lane.lane, s, t - tc
+
+    rmap.locate = locate
+    return rmap
+
+
+def map_point(road: Any, road_id: str, lane_id: int, s: float, offset: float) -> tuple[str, float, float]:
+    """The world lane id and point (x, y) [m] of a ``LanePosition`` on a map (the inverse of
+    :func:`map_roadmap`'s ``locate``)."""
+    data = road.data
+    for (rid, k), (s0, s1) in _sections(data).items():
+        if rid == str(road_id) and s0 - 1e-9 <= s <= s1 + 1e-9:
+            lane = data.lanes.get(f"{rid}/{k}/{int(lane_id)}")
+            if lane is not None:
+                break
+    else:
+        raise LookupError(f"{data.path}: no lane {lane_id} of road {road_id} at s = {s:g} m")
+    ss, xy = _lane_samples(data, lane)
+    rx, ry, rh = (float(v[0]) for v in data.reference[lane.road](np.array([float(s)])))
+    cx, cy = np.interp(s, ss, xy[:, 0]), np.interp(s, ss, xy[:, 1])
+    tc = -math.sin(rh) * (cx - rx) + math.cos(rh) * (cy - ry)
+    t = tc + offset
+    return lane.id, rx - t * math.sin(rh), ry + t * math.cos(rh)

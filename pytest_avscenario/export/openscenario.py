@@ -225,7 +225,7 @@ def _start_position(rmap: Any, lane_id: str, x: float, y: float, h: float) -> An
     if at is None:
         return _world_position(x, y, h)
     rid, lid, s, offset = at
-    return xosc.LanePosition(_nm(s), _nm(offset), int(lid), int(rid),
+    return xosc.LanePosition(_nm(s), _nm(offset), int(lid), str(rid),
                              xosc.Orientation(h=float(h), reference=xosc.ReferenceContext.absolute))
 
 
@@ -248,7 +248,7 @@ def _route(rmap: Any, agent: Any, name: str) -> Any:
         if at is None:
             return None
         rid, lid, s, offset = at
-        route.add_waypoint(xosc.LanePosition(_nm(s), _nm(offset), int(lid), int(rid)),
+        route.add_waypoint(xosc.LanePosition(_nm(s), _nm(offset), int(lid), str(rid)),
                            xosc.RouteStrategy.shortest)
     return route
 

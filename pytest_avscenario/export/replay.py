@@ -95,7 +95,11 @@ def _road(xodr: Path) -> tuple[str, dict[str, float]]:
     """The built road a file written by :mod:`.opendrive` describes: ``("straight", {lanes,
     lane_width, length})`` for one one-way straight road, ``("intersection", {lanes,
     lane_width, approach_length, median, corner})`` for four arms around a junction."""
+    from .opendrive import HEADER_NAME
+
     root = ET.parse(xodr).getroot()
+    if root.find("header") is None or root.find("header").get("name") != HEADER_NAME:
+        return "map", {"path": str(xodr.resolve())}  # a map file the case was built on
     roads = root.findall("road")
     junction = root.find("junction")
     if junction is not None:
@@ -131,23 +135,20 @@ def _road(xodr: Path) -> tuple[str, dict[str, float]]:
                         "length": _f(road, "length")}
 
 
-def _position(pos: ET.Element, rmap: Any) -> tuple[float, float, float, tuple[int, int] | None]:
-    """``(x, y, heading, (road, lane) or None)`` of a ``Position`` element: a WorldPosition,
-    or a LanePosition on the road the export wrote."""
-    from .opendrive import world_xy
-
+def _position(pos: ET.Element, lane_at: Any) -> tuple[float, float, float, Any]:
+    """``(x, y, heading, world lane or None)`` of a ``Position`` element: a WorldPosition, or
+    a LanePosition (``lane_at`` gives its lane and point)."""
     wp = pos.find("WorldPosition")
     if wp is not None:
         return _f(wp, "x"), _f(wp, "y"), _f(wp, "h"), None
     lp = pos.find("LanePosition")
     if lp is None:
         raise NotImplementedError(f"a {pos[0].tag} is not replayed")
-    rid, lid = int(lp.get("roadId")), int(lp.get("laneId"))
-    x, y = world_xy(rmap, rid, lid, _f(lp, "s"), _f(lp, "offset"))
+    lane, x, y = lane_at(lp)
     orient = lp.find("Orientation")
     if orient is None or orient.get("type") != "absolute":
         raise NotImplementedError("a LanePosition without an absolute heading is not replayed")
-    return x, y, _f(orient, "h"), (rid, lid)
+    return x, y, _f(orient, "h"), lane
 
 
 def replay_world(xosc: str | Path, seed: int = 0) -> tuple[Any, float, float]:
@@ -162,13 +163,25 @@ def replay_world(xosc: str | Path, seed: int = 0) -> tuple[Any, float, float]:
     logic = root.find("RoadNetwork/LogicFile")
     kind, spec = _road(xosc.parent / logic.get("filepath"))
     world = World(seed)
-    if kind == "intersection":
-        road = world.intersection(**spec)
+    if kind == "map":
+        road = world.map(spec["path"])
+        rmap = None
     else:
-        road = world.straight_road(**spec)
-    _, rmap = road_xodr(road)  # the same numbering as the file: (road, lane) -> world lane
-    lane_of = {ref: lane_id for lane_id, ref in rmap.lanes.items()}
+        road = world.intersection(**spec) if kind == "intersection" else world.straight_road(**spec)
+        _, rmap = road_xodr(road)  # the same numbering as the file: (road, lane) -> world lane
     lanes = {lane.id: lane for lane in road.all_lanes}
+
+    def lane_at(lp: ET.Element) -> tuple[Any, float, float]:
+        """The world lane and point (x, y) of a LanePosition."""
+        from .opendrive import map_point, world_xy
+
+        rid, lid, s, off = lp.get("roadId"), int(lp.get("laneId")), _f(lp, "s"), _f(lp, "offset")
+        if rmap is None:
+            lane_id, x, y = map_point(road, rid, lid, s, off)
+            return lanes[lane_id], x, y
+        x, y = world_xy(rmap, int(rid), lid, s, off)
+        lane_of = {ref: lane_id for lane_id, ref in rmap.lanes.items()}
+        return lanes[lane_of[(int(rid), lid)]], x, y
     sizes: dict[str, tuple[str, float, float]] = {}
     for obj in root.findall("Entities/ScenarioObject"):
         veh = obj.find("Vehicle")
@@ -178,9 +191,9 @@ def replay_world(xosc: str | Path, seed: int = 0) -> tuple[Any, float, float]:
         sizes[obj.get("name")] = (veh.get("vehicleCategory"), _f(dim, "length"), _f(dim, "width"))
     init: dict[str, dict[str, Any]] = {}
     for priv in root.findall("Storyboard/Init/Actions/Private"):
-        x, y, h, ref = _position(priv.find(".//TeleportAction/Position"), rmap)
+        x, y, h, ref = _position(priv.find(".//TeleportAction/Position"), lane_at)
         speed = priv.find(".//AbsoluteTargetSpeed")
-        route = [lanes[lane_of[(int(p.get("roadId")), int(p.get("laneId")))]]
+        route = [lane_at(p)[0]
                  for p in priv.findall(".//AssignRouteAction//Waypoint/Position/LanePosition")]
         init[priv.get("entityRef")] = {"x": x, "y": y, "h": h, "ref": ref,
                                       "v": _f(speed, "value") if speed is not None else 0.0,
@@ -195,7 +208,7 @@ def replay_world(xosc: str | Path, seed: int = 0) -> tuple[Any, float, float]:
         st = init[name]
         x, y = centre_from_rear_axle(st["x"], st["y"], st["h"], L)
         if st["ref"] is not None:
-            lane = lanes[lane_of[st["ref"]]]
+            lane = st["ref"]
             s = lane.geometry.local_coordinates((float(x), float(y)))[0]
         elif kind == "straight":
             n, w = int(spec["lanes"]), spec["lane_width"]
