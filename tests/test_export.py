@@ -176,6 +176,41 @@ def test_osi_trace_is_named_by_convention_and_reads_back(tmp_path):
             assert (obj.base.position.x, obj.base.position.y) == (tr.x[i, k], tr.y[i, k])
 
 
+def test_osi_trace_of_a_map_case_holds_only_the_lanes_near_the_ego_path():
+    # Town06 has 467 drivable lanes over kilometres; the trace keeps those within 50 m of the
+    # ego's recorded path (and every lane an agent was on), so it stays small
+    from pathlib import Path
+
+    from shapely import LineString
+
+    from pytest_avscenario.export.osi import LANE_RADIUS, read_trace, trace_bytes
+    from pytest_avscenario.stack import frame
+
+    town06 = Path(__file__).resolve().parent.parent / "example_tests" / "maps" / "Town06.xodr"
+    w = World(5)
+    town = w.map(str(town06))
+    start = town.lane("11/0/4").at(10.0)
+    w.ego(start, speed=12.0)
+    w.car(town.ahead(start, 25.0), speed=8.0, behavior=b.brake_at(1.0, decel=4.0))
+    w.run(seconds=3)
+    data, n = trace_bytes(w)
+    frames = list(read_trace(data))
+    assert len(frames) == n == w.trajectory.n_steps
+    lanes = {l.source_reference[0].identifier[0]: l for l in frames[0].global_ground_truth.lane}
+    every = w.view().lanes
+    assert 0 < len(lanes) < len(every) / 10
+    assert {str(v) for v in w.trajectory.lane.ravel()} <= set(lanes)  # every lane driven on
+    path = LineString(np.stack([w.trajectory.x[0], w.trajectory.y[0]], axis=1))
+    for lane in every:  # in the trace exactly when within the radius of the path (or driven on)
+        near = LineString(lane.centre_line).distance(path) <= LANE_RADIUS
+        assert (lane.id in lanes) == (near or lane.id in {str(v) for v in w.trajectory.lane.ravel()})
+    assert len(frames[0].global_ground_truth.lane_boundary) == 2 * len(lanes)
+    ids = {l.id.value for l in lanes.values()}
+    for obj in frames[-1].global_ground_truth.moving_object:  # objects name their lanes
+        assert obj.assigned_lane_id[0].value in ids
+    assert len(data) < len(frame.lane_ground_truth(w.view())) / 5  # all lanes: 5x the trace
+
+
 def test_an_export_that_fails_says_why_and_raises_nothing(tmp_path):
     w = World(1, driver=blind)
     road = w.straight_road()
