@@ -211,6 +211,27 @@ def test_osi_trace_of_a_map_case_holds_only_the_lanes_near_the_ego_path():
     assert len(data) < len(frame.lane_ground_truth(w.view())) / 5  # all lanes: 5x the trace
 
 
+def test_the_writers_load_without_scipy_integrate_or_xmlschema_which_still_work_later():
+    # a process that exports does not pay for scipy.integrate and xmlschema (0.9 s of CPU)
+    # until something calls them; afterwards both are the real modules
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from pytest_avscenario.export._writers import load\n"
+        "xodr, xosc = load()\n"
+        "print(sorted(m for m in ('scipy.integrate', 'xmlschema') if m in sys.modules))\n"
+        "from scenariogeneration.xodr import geometry\n"
+        "print(round(geometry.quad(lambda x: x, 0, 2)[0], 9))\n"
+        "import scipy.integrate, xmlschema\n"
+        "print(type(sys.modules['scipy.integrate']).__name__, callable(xmlschema.XMLSchema))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=str(__import__("pathlib").Path(__file__).resolve().parent.parent))
+    assert out.stdout.split("\n")[:3] == ["[]", "2.0", "module True"], out.stdout + out.stderr
+
+
 def test_an_export_that_fails_says_why_and_raises_nothing(tmp_path):
     w = World(1, driver=blind)
     road = w.straight_road()

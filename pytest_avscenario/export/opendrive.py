@@ -67,9 +67,9 @@ class RoadMap:
 
 
 def _xodr() -> Any:
-    from scenariogeneration import xodr
+    from ._writers import load
 
-    return xodr
+    return load()[0]
 
 
 def _driving(w: float, solid: bool = False, kind: str = "driving") -> Any:

@@ -73,9 +73,9 @@ def centre_from_rear_axle(x: Any, y: Any, heading: Any, length: Any) -> tuple[An
 
 
 def _xosc() -> Any:
-    from scenariogeneration import xosc
+    from ._writers import load
 
-    return xosc
+    return load()[1]
 
 
 def _param_type(value: Any, minor: int) -> tuple[Any, str]:
