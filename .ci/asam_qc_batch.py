@@ -61,12 +61,10 @@ def main(paths: list[str]) -> int:
               f"({time.perf_counter() - t:.2f} s)")
         for line in issues:
             print("   ", line)
-        if issues or not total or done < total:
-            skipped = total - done
-            if issues or not total:
-                status = 1
-            elif skipped:
-                print(f"    ({skipped} check(s) skipped: preconditions or version)")
+        if issues or not done:  # no check ran: not a file the checker could read
+            status = 1
+        elif done < total:
+            print(f"    ({total - done} check(s) skipped: preconditions or version)")
     print(f"asam-qc: {len(paths)} file(s) in {time.perf_counter() - t0:.1f} s")
     return status
 

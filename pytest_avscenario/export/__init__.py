@@ -87,17 +87,28 @@ def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathL
         from .opendrive import road_xodr
         from .openscenario import scenario_xosc
 
+        road = None
         if getattr(world.road, "kind", "") == "map":  # its map file, once beside the cases
             from .opendrive import map_roadmap
 
             rmap = map_roadmap(world.road)
             xodr_path = _map_copy(Path(rmap.map_path), directory)
         else:
-            road, rmap = road_xodr(world.road)  # the same road, the same file
+            try:
+                road, rmap = road_xodr(world.road)  # the same road, the same file
+            except NotImplementedError as exc:  # the scenario still goes out, without its road
+                from .opendrive import RoadMap
+
+                road, rmap = None, RoadMap(kind=str(getattr(world.road, "kind", "")), exact=False)
+                rmap.notes.append(f"{exc}: no road file; every agent follows its recorded "
+                                  "trajectory in world coordinates")
             xodr_path = directory / f"{stem}.xodr"
-            atomic_write_bytes(xodr_path, road, durable=False)
-        out.files["xodr"] = str(xodr_path)
-        sce = scenario_xosc(world, params, units=units, road_file=xodr_path.name, rmap=rmap,
+            if road is not None:
+                atomic_write_bytes(xodr_path, road, durable=False)
+        if road is not None or rmap.map_path:
+            out.files["xodr"] = str(xodr_path)
+        road_file = xodr_path.name if "xodr" in out.files else None
+        sce = scenario_xosc(world, params, units=units, road_file=road_file, rmap=rmap,
                             title=stem, description=title or stem)
         xosc_path = directory / f"{stem}.xosc"
         atomic_write_bytes(xosc_path, sce.xml, durable=False)
@@ -107,7 +118,7 @@ def export_case(world: Any, params: Mapping[str, Any], directory: str | os.PathL
         out.errors["xosc"] = f"{type(exc).__name__}: {exc}"
     if "xosc" in out.files:
         try:  # CARLA's ScenarioRunner reads OpenSCENARIO 1.0 only
-            old = scenario_xosc(world, params, units=units, road_file=xodr_path.name,
+            old = scenario_xosc(world, params, units=units, road_file=road_file,
                                 rmap=rmap, title=stem, description=title or stem, minor=0)
             path = directory / f"{stem}.v1_0.xosc"
             atomic_write_bytes(path, old.xml, durable=False)

@@ -136,8 +136,9 @@ HEADER_NAME = "pytest-avscenario built road"
 def road_xodr(road: Any, name: str = HEADER_NAME) -> tuple[bytes, RoadMap]:
     """The OpenDRIVE document (UTF-8 bytes) of a world's road and where its lanes went.
 
-    ``road`` is the world's road object (``world.road``); an unknown kind (a road network of
-    several intersections) is written as an empty OpenDRIVE document with a note."""
+    ``road`` is the world's road object (``world.road``); NotImplementedError for a kind
+    not written (a road network of several intersections: OpenDRIVE needs at least one road,
+    so there is no empty document to write)."""
     xodr = _xodr()
     odr = xodr.OpenDrive(name, revMajor="1", revMinor="7")
     kind = getattr(road, "kind", "") or type(road).__name__
@@ -175,9 +176,7 @@ def road_xodr(road: Any, name: str = HEADER_NAME) -> tuple[bytes, RoadMap]:
     elif kind == "intersection":
         links = _intersection(odr, road, rmap)
     else:
-        rmap.exact = False
-        rmap.notes.append(f"a {kind} road is not written as OpenDRIVE; every agent follows "
-                          "its recorded trajectory in world coordinates")
+        raise NotImplementedError(f"a {kind} road is not written as OpenDRIVE")
     if odr.roads:
         odr.adjust_roads_and_lanes()
     root = odr.get_element()
@@ -202,16 +201,21 @@ def _highway(odr: Any, road: Any, rmap: RoadMap) -> None:
         for i, lane in enumerate(lanes):
             rmap.lanes[lane.id] = (1, -(i + 1))
         if seg.kind == "straight":
-            geoms.append(xodr.Line(float(seg.length)))
+            if geoms and geoms[-1][0] == "line":  # one line across lane sections: two in a
+                geoms[-1] = ("line", geoms[-1][1] + float(seg.length))  # row are redundant
+            else:
+                geoms.append(("line", float(seg.length)))
             s += float(seg.length)
         else:
             phi = math.radians(float(seg.angle))
             sign = 1.0 if phi > 0 else -1.0
             # the left edge lies w/2 nearer the centre of a left turn, farther from a right one
             radius = float(seg.radius) - sign * w / 2
-            geoms.append(xodr.Arc(sign / radius, length=radius * abs(phi)))
+            geoms.append(("arc", radius * abs(phi), sign / radius))
             s += radius * abs(phi)
-    odr.add_road(_road(1, 0.0, w / 2, 0.0, geoms, sections, "highway"))
+    odr.add_road(_road(1, 0.0, w / 2, 0.0,
+                       [xodr.Line(g[1]) if g[0] == "line" else xodr.Arc(g[2], length=g[1])
+                        for g in geoms], sections, "highway"))
     if road.ramps:
         rmap.notes.append(f"{len(road.ramps)} on-ramp(s) not written; agents on them follow "
                           "their recorded trajectories")

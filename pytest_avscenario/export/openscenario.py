@@ -265,7 +265,7 @@ def _follow_trajectory(name: str, t: np.ndarray, x: np.ndarray, y: np.ndarray,
 
 
 def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, str] | None = None,
-                  road_file: str, rmap: Any, title: str = "counterexample",
+                  road_file: str | None, rmap: Any, title: str = "counterexample",
                   description: str = "", minor: int = 3) -> Export:
     """The OpenSCENARIO document of ``world`` (run, with its trajectory) for a case with
     ``params`` (``units``: parameter -> unit text), its road in ``road_file`` (a path relative
