@@ -337,6 +337,17 @@ def test_export_none_writes_nothing_and_a_failing_export_keeps_the_case(pytester
     assert "Not exported (xosc): RuntimeError: cannot write this road" in card
 
 
+def test_without_the_option_one_case_per_test_and_sampler_is_exported(pytester):
+    # the default keeps a report small: one export (~0.3 MB) per test and sampler, not one
+    # per pictured case (here 2)
+    pytester.makepyfile(test_lead=BRAKING_LEAD)
+    args = [a for a in FAST if a != "--avs-case-pictures=0"]
+    result = pytester.runpytest(*args, "--avs-case-pictures=2")
+    result.assert_outcomes(failed=3)
+    assert len([r for r in _rows(pytester) if r.get("exports")]) == 1
+    assert len(list((pytester.path / "avs-report" / "cases").glob("*.v1_0.xosc"))) == 1
+
+
 def test_bad_export_option_is_a_usage_error(pytester):
     pytester.makepyfile(test_lead=BRAKING_LEAD)
     result = pytester.runpytest("--avs-export=some", "-p", "no:cacheprovider")
