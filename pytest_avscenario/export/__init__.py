@@ -2,14 +2,17 @@
 
 :func:`export_case` writes, for one case whose world has run, ``<stem>.xosc`` (the scenario
 in OpenSCENARIO 1.3: :mod:`.openscenario`; ``<stem>.v1_0.xosc`` the same in 1.0, the
-revision CARLA's ScenarioRunner reads), ``<stem>.xodr`` (its road: :mod:`.opendrive`) and an OSI SensorView
-trace (:mod:`.osi`) beside them, each atomically, and returns what it wrote. A part that
+revision CARLA's ScenarioRunner reads), ``<stem>.xodr`` (its road: :mod:`.opendrive`; a case
+built on a map file references a copy of that map instead, ``<map>-<8 hex>.xodr``, written
+once per folder) and an OSI SensorView trace (:mod:`.osi`) beside them, each atomically, and
+returns what it wrote. A part that
 cannot be written is reported in the result (``errors``), never raised past the caller's
 case. :func:`schema_path` finds the XSDs scenariogeneration installs, for validation;
 :mod:`.replay` plays an exported file back in the plugin's own simulator.
 
-Nothing here imports pytest; scenariogeneration (the ``[export]`` extra) and osi3 (the
-``[osi]`` extra) are imported when a file is written.
+Nothing here imports pytest; scenariogeneration (the ``[export]`` extra, through
+:mod:`._writers`, which defers what writing never uses) and osi3 (the ``[osi]`` extra) are
+imported when a file is written.
 """
 
 from __future__ import annotations

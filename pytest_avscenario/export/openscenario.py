@@ -6,7 +6,10 @@ its recorded :class:`~pytest_avscenario.trajectory.Trajectory`):
 * ``ParameterDeclarations``: the case's parameters with their values (units in a comment:
   OpenSCENARIO 1.x declarations carry no unit);
 * ``Entities``: every agent, vehicles with their size, pedestrians;
-* ``Init``: each agent's recorded state at its first step (position, heading, speed);
+* ``Init``: each agent's recorded state at its first step (position, heading, speed), the
+  position as a ``LanePosition`` on the road written (or the map referenced) where the agent
+  is on one of its lanes, else a ``WorldPosition``; an agent whose route runs through a
+  junction also gets it as an ``AssignRouteAction``;
 * the ``Storyboard``: behaviours the format has one-to-one written as actions with their
   triggers (:data:`MAPPED`), the ego's recorded trajectory as a timed
   ``FollowTrajectoryAction`` (a team replaces it with its own controller; a comment says so),
