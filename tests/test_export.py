@@ -163,6 +163,16 @@ def test_every_road_kind_and_manoeuvre_exports_valid(tmp_path, schemas, build):
                     if road.find(f"road[@id='{c.get('connectingRoad')}']").get("name")
                     == "south to west (left)")
         assert way == [("3", "1"), (conn, "-1"), ("4", "-1")]
+        # the plugin's own OpenDRIVE reader drives the file: the south approach continues into
+        # its three connecting roads, each starting where the approach ends
+        town = World(1).map(res.files["xodr"])
+        south = town.lane("3/0/1")
+        nxt = town.successors(south)
+        assert len(nxt) == 3 and f"{conn}/0/-1" in [l.id for l in nxt]
+        for lane in nxt:
+            assert np.abs(lane.data.xy[0] - south.data.xy[-1]).max() < 1e-6
+        assert [l.id for l in town.route(south, town.lane("4/0/-1")).lanes] == [
+            "3/0/1", f"{conn}/0/-1", "4/0/-1"]
     elif build == "network":  # an OpenDRIVE file needs a road: none rather than an invalid one
         assert "xodr" not in res.files and not list(tmp_path.glob("*.xodr"))
         assert ET.parse(res.files["xosc"]).getroot().find("RoadNetwork/LogicFile") is None
