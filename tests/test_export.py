@@ -182,6 +182,32 @@ def test_every_road_kind_and_manoeuvre_exports_valid(tmp_path, schemas, build):
         assert "TimeHeadwayCondition" in text and "RelativeDistanceCondition" in text
 
 
+@pytest.mark.parametrize("build", ["straight", "two_way", "highway", "intersection"])
+def test_lane_positions_name_the_same_points_as_the_world(build):
+    # every written lane: a point 0.3 m left of its centre (in its direction of travel) at any
+    # s is (road, lane, s, +-0.3 along the road's t axis) and back
+    from pytest_avscenario.export.opendrive import lane_position, road_xodr, world_xy
+
+    w = World(3)
+    road = {"straight": lambda: w.straight_road(lanes=3, length=200),
+            "two_way": lambda: w.two_way_road(lanes=2, length=200, median=1.0, parking=True),
+            "highway": lambda: w.highway(lanes=3, segments=[straight(100), arc(300, -30),
+                                                            straight(50), straight(80, lanes=2)]),
+            "intersection": lambda: w.intersection(lanes=2, median=2.0)}[build]()
+    _, rmap = road_xodr(road)
+    written = [lane for lane in road.all_lanes if lane.id in rmap.lanes]
+    assert len(written) == len(rmap.lanes) > 2
+    for lane in written:
+        for s in np.linspace(0.0, lane.length, 5):
+            p = np.asarray(lane.geometry.position(s, 0.3), dtype=float)
+            rid, lid, s_road, offset = lane_position(rmap, lane.id, *p)
+            # 0.3 m left of travel: +0.3 on the t axis in a right lane, -0.3 in a left lane
+            side = 1.0 if lid < 0 else -1.0
+            assert (rid, lid) == rmap.lanes[lane.id]
+            assert offset == pytest.approx(0.3 * side, abs=1e-9)
+            assert np.hypot(*(np.array(world_xy(rmap, rid, lid, s_road, offset)) - p)) < 1e-9
+
+
 def test_osi_trace_is_named_by_convention_and_reads_back(tmp_path):
     from pytest_avscenario.export.osi import read_trace
 

@@ -23,7 +23,7 @@ coordinate changes. What is written per road kind:
   ``connection`` per connecting road. Crosswalks, stop lines and the speed limit are not
   written.
 
-Every built road but the highway also records its reference line and lane centres
+Every built road also records its reference line and lane centres
 (:attr:`RoadMap.refs`, :attr:`RoadMap.centre_t`), so :func:`lane_position` places a world
 point by road, lane, s and offset (OpenSCENARIO's ``LanePosition``) and :func:`world_xy`
 goes back.
@@ -216,6 +216,20 @@ def _highway(odr: Any, road: Any, rmap: RoadMap) -> None:
     odr.add_road(_road(1, 0.0, w / 2, 0.0,
                        [xodr.Line(g[1]) if g[0] == "line" else xodr.Arc(g[2], length=g[1])
                         for g in geoms], sections, "highway"))
+    x, y, h, s0 = 0.0, w / 2, 0.0, 0.0
+    pieces = []
+    for g in geoms:  # where each piece starts, for LanePositions
+        k = 0.0 if g[0] == "line" else g[2]
+        pieces.append((s0, x, y, h, g[1], k))
+        if k == 0.0:
+            x, y = x + g[1] * math.cos(h), y + g[1] * math.sin(h)
+        else:
+            h1 = h + k * g[1]
+            x, y, h = x + (math.sin(h1) - math.sin(h)) / k, y - (math.cos(h1) - math.cos(h)) / k, h1
+        s0 += g[1]
+    rmap.refs[1] = pieces
+    n = max(len(lanes) for lanes in road.segments)
+    rmap.centre_t = {(1, -(i + 1)): -(i + 0.5) * w for i in range(n)}
     if road.ramps:
         rmap.notes.append(f"{len(road.ramps)} on-ramp(s) not written; agents on them follow "
                           "their recorded trajectories")
