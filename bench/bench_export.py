@@ -53,7 +53,6 @@ print(cpu() - c0)
 
 
 def cases():
-    import numpy as np  # noqa: F401
 
     from pytest_avscenario.case import Case
     from pytest_avscenario.sim import behaviors as b
