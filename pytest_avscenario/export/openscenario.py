@@ -6,7 +6,10 @@ its recorded :class:`~pytest_avscenario.trajectory.Trajectory`):
 * ``ParameterDeclarations``: the case's parameters with their values (units in a comment:
   OpenSCENARIO 1.x declarations carry no unit);
 * ``Entities``: every agent, vehicles with their size, pedestrians;
-* ``Init``: each agent's recorded state at its first step (position, heading, speed);
+* ``Init``: each agent's recorded state at its first step (position, heading, speed), the
+  position as a ``LanePosition`` on the road written (or the map referenced) where the agent
+  is on one of its lanes, else a ``WorldPosition``; an agent whose route runs through a
+  junction also gets it as an ``AssignRouteAction``;
 * the ``Storyboard``: behaviours the format has one-to-one written as actions with their
   triggers (:data:`MAPPED`), the ego's recorded trajectory as a timed
   ``FollowTrajectoryAction`` (a team replaces it with its own controller; a comment says so),
@@ -56,6 +59,7 @@ class Export:
     actions: dict[str, str] = field(default_factory=dict)
     trajectories: dict[str, str] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    routes: dict[str, list[str]] = field(default_factory=dict)  # name -> its lanes (AssignRouteAction)
 
 
 def rear_axle(x: Any, y: Any, heading: Any, length: Any) -> tuple[Any, Any]:
@@ -72,9 +76,9 @@ def centre_from_rear_axle(x: Any, y: Any, heading: Any, length: Any) -> tuple[An
 
 
 def _xosc() -> Any:
-    from scenariogeneration import xosc
+    from ._writers import load
 
-    return xosc
+    return load()[1]
 
 
 def _param_type(value: Any, minor: int) -> tuple[Any, str]:
@@ -208,6 +212,50 @@ def _world_position(x: float, y: float, h: float) -> Any:
     return _xosc().WorldPosition(float(x), float(y), 0.0, float(h), 0.0, 0.0)
 
 
+def _nm(v: float) -> float:
+    """A length [m] to the nanometre: what a projection leaves below that is rounding noise."""
+    return round(float(v), 9) + 0.0
+
+
+def _start_position(rmap: Any, lane_id: str, x: float, y: float, h: float) -> Any:
+    """Where an agent starts: a ``LanePosition`` (road, lane, s, offset from the lane's centre
+    along the road's t axis; heading absolute) when the point lies on a road the export
+    wrote or the map it references, else a ``WorldPosition``."""
+    from .opendrive import lane_position
+
+    xosc = _xosc()
+    at = lane_position(rmap, lane_id, float(x), float(y))
+    if at is None:
+        return _world_position(x, y, h)
+    rid, lid, s, offset = at
+    return xosc.LanePosition(_nm(s), _nm(offset), int(lid), str(rid),
+                             xosc.Orientation(h=float(h), reference=xosc.ReferenceContext.absolute))
+
+
+def _route(rmap: Any, agent: Any, name: str) -> Any:
+    """The agent's planned lanes as an OpenSCENARIO ``Route`` (a waypoint at the middle of
+    each lane) when it runs through a junction the export wrote, else None."""
+    from .opendrive import lane_position
+
+    xosc = _xosc()
+    plan = list(getattr(agent, "plan", None) or ())
+    if len(plan) < 2 or not any(getattr(l, "kind", "") == "connector" or getattr(l, "junction", "")
+                                for l in plan):
+        return None
+    route = xosc.Route(f"{name}_route")
+    for lane in plan:
+        g = lane.geometry
+        mid = float(g.length) / 2
+        px, py = (float(v) for v in g.position(mid, 0.0))
+        at = lane_position(rmap, lane.id, px, py)
+        if at is None:
+            return None
+        rid, lid, s, offset = at
+        route.add_waypoint(xosc.LanePosition(_nm(s), _nm(offset), int(lid), str(rid)),
+                           xosc.RouteStrategy.shortest)
+    return route
+
+
 def _follow_trajectory(name: str, t: np.ndarray, x: np.ndarray, y: np.ndarray,
                        h: np.ndarray) -> Any:
     xosc = _xosc()
@@ -220,7 +268,7 @@ def _follow_trajectory(name: str, t: np.ndarray, x: np.ndarray, y: np.ndarray,
 
 
 def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, str] | None = None,
-                  road_file: str, rmap: Any, title: str = "counterexample",
+                  road_file: str | None, rmap: Any, title: str = "counterexample",
                   description: str = "", minor: int = 3) -> Export:
     """The OpenSCENARIO document of ``world`` (run, with its trajectory) for a case with
     ``params`` (``units``: parameter -> unit text), its road in ``road_file`` (a path relative
@@ -261,11 +309,16 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
         if kind != "pedestrian":
             x, y = rear_axle(x, y, h, L)
         k0 = steps[0]
-        init.add_init_action(name, xosc.TeleportAction(_world_position(x[0], y[0], h[0])))
+        agent = agents.get(name)
+        init.add_init_action(name, xosc.TeleportAction(
+            _start_position(rmap, str(traj.lane[i, k0]), x[0], y[0], h[0])))
+        route = _route(rmap, agent, name)
+        if route is not None:
+            init.add_init_action(name, xosc.AssignRouteAction(route))
+            out.routes[name] = [lane.id for lane in agent.plan]
         init.add_init_action(name, xosc.AbsoluteSpeedAction(
             float(traj.speed[i, k0]), xosc.TransitionDynamics(
                 xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)))
-        agent = agents.get(name)
         mapped = None
         why = ""
         if kind == "ego":

@@ -12,6 +12,9 @@ y north, yaw counter-clockwise), the ego as host vehicle 1. The road's lanes and
 boundaries are static for a case and go in the first message's ground truth only: with them
 in every message a 15-s trace at an intersection (151 frames) is 2.9 MB, without 88 kB (a
 reader keeps them from the first message, as OSI's static ground truth is meant to be kept).
+Only the lanes within :data:`LANE_RADIUS` (50 m) of the ego's recorded path, and those an
+agent was recorded on, go in: on a map (Town06: 1,000+ lanes over kilometres) the whole
+network would make every trace megabytes, most of it roads the case never came near.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from __future__ import annotations
 import datetime as _dt
 import re
 import struct
+from types import SimpleNamespace
 from typing import Any, Iterator
 
 import numpy as np
@@ -44,6 +48,28 @@ def trace_name(frames: int, custom: str, when: _dt.datetime | None = None) -> st
     return f"{when.strftime('%Y%m%dT%H%M%SZ')}_sv_{osi}_{proto}_{int(frames)}_{custom}.osi"
 
 
+#: [m] lanes whose centre line comes this close to the ego's recorded path go in the trace
+LANE_RADIUS = 50.0
+
+
+def lanes_near_path(lanes: Any, traj: Any, radius: float = LANE_RADIUS) -> tuple:
+    """The lanes (of a :class:`~pytest_avscenario.sim.view.SceneView`) within ``radius`` [m]
+    of the ego's recorded path, and every lane an agent was recorded on, in their order."""
+    from shapely import LineString, Point, STRtree
+
+    keep = {str(v) for v in np.asarray(traj.lane).ravel().tolist() if v}
+    ok = np.asarray(traj.present[0], dtype=bool) & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+    xy = np.stack([traj.x[0][ok], traj.y[0][ok]], axis=1)
+    lanes = tuple(lanes)
+    if len(xy):
+        path = LineString(xy) if len(np.unique(xy, axis=0)) > 1 else Point(xy[0])
+        tree = STRtree([LineString(l.centre_line) if len(l.centre_line) > 1
+                        else Point(l.centre_line[0]) for l in lanes])
+        keep.update(lanes[int(k)].id for k in tree.query(path, predicate="dwithin",
+                                                         distance=radius))
+    return tuple(l for l in lanes if l.id in keep)
+
+
 def trace_bytes(world: Any) -> tuple[bytes, int]:
     """The ``.osi`` contents of ``world``'s recording (every step, agents present then; the
     lanes in the first message) and the number of frames."""
@@ -52,9 +78,11 @@ def trace_bytes(world: Any) -> tuple[bytes, int]:
     traj = world.trajectory
     if traj is None:
         raise ValueError("the world has not run: no recording to trace")
-    static = frame.lane_ground_truth(world.view())
+    view = world.view()
+    near = lanes_near_path(view.lanes, traj)
+    static = frame.lane_ground_truth(SimpleNamespace(lanes=near))
     ids = {name: i + 1 for i, name in enumerate(traj.names)}  # ego first: host vehicle 1
-    lane_ids = {lane.id: frame.LANE_ID0 + i for i, lane in enumerate(world.view().lanes)}
+    lane_ids = {lane.id: frame.LANE_ID0 + i for i, lane in enumerate(near)}
     acc = np.zeros_like(traj.speed)
     if traj.n_steps > 1:
         acc[:, :-1] = np.diff(traj.speed, axis=1) / np.diff(traj.t)

@@ -278,7 +278,7 @@ def _metric_table(row: CaseRow, metrics: Sequence[str]) -> str:
 EXPORT_CAPTIONS = {
     "xosc": "OpenSCENARIO 1.3 scenario (esmini and most tools)",
     "xosc_1_0": "the same in OpenSCENARIO 1.0 (CARLA ScenarioRunner)",
-    "xodr": "OpenDRIVE 1.7 road",
+    "xodr": "OpenDRIVE road (the built road in 1.7, or a copy of the map the case ran on)",
     "osi": "OSI SensorView trace",
 }
 

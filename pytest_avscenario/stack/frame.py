@@ -174,6 +174,8 @@ def lane_ground_truth(view: Any) -> bytes:
         if right is not None:
             cl.right_adjacent_lane_id.add().value = right
         for succ in lane.successors:
+            if succ not in ids:  # a lane left out of this view (an export near the ego's path)
+                continue
             pair = cl.lane_pairing.add()
             pair.successor_lane_id.value = ids[succ]
         rb, lb = BOUNDARY_ID0 + 2 * i, BOUNDARY_ID0 + 2 * i + 1
