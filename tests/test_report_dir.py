@@ -204,6 +204,24 @@ def test_xdist_workers_case_pictures_land_in_the_claimed_directory(pytester, mon
     assert "<input type='range'" in card_page and [a["name"] for a in replay["agents"]] == ["ego", "car1"]
 
 
+def test_a_second_run_clears_the_first_runs_exports_and_keeps_a_users_files(pytester):
+    """The OpenSCENARIO/OpenDRIVE files and the OSI trace a run exported are the plugin's own:
+    the next run in the folder removes them like its pictures (here it exports nothing), and a
+    user's files of the same kinds stay."""
+    pytester.makepyfile(test_gap=FAILING_WORLD)
+    cases = pytester.path / "avs-report" / "cases"
+    common = ("--avs-db=none", "--avs-shrink-budget=0", "--avs-gifs=0", "-p", "no:cacheprovider")
+    pytester.runpytest(*common).assert_outcomes(passed=3, failed=1)
+    exported = sorted(p.name for p in cases.iterdir() if p.suffix in (".xosc", ".xodr", ".osi"))
+    assert sorted(p.rpartition(".")[2] for p in exported) == ["osi", "xodr", "xosc", "xosc"]
+    for name in ("mine.xosc", "mine.xodr", "drive.osi"):
+        (cases / name).write_text("mine")
+    pytester.runpytest(*common, "--avs-export=none").assert_outcomes(passed=3, failed=1)
+    assert sorted(p.name for p in cases.iterdir() if p.suffix in (".xosc", ".xodr", ".osi")) == [
+        "drive.osi", "mine.xodr", "mine.xosc"]
+    assert all((cases / n).read_text() == "mine" for n in ("mine.xosc", "mine.xodr", "drive.osi"))
+
+
 # --------------------------------------------------------------------------- item 3
 
 ODD = """

@@ -66,9 +66,13 @@ _MAX_MANIFEST = 256 * 1024 * 1024
 _SUB = {
     TABLES_DIR: re.compile(r"[^/]+-[0-9a-f]{8}(\.shrink)?\.csv"),
     "plots": re.compile(r"[^/]+-[0-9a-f]{8}\.(space|rho)\.png"),
-    # a case's pictures, recording and card: "<slug>-<hash>[.<kind>].(png|gif|json|html)";
+    # a case's pictures, recording, card and exports: "<slug>-<hash>[.<kind>].(png|gif|json|
+    # html|xosc|xodr)" (a map copied beside the exports: "<map>-<hash>.xodr"); its OSI trace,
+    # named by OSI's convention: "<UTC time>_sv_<OSI>_<protobuf>_<frames>_<slug>-<hash>.osi";
     # the cards' shared replay player: "replay-<hash>.js"
-    "cases": re.compile(r"[^/]+-[0-9a-f]{8}(\.[A-Za-z0-9_.-]+)?\.(png|gif|json|html)|replay-[0-9a-f]{8}\.js"),
+    "cases": re.compile(r"[^/]+-[0-9a-f]{8}(\.[A-Za-z0-9_.-]+)?\.(png|gif|json|html|xosc|xodr)"
+                        r"|[0-9]{8}T[0-9]{6}Z_sv_[0-9]+_[0-9]+_[0-9]+_[A-Za-z0-9-]+-[0-9a-f]{8}\.osi"
+                        r"|replay-[0-9a-f]{8}\.js"),
 }
 
 
