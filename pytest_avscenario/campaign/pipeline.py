@@ -105,19 +105,11 @@ def starts_unsafe(outcome: CaseOutcome) -> bool:
     """The ego and another agent are in an RSS-dangerous situation at t = 0 (both distances
     unsafe): nobody entered it, no driver is to blame. A remote outcome without its trajectory
     answers with what its worker judged (``CaseOutcome.start_unsafe``)."""
-    traj = outcome.trajectory
-    if traj is None:
+    if outcome.trajectory is None:
         return bool(outcome.start_unsafe)
-    if traj.n_agents < 2 or traj.n_steps < 1:
-        return False
-    from ..monitors import MonitorError
-    from ..monitors.rss import rss_margins
+    from ..monitors.rss import starts_unsafe as unsafe_at_start
 
-    try:
-        lon, lat = rss_margins(traj)
-    except (MonitorError, ValueError, FloatingPointError):
-        return False
-    return bool(((lon[:, 0] < 0) & (lat[:, 0] < 0)).any())
+    return unsafe_at_start(outcome.trajectory)
 
 
 @dataclass

@@ -140,10 +140,10 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
     body = func if fields.timeout_s is None else _bounded(func, float(fields.timeout_s))
     outcome = run_case(body, spec.argnames, fixtures, case, spec.monitor_set, make_world)
     outcome.worker_pid = os.getpid()
-    if fields.judge_start:
-        from ..campaign.pipeline import starts_unsafe
+    if fields.judge_start and outcome.trajectory is not None:
+        from ..monitors.rss import starts_unsafe
 
-        outcome.start_unsafe = starts_unsafe(outcome)
+        outcome.start_unsafe = starts_unsafe(outcome.trajectory)
     return outcome  # pickles without its world, and its trajectory unless it failed
 
 

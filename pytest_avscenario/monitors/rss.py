@@ -80,7 +80,7 @@ from .base import (
 )
 
 __all__ = [
-    "RSSParams", "rss", "rss_blame", "RSSBlame", "RSSEpisode", "rss_margins",
+    "RSSParams", "rss", "rss_blame", "RSSBlame", "RSSEpisode", "rss_margins", "starts_unsafe",
     "safe_longitudinal_distance", "safe_opposite_distance", "safe_lateral_distance",
 ]
 
@@ -284,6 +284,19 @@ def _decisive(pr: _Pairs) -> np.ndarray:
     the number meaningful where the other distance can only be unsafe."""
     lon, lat = pr.lon_margin, pr.lat_margin
     return np.where(pr.lat_gap <= 0.0, lon, np.where(pr.lon_gap <= 0.0, lat, np.maximum(lon, lat)))
+
+
+def starts_unsafe(trajectory: Trajectory) -> bool:
+    """Whether the ego and another agent are in an RSS-dangerous situation at t = 0 (both
+    distances unsafe): nobody entered it, no driver is to blame. False when it cannot be
+    judged (fewer than two agents, no sample, a trajectory the margins reject)."""
+    if trajectory.n_agents < 2 or trajectory.n_steps < 1:
+        return False
+    try:
+        lon, lat = rss_margins(trajectory)
+    except (MonitorError, ValueError, FloatingPointError):
+        return False
+    return bool(((lon[:, 0] < 0) & (lat[:, 0] < 0)).any())
 
 
 def rss_margins(trajectory: Trajectory, params: RSSParams | None = None, *,
