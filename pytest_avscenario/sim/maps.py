@@ -170,6 +170,19 @@ def _shape_class() -> type:
                 f = min(max(f, 0.0), 1.0)
                 return self._wl[k] + f * (self._wl[k + 1] - self._wl[k])
 
+            def positions(self, ss: Any, lateral: float = 0.0) -> np.ndarray:
+                """``position(s, lateral)`` for every ``s`` of ``ss`` [m] as an (N, 2) array
+                [m], vectorized with the same arithmetic (bit-identical)."""
+                ss = np.asarray(ss, dtype=float)
+                k = np.clip(np.searchsorted(self._s, ss, side="right") - 1, 0, len(self._s) - 2)
+                s0, x, y, rh = self._s, self._xy[:, 0], self._xy[:, 1], self._rh
+                f = (ss - s0[k]) / (s0[k + 1] - s0[k])
+                g = np.clip(f, 0.0, 1.0)
+                h = rh[k] + g * (rh[k + 1] - rh[k])
+                lat = float(lateral)
+                return np.stack([x[k] + f * (x[k + 1] - x[k]) - lat * np.sin(h),
+                                 y[k] + f * (y[k + 1] - y[k]) + lat * np.cos(h)], axis=1)
+
             def centre_points(self, ss: Any) -> np.ndarray:
                 """Centre-line points (N, 2) [m] at arc lengths ``ss`` [m] (vectorized)."""
                 ss = np.asarray(ss, dtype=float)
@@ -297,6 +310,10 @@ class MapLaneIndex(LaneIndex):
         self.stop_marks = {}
         self.straight_on = {}
         self.drops: dict[tuple, str] = {}
+        # what the recorder writes of each lane, shared by every world on the map (its lanes
+        # never change): the lane ids by code, and road_meta's entry per lane once computed
+        self.id_array = np.asarray([l.id for l in self.order] + [""])
+        self.lane_records: dict[str, Any] = {}
         boxes = []
         for lane in self.order:
             d = lane.data

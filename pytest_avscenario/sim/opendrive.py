@@ -22,6 +22,7 @@ highway-env; :mod:`.maps` makes highway-env lanes of this data.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import os
@@ -160,14 +161,22 @@ def _caller_dirs() -> list[Path]:
     """The folder of the first caller outside this package (the test module using a map)."""
     import sys
 
-    pkg = str(Path(__file__).resolve().parents[1])
     frame = sys._getframe(1)
     while frame is not None:
         f = frame.f_code.co_filename
-        if f.endswith(".py") and not f.startswith(pkg) and "importlib" not in f:
-            return [Path(f).resolve().parent]
+        if f.endswith(".py") and not f.startswith(_PKG) and "importlib" not in f:
+            return [_folder_of(f)]
         frame = frame.f_back
     return []
+
+
+_PKG = str(Path(__file__).resolve().parents[1])
+
+
+@functools.lru_cache(maxsize=256)
+def _folder_of(source: str) -> Path:
+    # a module's folder, resolved once (every world that loads a map asks, once per case)
+    return Path(source).resolve().parent
 
 
 def load(path: Any, *, base: Any = None, evaluator: str = "numpy") -> MapData:

@@ -20,6 +20,7 @@ import numpy as np
 __all__ = ["RoutePath", "bicycle_steering", "pursuit_steering"]
 
 _ARC_SAMPLE_M = 1.0  # [m] sampling step for curved lanes before resampling (chord error ds²/8R)
+_KBLOCK = 16  # grid points per block of the curvature bound
 
 
 def bicycle_steering(curvature: float, length: float, max_steering: float) -> float:
@@ -165,6 +166,11 @@ class RoutePath:
         k = max(1, int(round(5.0 / self.ds)))
         self.curvature = np.convolve(curv, np.ones(k) / k, mode="same")
         self.max_abs_curvature = float(np.max(np.abs(self.curvature)))
+        # |curvature|'s maximum per block of _KBLOCK points: a bound over any window in a few
+        # list look-ups (most of a map's route is straight enough to need no curve limit)
+        ak = np.abs(self.curvature)
+        pad = (-len(ak)) % _KBLOCK
+        self._kmax = np.concatenate([ak, np.zeros(pad)]).reshape(-1, _KBLOCK).max(axis=1).tolist()
         self.n = len(grid)
         self._xl = self.x.tolist()
         self._yl = self.y.tolist()
@@ -202,6 +208,12 @@ class RoutePath:
         i0 = self.index(s_from)
         i1 = min(self.n, self.index(s_to) + 2)
         return slice(i0, i1)
+
+    def max_curvature_bound(self, w: slice) -> float:
+        """An upper bound of |curvature| [1/m] over the grid indices of ``w`` (a slice from
+        :meth:`window`): the largest of the blocks it touches."""
+        b0, b1 = w.start // _KBLOCK, (max(w.stop, w.start + 1) - 1) // _KBLOCK
+        return max(self._kmax[b0:b1 + 1])
 
     def project_near(self, x: float, y: float, s_guess: float) -> tuple[float, float, float, float]:
         """Arc length, lateral offset [m] and unit tangent of the route point nearest (x, y).
