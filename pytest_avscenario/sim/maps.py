@@ -31,7 +31,8 @@ import numpy as np
 
 from .errors import SimError
 from .lanes import LaneIndex
-from .opendrive import DRIVABLE, LaneData, MapData, MapError, load
+from .opendrive import (DRIVABLE, LaneData, MapData, MapError, default_successor, load,
+                        why_no_successor)
 from .places import Lane, Route, Spot
 
 __all__ = ["MapRoad", "MapLaneShape", "RoadLane", "MapLaneIndex", "DEFAULT_SPEED_LIMIT"]
@@ -144,6 +145,9 @@ def _shape_class() -> type:
                         self._line = (float(self._xy[0, 0]), float(self._xy[0, 1]), float(ux), float(uy),
                                       clen / self.length)
                 self._memo: tuple | None = None
+                # for what other modules compute from this lane alone (the autopilot's route
+                # samples): the lane never changes and is shared by every world on the map
+                self.memo: dict = {}
 
             def _at(self, s: float) -> tuple[int, float]:
                 k = bisect.bisect_right(self._sl, s) - 1
@@ -336,6 +340,7 @@ class MapLaneIndex(LaneIndex):
             self._beside[lane.index] = [o for o in groups[lane.group]
                                         if abs(o.number - lane.number) == 1]
         self.near = {}
+        datas = {l.id: l.data for l in self.order}
         for lane in self.order:
             near: list[RoadLane] = []
             cands = (self.successors[lane.index] + preds[lane.index] + self._beside[lane.index]
@@ -346,8 +351,8 @@ class MapLaneIndex(LaneIndex):
                     near.append(other)
             self.near[lane.index] = tuple(near)
             if self.successors[lane.index]:
-                self.straight_on[lane.index] = min(
-                    self.successors[lane.index], key=lambda s: (_turn(lane, s), s.id))
+                # the rule MapLane(ahead=) checks routes by at collection
+                self.straight_on[lane.index] = by_id[default_successor(lane.data, datas).id]
             elif float(lane.data.width[-1]) < 0.5:
                 # a lane that narrows to nothing with a lane beside it (an acceleration
                 # lane, a lane drop): its traffic merges there (behaviours' keep_lane does)
@@ -367,13 +372,6 @@ class MapLaneIndex(LaneIndex):
         twin.straight_on = dict(self.straight_on)
         twin.drops = dict(self.drops)
         return twin
-
-
-def _turn(a: RoadLane, b: RoadLane) -> float:
-    """How much [rad] driving from ``a`` on through ``b`` turns (a connector's whole turn)."""
-    h0 = float(a.data.heading[-1])
-    h1 = float(b.data.heading[-1])
-    return abs(math.atan2(math.sin(h1 - h0), math.cos(h1 - h0)))
 
 
 @dataclass
@@ -510,7 +508,9 @@ class MapRoad:
             k += 1
         if s > lanes[k].length:
             raise SimError(f"{self.path}: {d:g} m ahead of {spot.lane.id!r} at s={spot.s:g} m "
-                           f"runs past the end of {lanes[k].id!r}, which has no successor",
+                           f"runs past the end of {lanes[k].id!r}, which has no successor "
+                           f"({why_no_successor(self.data, lanes[k].id)}); declare the road "
+                           "needed with MapLane(..., ahead=...) to draw only lanes that have it",
                            test=self.world.name)
         return Spot(lanes[k], s, spot.r)
 
@@ -542,7 +542,8 @@ class MapRoad:
             return [a]
         if not succ.get(a.index):
             raise SimError(f"{self.path}: no way from {a.id!r} to {b.id!r}: {a.id!r} has no "
-                           "successor (the map ends there)", test=self.world.name)
+                           f"successor ({why_no_successor(self.data, a.id)})",
+                           test=self.world.name)
         dist = {a.index: 0.0}
         prev: dict[tuple, RoadLane] = {}
         heap = [(0.0, a.id, a)]
