@@ -216,3 +216,17 @@ def test_the_autopilot_and_the_careful_driver_turn_through_the_junction_in_lane(
     assert tr.lane[0, -1] == "3/0/1" and tr.on_road[0].all()
     assert np.nanmax(np.abs(tr.lane_offset[0])) < 0.6
     assert w.view().lanes and {l.id for l in w.view().lanes} == {l.id for l in town.all_lanes}
+
+
+def test_the_careful_driver_turns_left_across_an_oncoming_car_without_an_error():
+    """An oncoming car crossing the careful driver's path inside a junction comes toward it
+    (a negative speed along its route): it is judged as a standing obstacle would be, never
+    handed to the braking-lead closed form, which takes speeds >= 0 only."""
+    w = World(3, name="t", driver="careful")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    south, north = town.lane("0/0/1"), town.lane("2/0/-1")
+    w.ego(south.at(south.length - 35.0), speed=9.0, route=town.route(south, "3/0/1"))
+    w.car(north.at(north.length - 60.0), speed=13.0, route=town.route(north, "0/0/-1"),
+          name="oncoming")
+    tr = w.run(10)
+    assert tr.n_steps == 101 and tr.lane[0, -1] == "3/0/1"
