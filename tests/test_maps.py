@@ -205,6 +205,27 @@ def test_lane_coordinates_are_the_nearest_foot_whatever_was_asked_before():
                 assert (s, r) == pytest.approx((s_all, r_all), abs=1e-9), lane.id
 
 
+def test_lane_coordinates_near_a_long_curved_lane_are_the_scan_of_every_segment():
+    """On lanes of many blocks a point near the centre line finds its blocks in a grid cell
+    (points further out measure every block): both give exactly the scan's answer."""
+    town = World(0, name="t").map(Path(__file__).parents[1] / "example_tests" / "maps"
+                                  / "Town06.xodr")
+    curved = [l for l in town.all_lanes if len(l.geometry._bl) > 8 and l.geometry._line is None]
+    assert len(curved) >= 20
+    rng = np.random.default_rng(7)
+    near = 0
+    for lane in curved[::6]:
+        g = lane.geometry
+        for s, r in zip(rng.uniform(-2, g.length + 2, 25), rng.uniform(-9, 9, 25)):
+            x, y = (float(v) for v in g.position(s, r))
+            d2, s_all, r_all = g._foot(x, y, 0, g._nseg)
+            got = g._local(x, y)
+            near += g._local_near(x, y) is not None
+            if d2 < 1e9:
+                assert got == (s_all, r_all), (lane.id, s, r)
+    assert near > 50
+
+
 @pytest.mark.parametrize("driver", ["autopilot", "careful"])
 def test_the_autopilot_and_the_careful_driver_turn_through_the_junction_in_lane(driver):
     w = World(2, name="t", driver=driver)

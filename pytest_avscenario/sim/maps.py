@@ -39,6 +39,8 @@ __all__ = ["MapRoad", "MapLaneShape", "RoadLane", "MapLaneIndex", "DEFAULT_SPEED
 
 DEFAULT_SPEED_LIMIT = 13.9  # [m/s] (50 km/h) for lanes whose file gives no limit
 _BLOCK = 10  # segments per block of MapLaneShape's nearest-foot search
+_CELL = 5.0  # [m] grid cell of the nearest-foot search's block lists
+_NEAR = 4.0  # [m] points this close to a lane's centre line find its blocks in their cell
 
 
 def _abstract_lane() -> type:
@@ -145,6 +147,7 @@ def _shape_class() -> type:
                         self._line = (float(self._xy[0, 0]), float(self._xy[0, 1]), float(ux), float(uy),
                                       clen / self.length)
                 self._memo: tuple | None = None
+                self._grid: dict | None = None  # see _local_near, made on first use
                 # for what other modules compute from this lane alone (the autopilot's route
                 # samples): the lane never changes and is shared by every world on the map
                 self.memo: dict = {}
@@ -214,6 +217,10 @@ def _shape_class() -> type:
                 # that hold it (0 <= f <= 1), the nearest. The block whose bounding circle is
                 # nearest is searched first, then only blocks that could hold a nearer foot:
                 # the same answer as a scan of every segment, whatever was asked before.
+                if len(self._bl) > 8:
+                    got = self._local_near(px, py)
+                    if got is not None:
+                        return got
                 if len(self._bl) <= 8:  # few blocks: plain Python beats numpy's call overhead
                     lower = [math.hypot(cx - px, cy - py) - r for cx, cy, r in self._bl]
                     b0 = min(range(len(lower)), key=lower.__getitem__)
@@ -234,6 +241,46 @@ def _shape_class() -> type:
                         if (got[0], got[3]) < (best[0], best[3]):
                             best = got
                 return best[1], best[2]
+
+            def _local_near(self, px: float, py: float) -> tuple[float, float] | None:
+                # A point within _NEAR of the centre line (a vehicle on or beside the lane):
+                # every block that could hold its foot is listed in its cell of a grid made
+                # once, so the blocks are not all measured. Searched nearest first, stopping
+                # when no further block can hold a nearer foot: the same answer as a scan of
+                # every segment. None for a point further out (the caller scans).
+                grid = self._grid
+                if grid is None:
+                    grid = self._grid = self._make_grid()
+                cell = grid.get((math.floor(px / _CELL), math.floor(py / _CELL)))
+                if cell is None:
+                    return None
+                bl = self._bl
+                order = sorted((math.hypot(bl[b][0] - px, bl[b][1] - py) - bl[b][2], b)
+                               for b in cell)
+                best = None
+                reach = math.inf
+                for lo, b in order:
+                    if lo > reach:
+                        break
+                    got = self._foot(px, py, *self._blocks[b]) + (b,)
+                    if best is None or (got[0], got[3]) < (best[0], best[3]):
+                        best = got
+                        if best[0] < 1e9:
+                            reach = math.sqrt(best[0])
+                if best is None or best[0] > _NEAR * _NEAR:
+                    return None
+                return best[1], best[2]
+
+            def _make_grid(self) -> dict:
+                # cell -> the blocks whose bounding circle comes within _NEAR of the cell
+                grid: dict[tuple[int, int], list[int]] = {}
+                for b, (cx, cy, r) in enumerate(self._bl):
+                    e = r + _NEAR
+                    for ix in range(math.floor((cx - e) / _CELL), math.floor((cx + e) / _CELL) + 1):
+                        for iy in range(math.floor((cy - e) / _CELL),
+                                        math.floor((cy + e) / _CELL) + 1):
+                            grid.setdefault((ix, iy), []).append(b)
+                return grid
 
             def _foot(self, px: float, py: float, i: int, j: int) -> tuple[float, float, float]:
                 """(squared distance, s, r) of the foot on segments i..j-1, 1e9 added to the
