@@ -7,8 +7,9 @@ drives over) and a pedestrian crossing the ego's path (so post-encroachment time
 crossing to measure). Every call gets a fresh copy of the trajectory, so the per-trajectory
 caches (lane projections, lead kinematics) are paid in every repetition, as in a run. The
 anchor is the paper's four metrics on the same trajectory in the same process.
-Times are CPU time of the calling thread (median). Target: all new monitors together under
-2 ms.
+Times are CPU time of the calling thread (median; the minimum beside it is what a quiet
+machine approaches). Target: all new monitors together under 2 ms, printed as PASS / MISS with
+the ratio to the anchor.
 
     python bench/bench_criteria.py [--steps 300] [--agents 5] [--repeat 200]
 """
@@ -91,15 +92,17 @@ def fresh(traj: Trajectory) -> Trajectory:
     return dataclasses.replace(traj)  # a new object: the per-trajectory caches start cold
 
 
-def time_ms(fn, repeat: int) -> float:
-    """Median CPU time [ms] of one call: the thread's own CPU clock, since on a machine shared
-    by many processes the wall clock mostly measures waiting for a core."""
+def time_ms(fn, repeat: int, *, both: bool = False):
+    """Median CPU time [ms] of one call (with ``both``: median and minimum): the thread's
+    own CPU clock, since on a machine shared by many processes the wall clock mostly
+    measures waiting for a core."""
     out = []
     for _ in range(repeat):
         t0 = time.thread_time()
         fn()
         out.append(time.thread_time() - t0)
-    return 1000 * statistics.median(out)
+    med = 1000 * statistics.median(out)
+    return (med, 1000 * min(out)) if both else med
 
 
 def main() -> None:
@@ -130,15 +133,16 @@ def main() -> None:
         new_all(), paper()
     each = {name: time_ms(lambda m=m: m.evaluate(fresh(traj)), args.repeat)
             for name, m in NEW.items()}
-    a = time_ms(new_all, args.repeat)
+    a, a_min = time_ms(new_all, args.repeat, both=True)
     s = time_ms(lambda: driving_score(fresh(traj)), args.repeat)
-    p = time_ms(paper, args.repeat)
+    p, p_min = time_ms(paper, args.repeat, both=True)
     for name, ms in each.items():
         print(f"  {name:24s} {ms:7.3f} ms (alone, cold caches)")
-    print(f"all {len(NEW)} new monitors together: {a:.3f} ms (target < 2 ms: "
-          f"{'ok' if a < 2 else 'MISSED'})")
     print(f"driving score alone: {s:.3f} ms")
-    print(f"anchor, the paper's four metrics: {p:.3f} ms; new / anchor = {a / p:.1f}")
+    print(f"anchor, the paper's four metrics: {p:.3f} ms (min {p_min:.3f})")
+    print(f"all {len(NEW)} new monitors together: {a:.3f} ms (min {a_min:.3f}); "
+          f"new / anchor = {a / p:.2f} (min / min {a_min / p_min:.2f}); "
+          f"target <= 2 ms: {'PASS' if a <= 2.0 else 'MISS'}")
 
 
 if __name__ == "__main__":

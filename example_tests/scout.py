@@ -31,6 +31,7 @@ FRAME_VIEWS = {
     "test_03_parallel_parking": "122,-2,50",
     "test_06_pedestrian_crossing": "112,0,60",
     "test_maps_fabriksgatan_left_turn": "22,-6,70",
+    "test_maps_town06_red_light": "140,16,100",
 }
 
 

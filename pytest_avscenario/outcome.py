@@ -57,6 +57,10 @@ class CaseOutcome:
     first: dict[str, Any] = field(default_factory=dict)
     #: the run's driving score (``DrivingScore.to_json()``); None without a road to score on
     score: dict[str, Any] | None = None
+    #: the ego and another agent both RSS-unsafe at t = 0 (``campaign.pipeline.starts_unsafe``),
+    #: judged where the trajectory was recorded when a campaign discards unfair cases;
+    #: None: not judged here (the trajectory, if any, answers)
+    start_unsafe: bool | None = None
 
     @property
     def signature(self) -> tuple[Any, ...]:
@@ -78,8 +82,10 @@ class CaseOutcome:
     # -- crossing a process boundary (Dask) ---------------------------------------------
     def __getstate__(self) -> dict[str, Any]:
         state = {f.name: getattr(self, f.name) for f in fields(self)}
-        state.update(trajectory=None, world=None, exc=_pack_exception(self.exc),
-                     worker_pid=self.worker_pid or os.getpid())
+        # a counterexample keeps its recording (~40 kB): who entered an unsafe state first
+        # and the crash partner are judged from it where the campaign runs, as in process
+        state.update(trajectory=self.trajectory if self.verdict == "fail" else None, world=None,
+                     exc=_pack_exception(self.exc), worker_pid=self.worker_pid or os.getpid())
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:

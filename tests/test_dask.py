@@ -434,14 +434,18 @@ def test_search(case, world):
 """
 
 
-def test_an_active_campaign_on_the_cluster_is_the_local_campaign_case_by_case(pytester, cluster_address):
+@pytest.mark.parametrize("unavoidable", ["keep", "discard"])
+def test_an_active_campaign_on_the_cluster_is_the_local_campaign_case_by_case(pytester, cluster_address,
+                                                                              unavoidable):
     """A bandit on two Dask workers gives every case id the parameters, seed, robustness and
     verdict of the local serial run (it once asked ahead as many cases as the cluster ran at
-    once, and learnt of each late: 49 of the example suite's 75 bandit cases differed)."""
+    once, and learnt of each late: 49 of the example suite's 75 bandit cases differed). With
+    ``unavoidable="discard"`` too: a case that starts RSS-unsafe is judged on its worker (its
+    trajectory stays there) and the bandit is told nothing of it, as locally."""
     pytester.makepyfile(test_search=ACTIVE)
     _wait_for_both_workers(cluster_address)  # two workers: room to run cases side by side
     common = ("-p", "no:cacheprovider", "--avs-seed=3", "--avs-db=none", "--avs-shrink-budget=0",
-              "--avs-report=none")
+              "--avs-report=none", f"--avs-unavoidable={unavoidable}")
     pytester.runpytest_subprocess(*common, "--junitxml=local.xml")
     pytester.runpytest_subprocess(*common, "--avs-executor=dask", f"--avs-dask-address={cluster_address}",
                                   "--junitxml=dask.xml")

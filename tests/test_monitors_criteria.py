@@ -4,7 +4,9 @@ on a simulated intersection."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +29,7 @@ from pytest_avscenario.monitors import (
     time_to_steer,
     wrong_way,
 )
+from pytest_avscenario.monitors import criticality as cr
 from pytest_avscenario.monitors.criticality import (
     ettc_values,
     required_deceleration_values,
@@ -348,3 +351,179 @@ def test_score_criteria_read_from_text_and_checked():
             parse_accept(bad)
     with pytest.raises(ValueError):
         min_score(-0.1)
+
+
+
+# -- on map roads ------------------------------------------------------------------------------
+
+MAPS = Path(__file__).parent / "data" / "maps"
+SHARED_MAPS = Path(__file__).parents[1].parent / "shared" / "maps"
+
+
+def _swerve_to(y_target):
+    """A policy holding its speed (no acceleration) and steering the ego's centre onto the
+    line y = ``y_target`` [m] (a road along +x)."""
+    def policy(obs):
+        e = obs.ego
+        return 0.0, float(np.clip(0.08 * (y_target - e.y) - 0.8 * math.sin(e.heading), -0.2, 0.2))
+    return policy
+
+
+def _drift_to(r_target, after):
+    """A policy holding its speed and steering, from ``after`` [s] on, to ``r_target`` [m]
+    left of its lane's centre line (damped on the offset's rate)."""
+    prev = {}
+
+    def policy(obs):
+        rate = (obs.r - prev["r"]) / obs.dt if "r" in prev else 0.0
+        prev["r"] = obs.r
+        goal = r_target if obs.t >= after else 0.0
+        return 0.0, float(np.clip(0.06 * (goal - obs.r) - 0.35 * rate, -0.15, 0.15))
+    return policy
+
+
+def _metres(traj, at):
+    """Metres the ego drove into the samples ``at`` (from the sample before each)."""
+    d = np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0]))
+    return float(d[at[1:]].sum())
+
+
+def test_rules_and_criticality_on_a_map_road_with_lanes_both_ways():
+    """straight_500m.xodr: lane 1/0/-1 runs east at y = -1.535, lane 1/0/1 west at y = +1.535
+    (3.07 m wide each, the centre line y = 0 between them). The ego (10 m/s, no
+    acceleration) swerves into the westbound lane toward a car parked there at x = 150."""
+    from pytest_avscenario.sim import World
+
+    w = World(0, name="t_map")
+    road = w.map(MAPS / "straight_500m.xodr")
+    w.ego(road.lane("1/0/-1"), s=50, speed=10, driver=_swerve_to(1.535))
+    w.parked_car(road.lane("1/0/1"), s=350, name="parked")  # 350 m from x = 500: x = 150
+    traj = w.run(8)
+    assert set(traj.meta["lanes"]) >= {"1/0/1", "1/0/-1"} and traj.meta["ego_route"] == ["1/0/-1"]
+    # against the lane from the first sample whose centre is north of y = 0
+    west = traj.y[0] > 0
+    k = int(np.argmax(west))
+    assert west[k:].all()
+    for mon in (wrong_way(), outside_route_lanes()):
+        r = mon.evaluate(traj)
+        assert r.t == pytest.approx(traj.t[k]) and r.rho == pytest.approx(-_metres(traj, west))
+    assert off_road().evaluate(traj).rho == 0.0 and on_sidewalk().evaluate(traj).rho == 0.0
+    # along the 500-m route from x = 50 to where the ego ends
+    x0, x1 = traj.x[0, 0], traj.x[0, -1]
+    assert route_completion(1.0).evaluate(traj).rho == pytest.approx((x1 - x0) / (500 - x0) - 1)
+    assert min_speed_route(0.5).evaluate(traj).rho == math.inf  # no moving traffic
+    # the parked car ahead in its lane, at the end: gap g, speed v, no accelerations
+    g = traj.x[1, -1] - x1 - (traj.length[0] + traj.length[1]) / 2
+    v = float(np.hypot(traj.vx[0, -1], traj.vy[0, -1]))
+    d = (traj.width[0] + traj.width[1]) / 2 - abs(traj.y[1, -1] - traj.y[0, -1])
+    expect = {ettc(2.0): g / v - 2.0, required_deceleration(4.0): 4.0 - v * v / (2 * g),
+              brake_threat_number(1.0): 1.0 - v * v / (2 * g) / 8.0,
+              time_to_brake(1.0): (g - v * v / 16.0) / v - 1.0,  # until v²/(2(g - vτ)) > 8
+              time_to_steer(0.5): g / v - math.sqrt(2 * d / 5.0) - 0.5}
+    for mon, rho in expect.items():
+        r = mon.evaluate(traj)
+        assert r.agent == "parked" and r.t == pytest.approx(traj.t[-1])
+        assert r.rho == pytest.approx(rho, abs=2e-3 if mon.name == "time_to_brake" else 1e-4)
+    assert post_encroachment_time(1.0).evaluate(traj).rho == math.inf  # nothing crosses
+
+
+def test_on_sidewalk_is_the_maps_own_sidewalk():
+    """fabriksgatan.xodr: beside the 3.5-m driving lane 3/0/-1 (straight) lie a 0.3-m border
+    and a 2-m sidewalk. The ego drifts right off the road: the border is off the road but
+    not sidewalk; the sidewalk starts 1.75 + 0.3 m right of the lane's centre line."""
+    from pytest_avscenario.sim import World
+
+    w = World(0, name="t_map")
+    town = w.map(MAPS / "fabriksgatan.xodr")
+    w.ego(town.lane("3/0/-1"), s=10, speed=8, driver=_drift_to(-3.05, after=1.0))
+    traj = w.run(9)
+    assert traj.meta["lanes"]["3/0/-3"]["kind"] == "sidewalk"
+    r_off = traj.lane_offset[0]  # the simulator's own offset from the lane's centre line
+    assert set(traj.lane[0]) == {"3/0/-1"} and r_off.min() < -2.3
+    walk = (r_off < -(1.75 + 0.3)) & (r_off >= -(1.75 + 0.3 + 2.0))
+    r = on_sidewalk().evaluate(traj)
+    assert r.t == pytest.approx(traj.t[np.argmax(walk)]) and walk.sum() >= 5
+    assert r.rho == pytest.approx(-_metres(traj, walk))
+    off = off_road().evaluate(traj)
+    assert off.t == pytest.approx(traj.t[np.argmax(r_off < -1.75)]) and off.t < r.t
+    assert outside_route_lanes().evaluate(traj).t == off.t
+    assert wrong_way().evaluate(traj).rho == 0.0
+
+
+def test_a_maps_shoulder_is_off_the_road_but_no_sidewalk():
+    """straight_500m.xodr has a 1.68-m shoulder beside each driving lane and no sidewalk."""
+    from pytest_avscenario.sim import World
+
+    w = World(0, name="t_map")
+    road = w.map(MAPS / "straight_500m.xodr")
+    w.ego(road.lane("1/0/-1"), s=50, speed=10, driver=_swerve_to(-1.535 - 1.535 - 0.84))
+    traj = w.run(6)
+    assert traj.y[0].min() < -3.4 and not traj.on_road[0].all()
+    assert off_road().evaluate(traj).rho < 0 and on_sidewalk().evaluate(traj).rho == 0.0
+
+
+@pytest.mark.skipif(not (SHARED_MAPS / "highway_example_with_merge_and_split.xodr").is_file(),
+                    reason=f"no shared maps at {SHARED_MAPS}")
+def test_a_lead_past_a_lane_section_boundary_stays_ahead_and_traffic_rules_on_a_map():
+    """highway_example_with_merge_and_split.xodr: road 0's lane -1 is 0/0/-1 for its first
+    50 m, then 0/1/-1. A lead brakes to a stop past that boundary with the ego (IDM) behind
+    it, still on 0/0/-1; a car beside keeps going."""
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.sim import behaviors as b
+
+    w = World(0, name="t_map")
+    m = w.map(SHARED_MAPS / "highway_example_with_merge_and_split.xodr")
+    w.ego(m.lane("0/0/-1"), s=5, speed=10, driver="idm")
+    w.car(m.lane("0/0/-1"), s=30, speed=10, behavior=b.brake_at(1.0, decel=4.0), name="lead")
+    w.car(m.lane("0/0/-2"), s=20, speed=12, name="beside")
+    traj = w.run(9)
+    past = (traj.lane[1] == "0/1/-1") & (traj.lane[0] == "0/0/-1")
+    assert past.sum() > 20 and traj.meta["ego_route"][:2] == ["0/0/-1", "0/1/-1"]
+    # the same run with the lead's lane named as the ego's: the measures see the same lead
+    same = traj.lane.copy()
+    same[1, past] = "0/0/-1"
+    relabelled = dataclasses.replace(traj, lane=same)
+    for mon in (ettc(2.0), required_deceleration(4.0), brake_threat_number(), time_to_brake(1.0),
+                time_to_steer(0.5)):
+        got = mon.series(traj)
+        assert np.array_equal(got, mon.series(relabelled)), mon.name
+        if mon.name in ("required_deceleration", "brake_threat_number"):
+            assert np.isfinite(got[past]).all(), mon.name  # a value wherever a lead is ahead
+        assert mon.evaluate(traj).agent == "lead"
+    # blocked: standing (< 0.1 m/s) from its first slow sample to the end
+    slow = int(np.argmax(traj.speed[0] < 0.1))
+    assert (traj.speed[0, slow:] < 0.1).all()
+    assert blocked(1.0).evaluate(traj).rho == pytest.approx(1.0 - (traj.t[-1] - traj.t[slow]))
+    # min_speed_route: the ego's mean speed over the cars' mean speed
+    ratio = traj.speed[0].mean() / traj.speed[1:].mean(axis=0).mean()
+    assert min_speed_route(0.9).evaluate(traj).rho == pytest.approx(ratio - 0.9, rel=1e-9)
+    # the route's length is its lanes' lengths; the ego drove its step lengths from s = 5
+    length = sum(m.lane(i).length for i in traj.meta["ego_route"])
+    driven = float(np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0])).sum())
+    assert route_completion(1.0).evaluate(traj).rho == pytest.approx(
+        driven / (length - 5.0) - 1.0, abs=2e-3)
+    for mon in (wrong_way(), outside_route_lanes(), on_sidewalk(), off_road()):
+        assert mon.evaluate(traj).rho == 0.0
+
+
+
+def test_post_encroachment_time_at_a_map_junction():
+    """fabriksgatan.xodr's junction: the ego (IDM) crosses from the south arm to the north,
+    a car from the west arm to the east after it; their paths cross inside the junction's
+    connecting lanes (9/0/-1 and 12/0/-1)."""
+    from pytest_avscenario.sim import World
+
+    from test_monitors_criteria_shared import _pet_brute_force
+
+    w = World(3, name="t_map", driver="idm")
+    town = w.map(MAPS / "fabriksgatan.xodr")
+    w.ego(town.lane("0/0/1"), s=60, speed=8, route=town.route("0/0/1", "2/0/1"))
+    w.car(town.lane("3/0/-1"), s=60, speed=8, route=town.route("3/0/-1", "1/0/-1"), name="cross")
+    traj = w.run(9)
+    assert "9/0/-1" in traj.lane[0] and "12/0/-1" in traj.lane[1] and not traj.crashed.any()
+    pet, t_left, t_reached = cr.pet_values(traj)
+    # the smallest time apart of two samples whose footprints overlap, crossing
+    assert np.array_equal(pet, _pet_brute_force(traj)) and 1.0 < pet[0] < 4.0
+    r = post_encroachment_time(1.0).evaluate(traj)
+    assert r.agent == "cross" and r.rho == pytest.approx(pet[0] - 1.0)
+    assert r.t == t_reached[0] and t_reached[0] - t_left[0] == pytest.approx(pet[0])

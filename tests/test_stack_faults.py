@@ -48,7 +48,7 @@ def _stop_stacks():
     ("garbage", "motion", "*step 3 (t=0.30 s): its answer: MotionRequest: unparseable bytes*"),
     ("type", "traffic", "*step 3 (t=0.30 s): answer to the SensorView: wrong message type b'SensorView'*"),
     ("teleport", "traffic", "*step 3 (t=0.30 s): TrafficUpdate is physically impossible: it moved 2*a teleport*"),
-    ("handshake", "motion", "*step 0 (t=0.00 s): handshake failed: it speaks 'avs-osi/1' revision 2, the plugin 'avs-osi/1' revision 1; it runs at dt=0.05 s, the world steps at 0.1 s*"),
+    ("handshake", "motion", "*step 0 (t=0.00 s): handshake failed: it speaks 'avs-osi/1' revision 1, the plugin 'avs-osi/1' revision 2; it runs at dt=0.05 s, the world steps at 0.1 s*"),
     ("nan", "traffic", "*step 3 (t=0.30 s): TrafficUpdate has a non-finite state*"),
     ("empty", "trajectory", "*step 3 (t=0.30 s): its MotionRequest's desired_trajectory: desired_trajectory has no trajectory_point*"),
     ("past", "trajectory", "*step 3 (t=0.30 s): its MotionRequest's desired_trajectory: trajectory_point[[]0[]].timestamp 200000000 ns (0.200 s) is in the past: the request's is 300000000 ns*"),

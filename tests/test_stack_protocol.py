@@ -285,3 +285,37 @@ def test_one_stack_at_an_address_is_refused_for_several_processes(pytester):
     result.stderr.fnmatch_lines(["*--avs-driver: 'osi:tcp://127.0.0.1:5555' is one stack for one "
                                  "process, but pytest-xdist (-n) runs cases in several: use "
                                  "'osi+spawn:COMMAND'*"])
+
+
+def test_sensor_views_kept_between_steps_give_the_bytes_of_a_fresh_build():
+    """The plugin writes each step into the case's one SensorView (frame.SensorViews); what it
+    sends must be what building the message afresh gives, step after step, while agents appear
+    and leave and the ego changes lanes; the lanes go with the first SensorView only."""
+    checked: list[tuple[tuple, int, bool]] = []
+
+    class Check:
+        def reset(self, world):
+            self.w, self.views = world, None
+
+        def act(self, obs):
+            w = self.w
+            if self.views is None:
+                self.ids = {a: i + 1 for i, a in enumerate(w.agents)}
+                self.static = frame.lane_ground_truth(w.view())
+                self.views = frame.SensorViews(self.static, self.ids)
+            t_ns = wire.ns(w.t)
+            kept = self.views.build(w, t_ns)
+            lanes = self.static if not checked else b""  # the lanes go with the first only
+            checked.append((w.agents[0].lane_index, len(w.movers),
+                            kept == frame.sensor_view(w, t_ns, lanes, self.ids)))
+            return 0.5, (0.1 if 1.0 < w.t < 2.0 else 0.0)
+
+    w = World(seed=5, name="test::views")
+    road = w.straight_road(lanes=2, length=300)
+    w.ego(road.lane(1), s=20.0, speed=8.0, driver=Check())
+    w.car(road.lane(0), s=60.0, speed=6.0, appear=1.0, disappear=3.0)
+    w.bus(road.lane(1), s=120.0, speed=0.0)
+    w.run(seconds=4.0)
+    assert all(same for _, _, same in checked), [c for c in checked if not c[2]][:3]
+    assert {n for _, n, _ in checked} == {2, 3}  # the car came and went
+    assert len({lane for lane, _, _ in checked}) == 2  # the ego changed lanes

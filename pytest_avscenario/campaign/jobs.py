@@ -69,6 +69,7 @@ def make_job(ctx: Any, ci: Any, plan: ScenarioPlan, case: Case, fresh_world: boo
         make_world=lambda c: build_world(c, driver, ci.nodeid, ego_driver=reference,
                                          plan=plan, warn=warn),
         **_remote_step(plan, driver, reference),
+        judge_start=plan.discard_unavoidable and reference is None,
         on_stuck=None if prefetch or ci.on_stuck is None else ci.on_stuck(
             plan.case_timeout_s, lambda o: make_row(ci, ci.own_case(), o), plan.info, during),
     )

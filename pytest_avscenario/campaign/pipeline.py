@@ -103,10 +103,12 @@ def unfair(ctx: CampaignContext, ci: CaseItem, campaign: Campaign, case: Case, o
 
 def starts_unsafe(outcome: CaseOutcome) -> bool:
     """The ego and another agent are in an RSS-dangerous situation at t = 0 (both distances
-    unsafe): nobody entered it, no driver is to blame. False without a trajectory (a remote
-    outcome carries none)."""
+    unsafe): nobody entered it, no driver is to blame. A remote outcome without its trajectory
+    answers with what its worker judged (``CaseOutcome.start_unsafe``)."""
     traj = outcome.trajectory
-    if traj is None or traj.n_agents < 2 or traj.n_steps < 1:
+    if traj is None:
+        return bool(outcome.start_unsafe)
+    if traj.n_agents < 2 or traj.n_steps < 1:
         return False
     from ..monitors import MonitorError
     from ..monitors.rss import rss_margins

@@ -39,6 +39,9 @@ class CaseJob:
     #: in-process: called from a watchdog thread when the case passed its time limit and
     #: does not stop (see :func:`pytest_avscenario.runner.time_limit`)
     on_stuck: Callable[[float], None] | None = field(default=None, repr=False)
+    #: judge ``CaseOutcome.start_unsafe`` where the case runs (``unavoidable="discard"``: a
+    #: remote outcome leaves a passing case's trajectory behind)
+    judge_start: bool = False
 
 
 class Executor:

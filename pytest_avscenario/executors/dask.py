@@ -329,7 +329,8 @@ class DaskExecutor(Executor):
         data, digest = self._spec(first)
         fields = [CaseFields(nodeid=j.nodeid, params=dict(j.case.params), index=j.case.index,
                              seed=j.case.seed, sampler=j.case.sampler, origin=j.case.origin,
-                             test=j.case.test, timeout_s=getattr(j, "timeout_s", None))
+                             test=j.case.test, timeout_s=getattr(j, "timeout_s", None),
+                             judge_start=getattr(j, "judge_start", False))
                   for j in jobs]
         name = f"avs-{first.function}-{first.case.sampler}-{first.case.index}-{next(self._counter)}"
         self.stats["tasks"] += 1

@@ -67,6 +67,7 @@ class CaseFields:
     origin: str
     test: str
     timeout_s: float | None = None  # wall-time limit of the body (the job's timeout_s)
+    judge_start: bool = False  # fill the outcome's start_unsafe (CaseJob.judge_start)
 
 
 # --------------------------------------------------------------------------- client side
@@ -139,7 +140,11 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
     body = func if fields.timeout_s is None else _bounded(func, float(fields.timeout_s))
     outcome = run_case(body, spec.argnames, fixtures, case, spec.monitor_set, make_world)
     outcome.worker_pid = os.getpid()
-    return outcome  # pickles without its world and trajectory (see CaseOutcome.__getstate__)
+    if fields.judge_start:
+        from ..campaign.pipeline import starts_unsafe
+
+        outcome.start_unsafe = starts_unsafe(outcome)
+    return outcome  # pickles without its world, and its trajectory unless it failed
 
 
 def run_remote_many(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,

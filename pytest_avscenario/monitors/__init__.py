@@ -20,7 +20,8 @@ the simulator, and are vectorized over steps and agents.
   :func:`safe_lateral_distance` with their :class:`RSSParams`;
 * the rules of the road under CARLA ScenarioRunner's names (:mod:`.rules`):
   :func:`off_road`, :func:`on_sidewalk`, :func:`wrong_way`, :func:`outside_route_lanes`,
-  :func:`ran_stop`, :func:`route_completion`, :func:`blocked`, :func:`min_speed_route`; and
+  :func:`ran_stop`, :func:`route_completion`, :func:`blocked`, :func:`min_speed_route`,
+  :func:`ran_red_light` (:mod:`.signals`: where the world has traffic lights); and
   the Leaderboard's :func:`driving_score` (:mod:`.score`);
 * criticality measures under CommonRoad-CriMe's names (:mod:`.criticality`): :func:`ettc`
   (TTC with accelerations), :func:`required_deceleration`, :func:`brake_threat_number`,
@@ -104,6 +105,7 @@ from .criticality import (
     time_to_brake,
     time_to_steer,
 )
+from .signals import ran_red_light
 from .score import DrivingScore, driving_score
 from ..codec import rho_from_json, rho_from_str, rho_to_json, rho_to_str
 from .sets import MonitorSet, Verdict
@@ -118,7 +120,7 @@ __all__ = [
     "ego_speed", "ego_acceleration", "lane_offset", "gap", "ttc_to", "headway_to", "signal",
     "predicate",
     "on_sidewalk", "wrong_way", "outside_route_lanes", "ran_stop", "route_completion",
-    "blocked", "min_speed_route",
+    "blocked", "min_speed_route", "ran_red_light",
     "ettc", "required_deceleration", "brake_threat_number", "time_to_brake", "time_to_steer",
     "post_encroachment_time", "DrivingScore", "driving_score",
     "MonitorSet", "Verdict",

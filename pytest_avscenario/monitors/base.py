@@ -254,6 +254,10 @@ def check_positive(name: str, value: Any, what: str, *, allow_zero: bool = False
 _CHECKED: "weakref.WeakKeyDictionary[Trajectory, set]" = weakref.WeakKeyDictionary()
 
 
+#: the kinematic fields the monitors check first, all at once
+_KINEMATIC = ("x", "y", "vx", "vy", "heading")
+
+
 def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...],
                          agents: slice | list[int] | None = None) -> None:
     """Raise MonitorError when a field is NaN/inf at a step where its agent is present.
@@ -261,9 +265,16 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
     Absent steps are NaN by contract and are ignored; a non-finite value while present is a
     broken recording, and the message says which agent, field and time.
     """
+    done = _CHECKED.get(traj)
+    if done is None:
+        done = _CHECKED[traj] = set()
+        # most monitors read these: one pass over all of them for every agent, and a
+        # field-by-field search below only when something is not finite
+        stacked = np.array([getattr(traj, f) for f in _KINEMATIC])
+        if not (traj.present & ~np.isfinite(stacked)).any():
+            done.update((f, "all") for f in _KINEMATIC)
     key = "all" if agents is None else repr(agents)
-    done = _CHECKED.setdefault(traj, set())
-    todo = [f for f in fields if (f, key) not in done]
+    todo = [f for f in fields if (f, "all") not in done and (f, key) not in done]
     if not todo:
         return
     sel = slice(None) if agents is None else agents
@@ -279,6 +290,20 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
                 f"{arr[a, k]} at t={traj.t[k]:.3f} s while the agent is present"
             )
         done.add((f, key))
+
+
+#: values derived from a trajectory that several monitors read (lane projections, the pairs
+#: ahead of the ego, the ego's speed...), computed once per trajectory object
+_MEMO: "weakref.WeakKeyDictionary[Trajectory, dict]" = weakref.WeakKeyDictionary()
+
+
+def memo(traj: Trajectory) -> dict:
+    """A dict that lives as long as ``traj``, for values the monitors derive from it once and
+    share (a trajectory is immutable; a prefix or a copy is a new object, with a new dict)."""
+    got = _MEMO.get(traj)
+    if got is None:
+        got = _MEMO[traj] = {}
+    return got
 
 
 def fmt_t(traj: Trajectory, step: int | None) -> float | None:

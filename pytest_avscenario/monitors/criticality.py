@@ -3,7 +3,9 @@ collision (TTC with accelerations), required deceleration, brake threat number, 
 brake, time to steer, and post-encroachment time at crossings.
 
 The first five look at the road user ahead of the ego in its lane (same lane id when both
-are known, else overlapping lateral corridors, as :func:`.metrics.headway`), along the ego's
+are known, or a lane further along the ego's recorded route, so a lead past a map's lane
+section or road boundary stays ahead; else overlapping lateral corridors, as
+:func:`.metrics.headway`), along the ego's
 heading: bumper-to-bumper gap ``g`` [m], speeds ``v_e``, ``v_l`` [m/s] and accelerations
 ``a_e``, ``a_l`` [m/s²] (signed; the time derivative of the recorded velocities, projected on
 the ego's heading). Post-encroachment time looks at every road user whose path crosses the
@@ -20,7 +22,6 @@ heading, and a lead that brakes stops.
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ from .base import (
     check_threshold,
     factory,
     fmt_t,
+    memo,
 )
 from .metrics import _pair_mask, _sat_separation
 
@@ -56,7 +58,8 @@ TTB_HORIZON_S = 10.0
 
 @dataclass(frozen=True)
 class LeadKinematics:
-    """The pairs (ego, other agent) in which the other is ahead of the ego in its lane, as
+    """The pairs (ego, other agent) in which the other is ahead of the ego in its lane (or on
+    a lane further along its route), as
     1-D arrays over those pairs: gap [m] bumper to bumper along the ego's heading, lateral
     offset ``lat`` [m] of its centre from the ego's axis, speeds ``v_e``/``v_l`` [m/s] and
     accelerations ``a_e``/``a_l`` [m/s²] along the ego's heading, the other's width
@@ -72,6 +75,9 @@ class LeadKinematics:
     width_l: np.ndarray
     idx: np.ndarray
     shape: tuple[int, int]
+    #: each pair's other agent (its row in the ``(A-1, T)`` grid) and step: ``divmod(idx, T)``
+    row: np.ndarray | None = None
+    step: np.ndarray | None = None
 
     def scatter(self, values: np.ndarray) -> np.ndarray:
         """``values`` of the pairs back on the ``(A-1, T)`` grid, NaN elsewhere."""
@@ -80,7 +86,6 @@ class LeadKinematics:
         return out
 
 
-_CACHE: "weakref.WeakKeyDictionary[Trajectory, LeadKinematics]" = weakref.WeakKeyDictionary()
 
 
 def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -96,9 +101,36 @@ def _derivative(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     return out
 
 
+def _derivative_at(v: np.ndarray, t: np.ndarray, rows: np.ndarray, cols: np.ndarray
+                   ) -> np.ndarray:
+    """:func:`_derivative` of ``v`` (``(..., agents, steps)``) at ``[..., rows, cols]`` only,
+    with the same differences (central inside, one-sided at the ends)."""
+    T = t.shape[0]
+    if T < 2:
+        return np.zeros(v.shape[:-2] + rows.shape)
+    lo = np.maximum(cols - 1, 0)
+    hi = np.minimum(cols + 1, T - 1)
+    return (v[..., rows, hi] - v[..., rows, lo]) / (t[hi] - t[lo])
+
+
+def _further_on_route(traj: Trajectory, route: list[str]) -> np.ndarray:
+    """``(A-1, T)``: whether the other agent is on a lane of the ego's route beyond the
+    route lane the ego is on (its lane ahead carries another id: the next lane section or
+    road of a map, the road past a junction)."""
+    where = {}
+    for k, lane_id in enumerate(route):
+        where.setdefault(lane_id, k)
+    ids = set(traj.lane.ravel().tolist()) & where.keys()
+    pos = np.full(traj.lane.shape, -1)
+    for lane_id in ids:
+        pos[traj.lane == lane_id] = where[lane_id]
+    return (pos[0] >= 0)[None, :] & (pos[1:] > pos[0][None, :])
+
+
 def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     """The :class:`LeadKinematics` of ``traj`` (computed once per trajectory)."""
-    got = _CACHE.get(traj)
+    cache = memo(traj)
+    got = cache.get("criticality.lead")
     if got is not None:
         return got
     h = traj.heading[0]
@@ -107,27 +139,30 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
     dy = traj.y[1:] - traj.y[0]
     lon = dx * c + dy * s
     lat = -dx * s + dy * c
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):
         lanes_known = (traj.lane[0] != "")[None, :] & (traj.lane[1:] != "")
         same_lane = traj.lane[1:] == traj.lane[0][None, :]
+        route = traj.meta.get("ego_route") or ()
+        if len(route) > 1:  # a lane change of id along the way (a map's next road or section)
+            same_lane |= _further_on_route(traj, [str(r) for r in route])
         corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
         ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
-    idx = np.flatnonzero(ahead)
-    rows, cols = np.divmod(idx, traj.n_steps)
-    o = rows + 1  # the other agent's row in the trajectory
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ax = _derivative(traj.vx, traj.t)
-        ay = _derivative(traj.vy, traj.t)
-    ce, se = c[cols], s[cols]
+        idx = np.flatnonzero(ahead)
+        rows, cols = np.divmod(idx, traj.n_steps)
+        o = rows + 1  # the other agent's row in the trajectory
+        # velocities and their time derivatives (as _derivative takes them, at the pairs'
+        # steps only) of the ego and the other, projected on the ego's heading at once
+        vel = np.array([traj.vx, traj.vy])
+        who = np.array([np.zeros_like(o), o])  # (ego / other, pairs)
+        kin = np.array([vel[:, who, cols], _derivative_at(vel, traj.t, who, cols)])
+        along = kin[:, 0] * c[cols] + kin[:, 1] * s[cols]  # (v / a, ego / other, pairs)
     got = LeadKinematics(
         gap=lon[rows, cols] - (traj.length[0] + traj.length[o]) / 2,
         lat=lat[rows, cols],
-        v_e=traj.vx[0, cols] * ce + traj.vy[0, cols] * se,
-        v_l=traj.vx[o, cols] * ce + traj.vy[o, cols] * se,
-        a_e=ax[0, cols] * ce + ay[0, cols] * se,
-        a_l=ax[o, cols] * ce + ay[o, cols] * se,
-        width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps))
-    _CACHE[traj] = got
+        v_e=along[0, 0], v_l=along[0, 1], a_e=along[1, 0], a_l=along[1, 1],
+        width_l=traj.width[o], idx=idx, shape=(traj.n_agents - 1, traj.n_steps),
+        row=rows, step=cols)
+    cache["criticality.lead"] = got
     return got
 
 
@@ -185,7 +220,8 @@ def required_deceleration_values(gap, v_e, v_l, a_l):
 
 
 def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance [m] and speed [m/s] after ``tau`` [s] at constant ``a``, stopping at 0."""
+    """Distance [m] and speed [m/s] after ``tau`` [s] at constant ``a``, stopping at 0 (the
+    definition :func:`_too_hard` computes inline; the tests hold the two to each other)."""
     with np.errstate(invalid="ignore", divide="ignore"):
         t_stop = np.where(a < 0, v / np.where(a < 0, -a, 1.0), np.inf)
     t = np.minimum(tau, t_stop)
@@ -194,7 +230,7 @@ def _advance(v: np.ndarray, a: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray,
 
 def time_to_brake_values(k: LeadKinematics, max_decel: float,
                          horizon: float = TTB_HORIZON_S, grid_s: float = 0.5,
-                         fine: int = 64) -> np.ndarray:
+                         fine: int = 64, *, smallest_only: bool = False) -> np.ndarray:
     """Time to brake [s]: how long the ego can keep its acceleration before braking at
     ``max_decel`` is no longer enough (the required deceleration of the state it then
     reaches exceeds ``max_decel``); both keep their accelerations meanwhile, no one reverses.
@@ -202,36 +238,101 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
     (1-D over the pairs of ``k``).
     The first moment on a ``grid_s`` grid, refined twice on ``fine`` points within the
     bracket (to ``grid_s / fine²``, 0.12 ms by default), for every agent ahead and step at
-    once."""
+    once. With ``smallest_only`` a pair whose grid bracket lies wholly above another's keeps
+    the bracket's lower end instead of being refined: the smallest value, and which pairs
+    have it, are exact (what a monitor's verdict needs), the others are lower bounds."""
     if k.gap.size == 0:
         return np.zeros(0)
-    g0, a_e, a_l = k.gap, k.a_e, k.a_l
-    v_e, v_l = np.maximum(k.v_e, 0.0), np.maximum(k.v_l, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        return _time_to_brake(k, float(max_decel), horizon, grid_s, fine, smallest_only)
 
-    def need(tau):
-        de, ve = _advance(v_e[..., None] if tau.ndim > v_e.ndim else v_e,
-                          a_e[..., None] if tau.ndim > a_e.ndim else a_e, tau)
-        dl, vl = _advance(v_l[..., None] if tau.ndim > v_l.ndim else v_l,
-                          a_l[..., None] if tau.ndim > a_l.ndim else a_l, tau)
-        g = (g0[..., None] if tau.ndim > g0.ndim else g0) + dl - de
-        al = np.where(vl <= 0, 0.0, a_l[..., None] if tau.ndim > a_l.ndim else a_l)
-        return required_deceleration_values(g, ve, vl, al)
+
+def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
+    """Whether braking at ``max_decel`` is no longer enough after keeping the accelerations
+    for ``tau`` [s]: ``required_deceleration_values(state after tau) > max_decel``, the same
+    arithmetic as :func:`_advance` and :func:`required_deceleration_values` (bit for bit,
+    so the grid finds the same moments) with the per-pair parts ``p`` computed once and the
+    comparison taken case by case instead of building the value. A pair with a NaN input
+    is never too hard (its gap is NaN at every ``tau``)."""
+    g0, v, a, ha, ts, a_l, nal, brakes = p
+    # ego (row 0) and lead (row 1) advanced at once: _advance's arithmetic on both
+    t = np.minimum(tau, ts)
+    d = v * t + ha * t * t
+    vv = np.maximum(v + a * t, 0.0)
+    de, dl, ve, vl = d[0], d[1], vv[0], vv[1]
+    g = g0 + dl - de
+    moving = vl > 0
+    u = ve - vl
+    # required_deceleration_values takes a standing lead's acceleration as 0; a_l serves
+    # here because there t_lead = 0 makes match_first False whatever b1 is, and b1 decides
+    # nothing else
+    b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
+    # when a braking lead stands (0 standing, inf when it never does); where it is moving
+    # its acceleration is a_l's, so the per-pair sign and magnitude serve
+    t_lead = np.where(moving, np.where(brakes, vl / nal, np.inf), 0.0)
+    d_lead = vl * t_lead / 2.0  # 0 for a standing lead (vl = 0, t_lead = 0)
+    b2 = ve * ve / (2.0 * (g + d_lead))
+    match_first = (u > 0) & (u <= (a_l + b1) * t_lead)
+    # out = b1 where the speeds match first, else b2 where the lead stops, else 0 (never
+    # above max_decel > 0: and b2 is 0 where the lead never stops, d_lead being inf there);
+    # inf (too hard) where the gap is closed
+    return (g <= 0) | np.where(match_first, b1 > max_decel, b2 > max_decel)
+
+
+def _pair_columns(k: LeadKinematics) -> tuple:
+    """What :func:`_too_hard` needs of every pair, as columns against a grid of moments: the
+    gap, and the ego (row 0) and lead (row 1) stacked: speed (no reversing), acceleration,
+    half of it, :func:`_advance`'s stop time; the lead's acceleration, its negative and
+    whether it brakes."""
+    v = np.maximum(np.array([k.v_e, k.v_l]), 0.0)
+    a = np.array([k.a_e, k.a_l])
+    brakes = a < 0
+    ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)
+    a_l = k.a_l
+    return (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
+            a_l[:, None], (-a_l)[:, None], brakes[1, :, None])
+
+
+_FRACTIONS: dict[int, np.ndarray] = {}
+
+
+def _fractions(fine: int) -> np.ndarray:
+    """``(1..fine) / fine``, made once per ``fine``."""
+    got = _FRACTIONS.get(fine)
+    if got is None:
+        got = _FRACTIONS[fine] = np.arange(1, fine + 1) / fine
+    return got
+
+
+def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: float,
+                   fine: int, smallest_only: bool = False) -> np.ndarray:
+    p = _pair_columns(k)
 
     grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
-    too_hard = need(np.broadcast_to(grid, (g0.size, grid.size))) > max_decel
+    too_hard = _too_hard(grid, p, max_decel)
     first = np.argmax(too_hard, axis=1)
     # too late already (the first grid point, now) or still enough at the horizon (never)
-    res = np.where(too_hard[:, 0], 0.0, np.inf)
-    todo = np.flatnonzero(too_hard.any(axis=1) & ~too_hard[:, 0])
+    now = too_hard[:, 0]
+    res = np.where(now, 0.0, np.inf)
+    todo = np.flatnonzero(first > 0)  # too hard first at a later grid point: refine
+    if smallest_only and todo.size:
+        # a refined value lies in [grid[first - 1], grid[first]); pairs whose lower end is
+        # above the smallest upper end (0 when some pair is too late already) cannot be
+        # the smallest nor tie with it
+        upper = 0.0 if now.any() else grid[first[todo]].min()
+        lower = grid[first[todo] - 1]
+        res[todo] = lower
+        todo = todo[lower <= upper]
     if todo.size:
-        g0, a_e, a_l, v_e, v_l = g0[todo], a_e[todo], a_l[todo], v_e[todo], v_l[todo]
+        if todo.size < first.size:
+            p = tuple(c[:, todo] if c.ndim == 3 else c[todo] for c in p)
         lo, step = grid[first[todo] - 1], grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
-        frac = np.arange(1, fine + 1) / fine
+        frac = _fractions(fine)
         for _ in range(2):
             pts = lo[:, None] + step * frac[None, :]
-            bad = need(pts) > max_decel
+            bad = _too_hard(pts, p, max_decel)
             j = np.argmax(bad, axis=1)  # the first too-late point; the one before is fine
             lo = lo + step * np.where(j > 0, frac[np.maximum(j - 1, 0)], 0.0)
             step = step / fine
@@ -265,6 +366,11 @@ class _LeadMeasure(Monitor):
         """The measure over the pairs of :func:`lead_kinematics` (1-D)."""
         raise NotImplementedError
 
+    def _smallest(self, traj: Trajectory) -> np.ndarray:
+        """:meth:`_values` where a measure's smallest margin (and the pairs that have it)
+        must be exact, the others may be bounds on the safe side of it."""
+        return self._values(traj)
+
     def _margins(self, v: np.ndarray) -> np.ndarray:
         m = (self.threshold - v) if self._upper else (v - self.threshold)
         return np.where(np.isnan(v), np.inf, m)
@@ -274,21 +380,20 @@ class _LeadMeasure(Monitor):
         nothing is ahead."""
         k = lead_kinematics(traj)
         out = np.full(traj.n_steps, np.inf)
-        np.minimum.at(out, k.idx % traj.n_steps, self._margins(self._values(traj)))
+        np.minimum.at(out, k.step, self._margins(self._values(traj)))
         return out
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         check_present_finite(traj, self.name, ("x", "y", "vx", "vy", "heading"))
         k = lead_kinematics(traj)
-        values = self._values(traj)
+        values = self._smallest(traj)
         m = self._margins(values)
-        if m.size == 0 or not (m < np.inf).any():
+        # the smallest margin, earliest step first on ties (as the pairwise metrics)
+        j = int(np.lexsort((k.row, k.step, m))[0]) if m.size else -1
+        if j < 0 or not m[j] < math.inf:
             return MonitorResult(self.name, math.inf, self.threshold, None, None,
                                  f"nothing ahead of the ego that makes {self._what} finite")
-        # the smallest margin, earliest step first on ties (as the pairwise metrics)
-        order = np.lexsort((k.idx // traj.n_steps, k.idx % traj.n_steps, m))
-        j = int(order[0])
-        row, step = divmod(int(k.idx[j]), traj.n_steps)
+        row, step = int(k.row[j]), int(k.step[j])
         v = values[j]
         who = traj.names[row + 1]
         bound = "<=" if self._upper else ">="
@@ -298,31 +403,26 @@ class _LeadMeasure(Monitor):
             f"t={traj.t[step]:.2f} s (required {bound} {self.threshold:g} {self._unit})".rstrip())
 
 
-_REQUIRED: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
-
-
 def _required(traj: Trajectory) -> np.ndarray:
     """Required deceleration toward each agent ahead, over the pairs of
     :func:`lead_kinematics` (shared by a_req and BTN)."""
-    got = _REQUIRED.get(traj)
+    cache = memo(traj)
+    got = cache.get("criticality.required")
     if got is None:
         k = lead_kinematics(traj)
-        got = required_deceleration_values(k.gap, k.v_e, k.v_l, k.a_l)
-        _REQUIRED[traj] = got
+        got = cache["criticality.required"] = required_deceleration_values(
+            k.gap, k.v_e, k.v_l, k.a_l)
     return got
-
-
-_ETTC: "weakref.WeakKeyDictionary[Trajectory, np.ndarray]" = weakref.WeakKeyDictionary()
 
 
 def _ettc(traj: Trajectory) -> np.ndarray:
     """Enhanced TTC toward each agent ahead, over the pairs of :func:`lead_kinematics`
     (shared by ETTC and TTS)."""
-    got = _ETTC.get(traj)
+    cache = memo(traj)
+    got = cache.get("criticality.ettc")
     if got is None:
         k = lead_kinematics(traj)
-        got = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
-        _ETTC[traj] = got
+        got = cache["criticality.ettc"] = ettc_values(k.gap, k.v_e, k.v_l, k.a_e, k.a_l)
     return got
 
 
@@ -372,6 +472,9 @@ class TimeToBrakeMonitor(_LeadMeasure):
 
     def _values(self, traj):
         return time_to_brake_values(lead_kinematics(traj), self.max_decel)
+
+    def _smallest(self, traj):
+        return time_to_brake_values(lead_kinematics(traj), self.max_decel, smallest_only=True)
 
 
 class TimeToSteerMonitor(_LeadMeasure):
@@ -440,11 +543,11 @@ CROSSING_MIN_ANGLE_DEG = 30.0
 
 
 #: heading bins over half a turn (|sin| of a heading difference repeats every pi)
-_NBINS = 36
+_NBINS = 32  # a power of two: the bin of a half turn is a bit mask of the floor
 
 
 def _heading_bins(h: np.ndarray) -> np.ndarray:
-    return (np.mod(h, np.pi) / (np.pi / _NBINS)).astype(int) % _NBINS
+    return np.floor(h * (_NBINS / np.pi)).astype(np.int64) & (_NBINS - 1)
 
 
 def _can_cross(min_angle_deg: float) -> np.ndarray:
@@ -456,7 +559,7 @@ def _can_cross(min_angle_deg: float) -> np.ndarray:
     return (d + 1) * (180.0 / _NBINS) >= min_angle_deg
 
 
-_CAN_CROSS = {CROSSING_MIN_ANGLE_DEG: _can_cross(CROSSING_MIN_ANGLE_DEG)}
+_CAN_CROSS = {float(CROSSING_MIN_ANGLE_DEG): _can_cross(CROSSING_MIN_ANGLE_DEG)}
 
 
 def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
@@ -479,31 +582,42 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
         return pet, t1, t2
     R = np.hypot(traj.length / 2, traj.width / 2)
     sin_min = math.sin(math.radians(min_angle_deg))
-    ebins = _heading_bins(traj.heading[0, ie])
-    for a in range(1, traj.n_agents):
-        io = np.flatnonzero(ok[a])
-        if io.size == 0:
-            continue
-        # keep only samples whose heading can cross one of the other path's (traffic along
-        # the ego's lane never can, and is dropped here at O(T) cost)
-        obins = _heading_bins(traj.heading[a, io])
-        can = _CAN_CROSS[min_angle_deg] if min_angle_deg in _CAN_CROSS else _can_cross(min_angle_deg)
-        o_ok = can[obins][:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)
-        e_ok = can[ebins][:, np.bincount(obins[o_ok], minlength=_NBINS) > 0].any(axis=1)
-        if not o_ok.any() or not e_ok.any():
-            continue
-        io, ie_a = io[o_ok], ie[e_ok]
+    can = _CAN_CROSS.get(min_angle_deg)
+    if can is None:
+        can = _can_cross(min_angle_deg)
+    bins = _heading_bins(np.where(ok, traj.heading, 0.0))
+    ebins, obins = bins[0, ie], bins[1:]
+    # keep only samples whose heading can cross one of the other path's (traffic along the
+    # ego's lane never can, and is dropped here for every agent at once)
+    o_ok_all = ok[1:] & can[:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)[obins]
+    rows, cols = np.nonzero(o_ok_all)
+    if rows.size == 0:
+        return pet, t1, t2
+    seen = np.zeros((A1, _NBINS), dtype=np.uint8)  # the heading bins each agent's kept samples use
+    seen[rows, obins[rows, cols]] = 1
+    # (A-1, ego samples): the ego's heading there can cross one of the agent's kept headings
+    e_ok_all = (seen @ can.view(np.uint8))[:, ebins] > 0
+    for a in np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1:
+        io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[e_ok_all[a - 1]]
         xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
         reach = R[0] + R[a]
         xo, yo = traj.x[a, io], traj.y[a, io]
         # samples of each path within reach of the other path's bounding box
-        ne = ((xe >= xo.min() - reach) & (xe <= xo.max() + reach)
-              & (ye >= yo.min() - reach) & (ye <= yo.max() + reach))
-        no = ((xo >= xe.min() - reach) & (xo <= xe.max() + reach)
-              & (yo >= ye.min() - reach) & (yo <= ye.max() + reach))
-        if not ne.any() or not no.any():
+        lo, hi = np.minimum.reduce, np.maximum.reduce
+        ne = ((xe >= lo(xo) - reach) & (xe <= hi(xo) + reach)
+              & (ye >= lo(yo) - reach) & (ye <= hi(yo) + reach))
+        i = ie_a[ne]
+        if i.size == 0:
             continue
-        i, j = ie_a[ne], io[no]
+        if i.size * io.size > 4096:  # the other's samples near the ego's path, when many
+            xe, ye = xe[ne], ye[ne]
+            no = ((xo >= lo(xe) - reach) & (xo <= hi(xe) + reach)
+                  & (yo >= lo(ye) - reach) & (yo <= hi(ye) + reach))
+            if not no.any():
+                continue
+            j = io[no]
+        else:  # few pairs: the exact test below looks at them all
+            j = io
         dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
         dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
         near = dx * dx + dy * dy <= reach * reach

@@ -11,24 +11,26 @@ lane of any origin (built roads, OpenDRIVE maps) is a polyline there, so the mon
 nothing but these four facts per lane: the closest lane (the recorded ``lane``), its heading
 and width where the agent is, and whether the agent is on the drivable area (the recorded
 ``on_road``). A trajectory built by hand gives the same ``meta`` to use these monitors.
-Map lanes plug in by being written the same way: the monitors never ask where a lane came
-from.
+Map lanes plug in by being written the same way; a map's recording also lists the sidewalk
+lanes beside the lanes driven (``"kind": "sidewalk"``, :func:`~..sim.recording.map_sidewalks`),
+and ``meta["road"]`` says "map".
 
-Projections are computed once per trajectory and shared by every monitor that needs them.
+Projections are computed once per trajectory and shared by every monitor that needs them
+(:func:`.base.memo`); a lane's polyline is built when a monitor first reads it.
 """
 
 from __future__ import annotations
 
-import weakref
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..trajectory import Trajectory
-from .base import MonitorError
+from .base import MonitorError, memo
 
-__all__ = ["LanePolyline", "LaneFrame", "lanes_of", "lane_frame", "route_of"]
+__all__ = ["LanePolyline", "LaneFrame", "RoadLanes", "lanes_of", "lane_frame", "route_of"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,13 @@ class LanePolyline:
         """Arc length ``s`` [m] (extended linearly before the start and past the end), signed
         offset ``r`` [m] (positive left of travel) and the lane heading [rad] at the closest
         point of each of the points ``x``, ``y``."""
+        if self.xy.shape[0] == 2:  # a straight lane: its one segment extends both ways
+            return self._project_line(x, y)
+        return self._project_segments(x, y)
+
+    def _project_segments(self, x: np.ndarray, y: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` by a search of every segment (any polyline)."""
         a = self.xy[:-1]
         d = self.xy[1:] - a
         dd = np.einsum("ij,ij->i", d, d)
@@ -72,6 +81,21 @@ class LanePolyline:
         r = dxk * py[rows, k] - dyk * px[rows, k]
         return s, r, np.arctan2(dyk, dxk)
 
+    def _project_line(self, x: np.ndarray, y: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` on a lane of one segment, with the same arithmetic (no closest
+        segment to look for, no clipping: the segment extends both ways)."""
+        (ax, ay), (bx, by) = self.xy[0], self.xy[1]
+        dx, dy = bx - ax, by - ay
+        px = x - ax
+        py = y - ay
+        seg = math.sqrt(dx * dx + dy * dy)
+        u = (px * dx + py * dy) / (dx * dx + dy * dy)
+        s = self.cum[0] + u * seg
+        dxk, dyk = dx / seg, dy / seg
+        r = dxk * py - dyk * px
+        return s, r, np.arctan2(np.full(x.shape, dyk), np.full(x.shape, dxk))
+
 
 def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
     try:
@@ -84,23 +108,63 @@ def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
     if xy.shape[0] < 2 or not np.isfinite(xy).all():
         raise MonitorError(f"lane {lane_id!r} in meta['lanes'] needs >= 2 finite points")
     seg = np.hypot(*np.diff(xy, axis=0).T)
-    keep = np.concatenate([[True], seg > 1e-9])  # repeated points have no direction
-    xy = xy[keep]
-    if xy.shape[0] < 2:
-        raise MonitorError(f"lane {lane_id!r} in meta['lanes'] has zero length")
-    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    apart = seg > 1e-9  # repeated points have no direction
+    if not apart.all():
+        xy = xy[np.concatenate([[True], apart])]
+        if xy.shape[0] < 2:
+            raise MonitorError(f"lane {lane_id!r} in meta['lanes'] has zero length")
+        seg = np.hypot(*np.diff(xy, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
     return LanePolyline(lane_id, xy, cum, width, str(data.get("kind", "travel")),
                         str(data.get("group", "")))
 
 
-_LANES: "weakref.WeakKeyDictionary[Trajectory, dict[str, LanePolyline]]" = weakref.WeakKeyDictionary()
-_FRAMES: "weakref.WeakKeyDictionary[Trajectory, LaneFrame]" = weakref.WeakKeyDictionary()
+class RoadLanes(Mapping[str, LanePolyline]):
+    """The lanes of ``meta["lanes"]`` by id, each made a :class:`LanePolyline` when first
+    read: a map's recording lists every lane any agent was on, and most monitors need the
+    shape of only the ego's few (the kinds and groups of all come from the plain data)."""
+
+    def __init__(self, raw: Mapping[Any, Any]) -> None:
+        self._raw = {str(k): v for k, v in raw.items()}
+        self._built: dict[str, LanePolyline] = {}
+
+    def __getitem__(self, lane_id: str) -> LanePolyline:
+        got = self._built.get(lane_id)
+        if got is None:
+            got = self._built[lane_id] = _polyline(lane_id, self._raw[lane_id])
+        return got
+
+    def __contains__(self, lane_id: object) -> bool:
+        return lane_id in self._raw
+
+    def __iter__(self):
+        return iter(self._raw)
+
+    def __len__(self) -> int:
+        return len(self._raw)
+
+    def _field(self, lane_id: str, key: str, default: str) -> str:
+        data = self._raw[lane_id]
+        if not isinstance(data, Mapping):
+            raise MonitorError(f"lane {lane_id!r} in the trajectory's meta['lanes'] must be a "
+                               f"dict with 'xy' and 'width', got {type(data).__name__}")
+        return str(data.get(key, default))
+
+    def kind(self, lane_id: str) -> str:
+        """The lane's kind ("travel", "connector", "parking"...) without building its shape."""
+        return self._field(lane_id, "kind", "travel")
+
+    def group(self, lane_id: str) -> str:
+        """The lane's carriageway group ("" when none) without building its shape."""
+        return self._field(lane_id, "group", "")
 
 
-def lanes_of(traj: Trajectory, monitor: str = "") -> dict[str, LanePolyline]:
-    """The lanes recorded in ``traj.meta["lanes"]`` as polylines (cached per trajectory);
-    a :class:`MonitorError` naming ``monitor`` when the recording has none."""
-    got = _LANES.get(traj)
+def lanes_of(traj: Trajectory, monitor: str = "") -> RoadLanes:
+    """The lanes recorded in ``traj.meta["lanes"]`` by id (shared per trajectory; a lane's
+    polyline is built when first read, and a malformed lane raises a :class:`MonitorError`
+    then); a :class:`MonitorError` naming ``monitor`` when the recording has none."""
+    cache = memo(traj)
+    got = cache.get("road.lanes")
     if got is not None:
         return got
     raw = traj.meta.get("lanes")
@@ -109,8 +173,7 @@ def lanes_of(traj: Trajectory, monitor: str = "") -> dict[str, LanePolyline]:
             f"monitor {monitor!r} needs the road: the trajectory's meta has no 'lanes' (the "
             "simulator records them; by hand give meta={'lanes': {id: {'xy': [[x, y], ...], "
             "'width': w}}, ...})")
-    got = {str(k): _polyline(str(k), v) for k, v in raw.items()}
-    _LANES[traj] = got
+    got = cache["road.lanes"] = RoadLanes(raw)
     return got
 
 
@@ -130,28 +193,34 @@ class LaneFrame:
 def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
     """The ego's :class:`LaneFrame` in ``traj`` (computed once per trajectory, one vectorized
     projection per lane it was on)."""
-    got = _FRAMES.get(traj)
+    cache = memo(traj)
+    got = cache.get("road.frame")
     if got is not None:
         return got
     lanes = lanes_of(traj, monitor)
     T = traj.n_steps
-    s, r, h, w = (np.full(T, np.nan) for _ in range(4))
     lane = traj.lane[0]
     ok = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
     # the ego changes lanes a few times a run: runs of one lane id, not a sort of every sample
     change = np.flatnonzero(lane[1:] != lane[:-1]) + 1
+    if T and not change.size and ok.all() and str(lane[0]) in lanes:
+        # one known lane all along (a scenario on one lane): project every sample at once
+        poly = lanes[str(lane[0])]
+        s, r, h = poly.project(traj.x[0], traj.y[0])
+        got = cache["road.frame"] = LaneFrame(s, r, h, np.full(T, poly.width))
+        return got
+    s, r, h, w = (np.full(T, np.nan) for _ in range(4))
     ids = set(lane[np.concatenate([[0], change])].tolist()) if T else set()
     for lid in ids:
-        poly = lanes.get(lid)
-        if poly is None:
+        if lid not in lanes:
             continue
+        poly = lanes[lid]
         sel = ok & (lane == lid)
         if not sel.any():
             continue
         s[sel], r[sel], h[sel] = poly.project(traj.x[0, sel], traj.y[0, sel])
         w[sel] = poly.width
-    got = LaneFrame(s, r, h, w)
-    _FRAMES[traj] = got
+    got = cache["road.frame"] = LaneFrame(s, r, h, w)
     return got
 
 

@@ -10,9 +10,7 @@ the infringement: metres driven while infringing (sidewalk, wrong way, outside t
 lanes), the speed [m/s] at a stop line above the standing speed, the fraction of the route
 left, seconds standing beyond the allowed time. A rule that holds has ρ >= 0 (0 where no
 margin is measured). ``off_road`` (CARLA's ``OffRoadTest``) lives in :mod:`.metrics`.
-
-The world has no traffic signals, so there is no ``ran_red_light``: a run-through of a
-signal would need the signal's state in the recording.
+``ran_red_light`` (CARLA's ``RunningRedLightTest``) lives in :mod:`.signals`.
 """
 
 from __future__ import annotations
@@ -32,6 +30,7 @@ from .base import (
     check_threshold,
     factory,
     fmt_t,
+    memo,
 )
 from .road import LanePolyline, lane_frame, lanes_of, route_of
 
@@ -55,12 +54,25 @@ SIDEWALK_M = 2.0
 MOVING_MPS = 0.5
 
 
-def _step_lengths(traj: Trajectory, a: int = 0) -> np.ndarray:
-    """``(T,)`` metres agent ``a`` drove from the previous sample to each sample (0 at the
-    first and where it was absent at either end)."""
-    d = np.hypot(np.diff(traj.x[a]), np.diff(traj.y[a]))
-    d = np.where(traj.present[a, 1:] & traj.present[a, :-1] & np.isfinite(d), d, 0.0)
-    return np.concatenate([[0.0], d])
+def _step_lengths(traj: Trajectory) -> np.ndarray:
+    """``(T,)`` metres the ego drove from the previous sample to each sample (0 at the
+    first and where it was absent at either end); shared per trajectory."""
+    cache = memo(traj)
+    got = cache.get("rules.step_lengths")
+    if got is None:
+        d = np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0]))
+        d = np.where(traj.present[0, 1:] & traj.present[0, :-1] & np.isfinite(d), d, 0.0)
+        got = cache["rules.step_lengths"] = np.concatenate([[0.0], d])
+    return got
+
+
+def _ego_speed(traj: Trajectory) -> np.ndarray:
+    """``(T,)`` the ego's speed [m/s] from its recorded velocity; shared per trajectory."""
+    cache = memo(traj)
+    got = cache.get("rules.speed")
+    if got is None:
+        got = cache["rules.speed"] = np.hypot(traj.vx[0], traj.vy[0])
+    return got
 
 
 def _infringement(name: str, traj: Trajectory, bad: np.ndarray, what: str) -> MonitorResult:
@@ -78,9 +90,12 @@ def _infringement(name: str, traj: Trajectory, bad: np.ndarray, what: str) -> Mo
 
 def _ego_present(traj: Trajectory, name: str) -> np.ndarray:
     present = traj.present[0]
-    if not present.any():
-        raise MonitorError(f"monitor {name!r}: the ego is never present")
-    check_present_finite(traj, name, ("x", "y"), [0])
+    cache = memo(traj)
+    if "rules.ego_checked" not in cache:
+        if not present.any():
+            raise MonitorError(f"monitor {name!r}: the ego is never present")
+        check_present_finite(traj, name, ("x", "y"), [0])
+        cache["rules.ego_checked"] = True
     return present
 
 
@@ -96,17 +111,43 @@ class OnSidewalkMonitor(Monitor):
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         present = _ego_present(traj, self.name)
+        off = present & ~traj.on_road[0]
         f = lane_frame(traj, self.name)
-        beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
-        bad = present & ~traj.on_road[0] & (beyond > 0) & (beyond <= self.width)
+        if not off.any():
+            bad = off
+        else:
+            lanes = lanes_of(traj, self.name)
+            walks = [k for k in lanes if lanes.kind(k) == "sidewalk"]
+            if walks or traj.meta.get("road") == "map":
+                # a map's own sidewalks (none beside the lanes driven: no sidewalk to be on)
+                bad = off & _inside_any(traj, [lanes[k] for k in walks], off)
+            else:
+                beyond = np.abs(f.r) - f.width / 2  # metres beyond the edge of its lane
+                bad = off & (beyond > 0) & (beyond <= self.width)
         return _infringement(self.name, traj, bad, "drove on the sidewalk")
+
+
+def _inside_any(traj: Trajectory, lanes: list[LanePolyline], where: np.ndarray) -> np.ndarray:
+    """``(T,)`` whether the ego's centre lies on one of ``lanes`` (between its ends, within
+    half its width of its centre line), at the samples ``where`` (False elsewhere)."""
+    idx = np.flatnonzero(where)
+    inside = np.zeros(idx.size, dtype=bool)
+    for lane in lanes:
+        s, r, _ = lane.project(traj.x[0, idx], traj.y[0, idx])
+        inside |= (s >= 0) & (s <= lane.length) & (np.abs(r) <= lane.width / 2)
+    out = np.zeros(traj.n_steps, dtype=bool)
+    out[idx] = inside
+    return out
 
 
 @factory
 def on_sidewalk(width: float = SIDEWALK_M, *, name: str = "on_sidewalk") -> Monitor:
-    """CARLA's ``OnSidewalkTest``: the ego's centre never leaves the road onto the sidewalk,
-    the ``width`` [m] band beyond the edge of the lane it last drove in. ρ = 0 when it holds,
-    else minus the metres driven there. Farther off the road is :func:`off_road`'s."""
+    """CARLA's ``OnSidewalkTest``: the ego's centre never leaves the road onto the sidewalk:
+    on a map, the map's own sidewalk lanes beside the lanes driven (the recording lists them,
+    ``kind`` "sidewalk"; a shoulder or a border is off the road, not sidewalk); on built
+    roads, which draw none, the ``width`` [m] band beyond the edge of the lane it last drove
+    in. ρ = 0 when it holds, else minus the metres driven
+    there. Farther off the road is :func:`off_road`'s."""
     return OnSidewalkMonitor(width, name=name)
 
 
@@ -126,11 +167,14 @@ class WrongWayMonitor(Monitor):
         """``(T,)`` whether the ego moves against its lane's direction at each sample."""
         f = lane_frame(traj, self.name)
         lanes = lanes_of(traj, self.name)
-        parking = np.isin(traj.lane[0], [k for k, v in lanes.items() if v.kind == "parking"])
+        parking = [k for k in lanes if lanes.kind(k) == "parking"]
         travel = np.arctan2(traj.vy[0], traj.vx[0])  # direction of motion, also when reversing
         err = np.abs(np.mod(travel - f.heading + np.pi, 2 * np.pi) - np.pi)
-        moving = np.hypot(traj.vx[0], traj.vy[0]) > MOVING_MPS
-        return traj.present[0] & moving & ~parking & np.isfinite(f.heading) & (err > self.max_angle)
+        moving = _ego_speed(traj) > MOVING_MPS
+        bad = traj.present[0] & moving & np.isfinite(f.heading) & (err > self.max_angle)
+        if parking:
+            bad &= ~np.isin(traj.lane[0], parking)
+        return bad
 
     def _evaluate(self, traj: Trajectory) -> MonitorResult:
         _ego_present(traj, self.name)
@@ -150,14 +194,41 @@ def wrong_way(max_angle_deg: float = 90.0, *, name: str = "wrong_way") -> Monito
 # -- outside the route's lanes ----------------------------------------------------------------
 
 def _outside_route(traj: Trajectory, name: str) -> np.ndarray:
-    """``(T,)`` whether the ego is off the road or on a lane of no carriageway of its route."""
-    route = route_of(traj, name)
+    """``(T,)`` whether the ego is off the road or on a lane of no carriageway of its route
+    (shared per trajectory)."""
+    cache = memo(traj)
+    got = cache.get("rules.outside_route")
+    if got is not None:
+        return got
+    route_ids = _route_ids(traj, name)
     lanes = lanes_of(traj, name)
-    groups = {l.group for l in route if l.group}
-    ok_ids = [k for k, v in lanes.items() if (v.group and v.group in groups) or k in
-              {l.id for l in route}]
-    on_route = np.isin(traj.lane[0], ok_ids)
-    return traj.present[0] & (~traj.on_road[0] | ~on_route)
+    groups = {lanes.group(i) for i in route_ids} - {""}
+    ok_ids = [k for k in lanes if k in route_ids or lanes.group(k) in groups]
+    on_route = _among(traj.lane[0], ok_ids)
+    got = cache["rules.outside_route"] = traj.present[0] & (~traj.on_road[0] | ~on_route)
+    return got
+
+
+def _among(lane: np.ndarray, ids: list[str]) -> np.ndarray:
+    """``np.isin(lane, ids)``; a few comparisons for a few ids (isin sorts strings)."""
+    if len(ids) > 6:
+        return np.isin(lane, ids)
+    out = np.zeros(lane.shape, dtype=bool)
+    for i in ids:
+        out |= lane == i
+    return out
+
+
+def _route_ids(traj: Trajectory, name: str) -> set[str]:
+    """The ids of the ego's route lanes, checked against the recorded lanes (no shapes)."""
+    ids = traj.meta.get("ego_route")
+    if not ids:
+        route_of(traj, name)  # raises the error naming what is missing
+    lanes = lanes_of(traj, name)
+    missing = [i for i in ids if i not in lanes]
+    if missing:
+        raise MonitorError(f"monitor {name!r}: route lanes {missing} are not in meta['lanes']")
+    return set(ids)
 
 
 def outside_route_fraction(traj: Trajectory, name: str = "outside_route_lanes") -> float:
@@ -208,9 +279,14 @@ def stop_crossings(traj: Trajectory, name: str = "ran_stop", *,
     lines = [(str(m["lane"]), float(m["s"])) for m in stops if m.get("kind") == "stop"]
     if not lines:
         return []
+    cache = memo(traj)
+    key = ("rules.stop_crossings", before, past)
+    got = cache.get(key)
+    if got is not None:
+        return list(got)
     f = lane_frame(traj, name)
     front = f.s + traj.length[0] / 2
-    speed = np.hypot(traj.vx[0], traj.vy[0])
+    speed = _ego_speed(traj)
     out = []
     for lane_id, s_line in lines:
         on = traj.present[0] & (traj.lane[0] == lane_id) & np.isfinite(front)
@@ -229,6 +305,7 @@ def stop_crossings(traj: Trajectory, name: str = "ran_stop", *,
         else:  # jumped over the zone between two samples: the last sample before it
             vmin = float(speed[int(np.flatnonzero(came[:k])[-1])])
         out.append((lane_id, k, vmin))
+    cache[key] = tuple(out)
     return out
 
 
@@ -279,16 +356,33 @@ ROUTE_DEVIATION_M = 5.0
 
 def route_fraction(traj: Trajectory, name: str = "route_completion") -> tuple[float, int, float]:
     """``(fraction of the route from the ego's start to its end the ego completed (0..1),
-    the step it got farthest, metres left)``; 1 when the recording says it reached the end."""
+    the step it got farthest, metres left)``; 1 when the recording says it reached the end.
+    Shared per trajectory."""
+    cache = memo(traj)
+    got = cache.get("rules.route_fraction")
+    if got is None:
+        got = cache["rules.route_fraction"] = _route_fraction(traj, name)
+    return got
+
+
+def _route_fraction(traj: Trajectory, name: str) -> tuple[float, int, float]:
     route = route_of(traj, name)
-    xy = np.concatenate([l.xy if i == 0 else l.xy[1:] for i, l in enumerate(route)])
-    ok = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
-    xy = xy[ok]
-    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    path = LanePolyline("route", xy, cum, 0.0)
+    if len(route) == 1:  # the lane's own polyline (its points are already apart)
+        path = route[0]
+    else:
+        xy = np.concatenate([l.xy if i == 0 else l.xy[1:] for i, l in enumerate(route)])
+        ok = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
+        xy = xy[ok]
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+        path = LanePolyline("route", xy, cum, 0.0)
     present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
     idx = np.flatnonzero(present)
-    s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx])
+    if path is route[0] and (traj.lane[0, idx] == path.id).all():
+        # the ego stayed on its one route lane: its lane frame is this projection already
+        f = lane_frame(traj, name)
+        s, r = f.s[idx], f.r[idx]
+    else:
+        s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx])
     s = np.clip(s, 0.0, path.length)
     s0 = float(s[0])
     near = np.abs(r) <= ROUTE_DEVIATION_M
@@ -333,11 +427,20 @@ def route_completion(min_fraction: float = 1.0, *, name: str = "route_completion
 def standing_time(traj: Trajectory, min_speed: float) -> np.ndarray:
     """``(T,)`` seconds the ego has been standing (slower than ``min_speed``) without a break,
     at each sample (0 while it moves)."""
-    slow = traj.present[0] & (np.hypot(traj.vx[0], traj.vy[0]) < min_speed)
+    cache = memo(traj)
+    key = ("rules.standing_time", min_speed)
+    got = cache.get(key)
+    if got is not None:
+        return got
+    slow = traj.present[0] & (_ego_speed(traj) < min_speed)
+    if not slow.any():
+        got = cache[key] = np.zeros(traj.n_steps)
+        return got
     began = slow & ~np.concatenate([[False], slow[:-1]])
     start = np.maximum.accumulate(np.where(began, traj.t, -np.inf))
     with np.errstate(invalid="ignore"):
-        return np.where(slow, traj.t - start, 0.0)
+        got = cache[key] = np.where(slow, traj.t - start, 0.0)
+    return got
 
 
 class BlockedMonitor(Monitor):
@@ -382,7 +485,16 @@ TRAFFIC_KINDS = ("car", "truck", "bus", "bicycle", "motorcycle")
 
 def traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
     """``(ego mean speed / traffic mean speed, ego mean [m/s], traffic mean [m/s])`` over the
-    samples where the ego and some moving-traffic agent are present (NaN when there are none)."""
+    samples where the ego and some moving-traffic agent are present (NaN when there are none).
+    Shared per trajectory."""
+    cache = memo(traj)
+    got = cache.get("rules.traffic_speed_ratio")
+    if got is None:
+        got = cache["rules.traffic_speed_ratio"] = _traffic_speed_ratio(traj)
+    return got
+
+
+def _traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
     others = np.array([k in TRAFFIC_KINDS for k in traj.kinds[1:]], dtype=bool)
     if not others.any():
         return math.nan, math.nan, math.nan
@@ -393,7 +505,7 @@ def traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
     if not use.any():
         return math.nan, math.nan, math.nan
     traffic = float((np.where(pres, sp, 0.0).sum(axis=0)[use] / n[use]).mean())
-    ego = float(np.hypot(traj.vx[0], traj.vy[0])[use].mean())
+    ego = float(_ego_speed(traj)[use].mean())
     ratio = ego / traffic if traffic > 0 else math.inf
     return ratio, ego, traffic
 

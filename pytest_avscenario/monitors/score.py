@@ -13,9 +13,10 @@ trajectory with the rule monitors:
   pedestrian, parked → static, anything else → vehicle; each agent once), or a crash the
   simulator recorded for the ego that no agent's footprint explains (static);
 * a stop sign is each stop line :func:`.rules.stop_crossings` finds run;
+* a red light is each traffic light's stop position the ego crossed on red
+  (:func:`.signals.red_light_crossings`, the recording's ``meta["lights"]``);
 * a scenario timeout is a run that ends with the ego standing for :data:`TIMEOUT_STAND_S`
   or more short of its route's end;
-* the world has no traffic signals, so no red light is ever charged.
 
 The score needs the road in the recording (``meta["lanes"]``, ``meta["ego_route"]``); a
 trajectory without it has no score (None).
@@ -40,6 +41,7 @@ from .rules import (
     stop_crossings,
     traffic_speed_ratio,
 )
+from .signals import red_light_crossings
 
 __all__ = ["PENALTIES", "DrivingScore", "driving_score", "campaign_score", "TIMEOUT_STAND_S"]
 
@@ -113,6 +115,10 @@ def driving_score(traj: Trajectory) -> DrivingScore | None:
             if vmin >= STANDING_MPS:
                 infractions.append({"kind": "stop", "t": float(traj.t[k]), "agent": None,
                                     "detail": f"{lane_id} at {vmin:.3g} m/s"})
+        for p in red_light_crossings(traj):
+            if p.ran:
+                infractions.append({"kind": "red_light", "t": p.t, "agent": None,
+                                    "detail": f"light {p.light} on {p.lane}"})
         stood = standing_time(traj, 0.1)
         last = int(np.flatnonzero(traj.present[0])[-1])
         if completion < 1.0 and stood[last] >= TIMEOUT_STAND_S:

@@ -127,6 +127,18 @@ function avsReplay(id) {
     });
     road.stop_lines.concat(road.lane_ends || []).forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
   }
+  var LIGHTS = ["rgb(40,200,80)", "rgb(255,185,0)", "rgb(230,30,30)"];  // green, amber, red
+  function drawLights(k) {  // each light's state at frame k: bars at its stop positions, its head
+    (D.lights || []).forEach(function (l) {
+      var code = 0;
+      l.at.forEach(function (a) { if (a[0] <= k) code = a[1]; });
+      pen(LIGHTS[code], Math.max(3, 0.6 * S));
+      l.stops.forEach(function (s) { path([[s[0], s[1]], [s[2], s[3]]]); c.stroke(); });
+      var q = P(l.x, l.y), r = Math.max(5, 1.2 * S);
+      c.fillStyle = "rgb(25,25,25)"; c.fillRect(q[0] - r - 2, q[1] - r - 2, 2 * r + 4, 2 * r + 4);
+      c.fillStyle = LIGHTS[code]; pen(LIGHTS[code], 1); disc(q, r, true);
+    });
+  }
   function decision(k) {  // [since, label] in force at frame k, as sim.clip.decision_at
     var now = null, cs = Math.round(T[k] * 100), at = D.decisions ? D.decisions.at : [];
     for (var i = 0; i < at.length && at[i][0] <= cs; i++) now = [at[i][0] / 100, D.decisions.labels[at[i][1]]];
@@ -301,7 +313,7 @@ function avsReplay(id) {
     var h = D.view.along && e.h[k] !== null ? e.h[k] : 0;  // "ahead" along the ego's heading (highway bends)
     cx = D.view.cx !== null ? D.view.cx : ego[0] + D.view.ahead * Math.cos(h);
     cy = D.view.cy !== null ? D.view.cy : ego[1] + D.view.ahead * Math.sin(h);
-    drawRoad(); drawAgents(k); drawLabels(k, [drawScale()]);
+    drawRoad(); drawLights(k); drawAgents(k); drawLabels(k, [drawScale()]);
     var text = lines(k);
     out.textContent = text[0];
     box.textContent = text.slice(1).join("\n");

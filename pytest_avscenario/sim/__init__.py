@@ -18,6 +18,8 @@ One concept per module; scenario code talks to :mod:`.world`, the rest talk to e
   imports highway-env at import time); :mod:`._hwenv` loads its core without gym.
 * :mod:`.behaviors` — what non-ego agents do; :mod:`.control` — the control laws they use.
 * :mod:`.right_of_way` — the all-way-stop rule, shared by behaviours and the autopilot.
+* :mod:`.signals` — traffic lights, stop signs and stop lines read from a map file (or a
+  built intersection's lights), the lights' fixed-time plan, when a driver stops for one.
 * :mod:`.geometry` — angle wrapping and footprint overlap.
 * :mod:`.observation` — what a driver sees; :mod:`.view` — the read-only view of the whole
   scene (``world.view()``); :mod:`.drivers` — who drives the ego (the autopilot with its

@@ -296,12 +296,38 @@ def clip_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None
         "values": values,
         "rho_t": rho_t,
     }
+    lights = _lights(traj, steps)
+    if lights:
+        data["lights"] = lights
     decisions = _decisions(traj)
     if decisions is not None:
         data["decisions"] = decisions
     if world is not None:
         data["road"] = _road(world)
     return data
+
+
+def _lights(traj: Trajectory, steps: np.ndarray) -> list[dict[str, Any]]:
+    """The recorded traffic lights: ``{"id", "x", "y" (its head) [m], "stops": [[ax, ay, bx,
+    by], ...] (a bar across each lane it stops) [m], "at": [[frame, state code], ...]}``
+    (the state from that frame on: 0 green, 1 amber, 2 red)."""
+    out = []
+    for light in (traj.meta or {}).get("lights", ()):
+        codes = traj.signals.get(f"light.{light['id']}")
+        if codes is None:
+            continue
+        per = np.asarray(codes)[steps].astype(int)
+        change = np.concatenate([[0], np.flatnonzero(per[1:] != per[:-1]) + 1])
+        bars = []
+        for stop in light.get("stops", ()):
+            h, half = stop["heading"], stop["width"] / 2
+            nx, ny = -math.sin(h) * half, math.cos(h) * half
+            bars.append([round(float(v), 2) for v in (stop["x"] + nx, stop["y"] + ny,
+                                                      stop["x"] - nx, stop["y"] - ny)])
+        out.append({"id": str(light["id"]), "x": round(float(light["x"]), 2),
+                    "y": round(float(light["y"]), 2), "stops": bars,
+                    "at": [[int(k), int(per[k])] for k in change]})
+    return out
 
 
 def _decisions(traj: Trajectory) -> dict[str, Any] | None:

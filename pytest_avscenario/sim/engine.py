@@ -33,6 +33,7 @@ from . import control
 from .drivers import action_pair
 from .errors import DriverError, SimError
 from .geometry import wrap_to_pi
+from .signals import GREEN, must_stop
 
 __all__ = ["Straight", "Arc", "Sine", "LineType", "SimRoad", "Actor", "Bus", "DriverEgo", "IDMEgo", "Pedestrian",
            "agent_class"]
@@ -303,10 +304,39 @@ class _Agent:
         """
         lead = self.leader()
         gap, v_lead = (lead if lead is not None else (None, 0.0))
+        light = self.light_stop()
+        if light is not None:
+            stop_in = light if stop_in is None else min(stop_in, light)
         if stop_in is not None and (gap is None or stop_in < gap):
             # Treat the line as a standing car whose rear is at the line.
             gap, v_lead = stop_in + control.IDM.s0, 0.0
         return control.idm_acceleration(float(self.speed), float(target_speed), gap, v_lead)
+
+    #: [m] the front bumper stops this far before a traffic light's stop position
+    LIGHT_MARGIN = 1.0
+
+    def light_stop(self, comfort_decel: float = control.IDM.b_comf) -> float | None:
+        """Distance [m] from the front bumper to where the agent stops for the next traffic
+        light on its route (negative within :data:`LIGHT_MARGIN` of the line), or None when
+        no light stops it. It stops on red, and on amber when it can stop at
+        ``comfort_decel`` [m/s^2] (see :func:`.signals.must_stop`); having gone on at amber
+        (or too close to stop on red) it keeps going through that light."""
+        ahead = self.world.lights_ahead(self)
+        if not ahead:
+            return None
+        went = self.__dict__.setdefault("_light_went", set())
+        v = max(float(self.speed), 0.0)
+        for d, state, sid in ahead:
+            front = d - self.LENGTH / 2
+            if front < 0.0:
+                continue  # the front is past the line: it has gone
+            if state == GREEN:
+                went.discard(sid)
+                continue
+            if must_stop(state, front, v, comfort_decel, control.MAX_DECELERATION, sid in went):
+                return front - self.LIGHT_MARGIN  # negative once within the margin
+            went.add(sid)
+        return None
 
     def distance_along_route(self, place: Any) -> float:
         """Signed distance [m] along the route from the agent's centre to ``place``.
@@ -517,6 +547,23 @@ class IDMEgo(_Agent, IDMVehicle):
     LANE_CHANGE_MIN_ACC_GAIN = 0.2
     LANE_CHANGE_MAX_BRAKING_IMPOSED = 2.0
     LANE_CHANGE_DELAY = 1.0
+
+    def acceleration(self, ego_vehicle, front_vehicle=None, rear_vehicle=None) -> float:
+        """highway-env's IDM, and for the ego itself a traffic light that stops it acting
+        as a standing car whose IDM standstill gap ends at the stop position."""
+        acc = IDMVehicle.acceleration(self, ego_vehicle, front_vehicle, rear_vehicle)
+        if ego_vehicle is not self or getattr(self, "world", None) is None:
+            return acc
+        stop = self.light_stop(comfort_decel=-self.COMFORT_ACC_MIN)
+        if stop is None:
+            return acc
+        v = max(float(self.speed), 0.0)
+        v0 = abs(float(self.target_speed)) or 1e-3
+        s_star = self.DISTANCE_WANTED + v * self.TIME_WANTED + v * v / (
+            2.0 * math.sqrt(-self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN))
+        d = max(stop + self.DISTANCE_WANTED, 0.1)
+        a_stop = self.COMFORT_ACC_MAX * (1.0 - (v / v0) ** self.DELTA - (s_star / d) ** 2)
+        return min(acc, a_stop)
 
     def __init__(self, road, position, heading: float, speed: float, target_lane_index,
                  target_speed: float, route: list) -> None:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["AgentState", "Observation", "StopLine"]
+__all__ = ["AgentState", "Observation", "StopLine", "TrafficLight"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +62,16 @@ class StopLine:
 
 
 @dataclass(frozen=True)
+class TrafficLight:
+    """A traffic light on the ego's route ahead (within 150 m of the start of its lane)."""
+
+    route_index: int  # index into Observation.route of the lane its stop position is on
+    s: float  # [m] the stop position on that lane: stop the front bumper before it
+    state: str  # "green", "amber" or "red" now
+    signal: str = ""  # the map's signal id
+
+
+@dataclass(frozen=True)
 class Observation:
     """Everything a driver gets at one step.
 
@@ -69,7 +79,8 @@ class Observation:
     ``route_index`` the lane of it the ego is on now and ``s``/``r`` its longitudinal and
     signed lateral position in that lane's frame. ``agents`` are the other agents within
     ``sensor_range`` metres, nearest first. ``goal`` is a target pose for manoeuvres such as
-    parking (``None`` otherwise).
+    parking (``None`` otherwise). ``traffic_lights`` are the lights on the route ahead, each
+    with where traffic stops for it and its state now (empty on a road without lights).
     """
 
     t: float  # [s]
@@ -85,3 +96,4 @@ class Observation:
     target_speed: float | None = None  # [m/s] what the scenario asked the ego to cruise at
     goal: dict[str, Any] | None = None  # e.g. {"kind": "park", "x":…, "y":…, "heading":…}
     sensor_range: float = 80.0  # [m]
+    traffic_lights: tuple[TrafficLight, ...] = ()  # the lights on the route ahead, nearest first

@@ -24,7 +24,7 @@ import numpy as np
 from ..trajectory import Trajectory
 from .geometry import wrap_to_pi
 
-__all__ = ["Recorder", "action_label", "road_meta"]
+__all__ = ["Recorder", "action_label", "road_meta", "map_sidewalks"]
 
 _ABSENT = (math.nan,) * 7 + (-1,)
 
@@ -112,6 +112,14 @@ class Recorder:
             **({"intersections": list(w.road.intersections)} if w.road.kind == "network" else {}),
         }
         meta.update(road_meta(w.lane_index, set(lane.ravel().tolist()) | set(meta["ego_route"])))
+        if w.road.kind == "map":  # the sidewalks beside those lanes, for on_sidewalk
+            meta["lanes"].update(map_sidewalks(w.road.data, meta["lanes"]))
+        lights = w.traffic_lights
+        if lights is not None:  # the lights ruling the lanes recorded: states per sample
+            series, entries = lights.record(t, meta["lanes"])
+            if entries:
+                signals.update(series)
+                meta["lights"] = entries
         decisions = _decisions(ego, self.reasons, float(t[-1]) if n else 0.0)
         if decisions is not None:
             meta["decisions"] = decisions
@@ -182,6 +190,24 @@ def _lane_record(lane: Any) -> tuple[str, str, float, np.ndarray]:
     else:
         xy = np.array([g.position(s, 0.0) for s in np.linspace(0.0, L, n)])
     return lane.kind, lane.group, round(float(g.width_at(0.0)), 6), np.round(xy, 4)
+
+
+def map_sidewalks(data: Any, lanes: dict[str, Any]) -> dict[str, Any]:
+    """The sidewalk lanes of a map (:class:`~.opendrive.MapData`) in the lane sections of
+    ``lanes`` (the recorded ones), written as :func:`road_meta` writes a lane (``kind``
+    "sidewalk"; centre line points about every :data:`LANE_POINT_SPACING_M`; ``width`` the
+    narrowest along it, so a point counted on the sidewalk is on it)."""
+    sections = {(l.road, l.section) for k, l in data.lanes.items() if k in lanes}
+    out: dict[str, Any] = {}
+    for k, l in data.lanes.items():
+        if l.kind != "sidewalk" or (l.road, l.section) not in sections or k in lanes:
+            continue
+        step = max(int(round(LANE_POINT_SPACING_M / max(float(l.s[1] - l.s[0]), 1e-9))), 1) \
+            if len(l.s) > 1 else 1
+        keep = np.unique(np.r_[np.arange(0, len(l.s), step), len(l.s) - 1])
+        out[k] = {"kind": "sidewalk", "group": "", "width": round(float(l.width.min()), 6),
+                  "xy": np.round(l.xy[keep], 4).tolist()}
+    return out
 
 
 def _decisions(ego: Any, reasons: list[list[Any]], t_end: float) -> dict[str, Any] | None:

@@ -158,6 +158,7 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None,
         w = sl.lane.width
         pygame.draw.line(surface, WHITE, surface.vec2pix(g.position(sl.s, -w / 2)),
                          surface.vec2pix(g.position(sl.s, w / 2)), max(2, int(0.4 * scale)))
+    _draw_lights(pygame, surface, tr, step, scale)
     arms = {name[: -len(".stop_arm")]: v for name, v in tr.signals.items()
             if name.endswith(".stop_arm")}
     order = sorted(range(tr.n_agents), key=lambda i: tr.kinds[i] == "pedestrian")
@@ -194,6 +195,31 @@ def frame(world: Any, step: int, centre: Any = None, width: float | None = None,
     if clock:
         _label(pygame, surface, f"t = {tr.t[step]:.1f} s")
     return surface
+
+
+#: a traffic light's state colours (green, amber, red), as the recording codes them 0, 1, 2
+LIGHT_COLOURS = ((40, 200, 80), (255, 185, 0), (230, 30, 30))
+
+
+def _draw_lights(pygame: Any, surface: Any, tr: Any, step: int, scale: float) -> None:
+    """Each recorded traffic light in its state at ``step``: a bar across every lane it
+    stops (at the stop position) and its head, a dark box with the lit lamp, where it stands."""
+    for light in (tr.meta or {}).get("lights", ()):
+        codes = tr.signals.get(f"light.{light['id']}")
+        if codes is None:
+            continue
+        code = int(codes[step])
+        colour = LIGHT_COLOURS[min(max(code, 0), 2)]
+        for stop in light.get("stops", ()):
+            h, half = stop["heading"], stop["width"] / 2
+            nx, ny = -math.sin(h) * half, math.cos(h) * half
+            a = surface.vec2pix((stop["x"] + nx, stop["y"] + ny))
+            b = surface.vec2pix((stop["x"] - nx, stop["y"] - ny))
+            pygame.draw.line(surface, colour, a, b, max(3, int(0.6 * scale)))
+        cx, cy = surface.vec2pix((light["x"], light["y"]))
+        r = max(5, int(1.2 * scale))
+        pygame.draw.rect(surface, (25, 25, 25), pygame.Rect(cx - r - 2, cy - r - 2, 2 * r + 4, 2 * r + 4))
+        pygame.draw.circle(surface, colour, (cx, cy), r)
 
 
 def _draw_crosswalk(pygame: Any, surface: Any, cw: Any) -> None:

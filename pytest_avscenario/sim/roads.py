@@ -243,11 +243,16 @@ class Intersection(_Road):
 
     def __init__(self, world: Any, net: Any, lanes: int, approach_length: float, lane_width: float,
                  speed_limit: float, crosswalk_width: float, corner: float, median: float = 0.0,
-                 at: Any = (0.0, 0.0), name: str = "") -> None:
+                 at: Any = (0.0, 0.0), name: str = "", control: str = "stop") -> None:
         from .engine import Arc, LineType, Straight
 
         super().__init__(world)
         what = f"intersection({name!r})" if name else "intersection"
+        if control not in ("stop", "signals"):
+            raise SimError(f"{what}(control={control!r}): 'stop' (an all-way stop) or 'signals' "
+                           "(traffic lights)", test=world.name)
+        self.control = control
+        self.traffic_lights = None  # made with the lane index when control="signals"
         if lanes not in (1, 2):
             raise SimError(f"{what}(lanes={lanes!r}): one or two lanes per approach",
                            test=world.name)
@@ -324,7 +329,8 @@ class Intersection(_Road):
             u = np.array(_UNIT[d])
             right_in = np.array([-u[1], u[0]])
             for lane in self._in[d]:
-                idx.add_stop(lane, L - cw - 1.0, "stop")
+                if self.control == "stop":
+                    idx.add_stop(lane, L - cw - 1.0, "stop")
                 idx.add_stop(lane, L - cw, "crosswalk")
                 self.stop_lines.append(StopLine(lane, L - cw - 1.0, d))
             for lane in self._out[d]:
@@ -338,6 +344,10 @@ class Intersection(_Road):
             s_of.update({l.index: cw / 2 for l in self._out[d]})
             self._crosswalk_across(self.prefix + d, self._in[d] + self._out[d], s_of,
                                    mid + a_dir * span, mid - a_dir * span, cw, sides)
+        if self.control == "signals":
+            from .signals import intersection_lights
+
+            self.traffic_lights = intersection_lights(self)
 
     def _arm(self, d: str) -> str:
         if d not in _UNIT:

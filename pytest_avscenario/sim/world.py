@@ -20,7 +20,7 @@ import numpy as np
 from .drivers import IDMDriver, declared_step, resolve
 from .errors import DriverError, SimError
 from .geometry import footprints_overlap
-from .observation import AgentState, Observation, StopLine as ObsStopLine
+from .observation import AgentState, Observation, StopLine as ObsStopLine, TrafficLight
 from .places import Crosswalk, Lane, Path, Route, Spot, StopLine, distance as _distance
 from .recording import Recorder
 from ..trajectory import Trajectory
@@ -87,6 +87,7 @@ class World:
         self._route_geoms: tuple = ()
         self._stop_cache: dict[int, tuple] = {}
         self._allway: Any = None  # arrival order at all-way stops (right_of_way.AllWayStop)
+        self._lights: Any = None  # the road's traffic lights (signals.TrafficLights), or False
         self.sensor_range = 80.0  # [m]
 
     def __repr__(self) -> str:
@@ -158,19 +159,21 @@ class World:
     def intersection(self, lanes: int = 1, approach_length: float = 100.0, *,
                      lane_width: float = 3.5, speed_limit: float = 13.9,
                      crosswalk_width: float = 3.0, corner: float = 6.0,
-                     median: float = 0.0) -> Any:
+                     median: float = 0.0, control: str = "stop") -> Any:
         """A four-way intersection at the origin, ``lanes`` (1 or 2) lanes per approach.
 
         ``approach_length`` [m] per arm; ``corner`` [m] is the clearance between the outermost
         lane and the box edge (sets the turn radii); ``median`` [m] separates the two
-        directions of every arm. For several intersections use :meth:`road_network`.
+        directions of every arm. ``control`` is ``"stop"`` (an all-way stop) or
+        ``"signals"``: traffic lights, north-south and east-west taking turns
+        (:meth:`signals` sets their plan). For several intersections use :meth:`road_network`.
         """
         from .roads import Intersection
 
         net = self._new_network("intersection")
         return self._finish_road(Intersection(self, net, lanes, float(approach_length),
                                               lane_width, speed_limit, crosswalk_width,
-                                              corner, median), net)
+                                              corner, median, control=control), net)
 
     def road_network(self) -> Any:
         """An empty :class:`~.network.Network`: place intersections anywhere
@@ -207,7 +210,29 @@ class World:
         self._road.neighbour_vehicles_connected_lanes = True
         self._index = road.make_index()
         self.road = road
+        self._map_stop_signs(road)
         return road
+
+    def _map_stop_signs(self, road: Any) -> None:
+        """The map's stop signs (``<signal type="206">``) and stop lines (``"294"``) as stop
+        marks: drivers stop there and ``ran_stop`` judges them, as at a built all-way stop."""
+        from .signals import STOP_LINE, STOP_SIGN, map_signals
+
+        try:
+            found = map_signals(road.data)
+        except SimError as exc:
+            raise SimError(str(exc), test=self.name) from None
+        by_id = road._built.by_id
+        marked = set()
+        for sg in found.signals.values():
+            if sg.kind not in (STOP_SIGN, STOP_LINE):
+                continue
+            for p in sg.stops:
+                lane = by_id.get(p.lane)
+                if lane is not None and (p.lane, round(p.s, 3)) not in marked:
+                    marked.add((p.lane, round(p.s, 3)))
+                    self._index.add_stop(lane, p.s, "stop")
+                    road.stop_lines.append(StopLine(lane, p.s, sg.id))
 
     # -- the interface of the engine, roads and behaviours to the world ------------------------
     # Agents, roads and behaviours go through these few members, never through the world's
@@ -261,6 +286,68 @@ class World:
         if aw is None or aw.index is not self._index:
             aw = self._allway = AllWayStop(self)
         return aw
+
+    # -- traffic lights ----------------------------------------------------------------------------
+    @property
+    def traffic_lights(self) -> Any:
+        """The road's traffic lights (a :class:`~.signals.TrafficLights`, made on first use
+        from the map file's signals), or None on a road without any."""
+        got = self._lights
+        if got is None:
+            got = False
+            road = self.road
+            if getattr(road, "kind", "") == "map":
+                from .signals import TrafficLights, map_signals
+
+                try:
+                    found = map_signals(road.data)
+                except SimError as exc:
+                    raise SimError(str(exc), test=self.name) from None
+                lights = TrafficLights(found)
+                got = lights if lights.stops else False
+            elif getattr(road, "traffic_lights", None) is not None:
+                got = road.traffic_lights
+            self._lights = got
+        return got or None
+
+    def signals(self, *, green: float | None = None, amber: float | None = None,
+                all_red: float | None = None, cycle: float | None = None,
+                offset: Any = None, phase: float | None = None) -> Any:
+        """The road's traffic lights with their fixed-time plan set: ``green``, ``amber``,
+        ``all_red`` [s] per controller's turn (defaults 10, 3, 2 s, CARLA's), or ``cycle``
+        [s] (a two-way junction's whole cycle), and ``offset`` [s] into every junction's cycle
+        at t = 0 (or ``{junction id: s}``), or ``phase`` the same as a share (0..1) of each
+        junction's cycle — sample it to vary the phase the ego arrives in.
+        Returns the :class:`~.signals.TrafficLights` (``state(signal, t)``, ``stops``)."""
+        if self.road is None:
+            raise SimError("world.signals(): build a road first (world.map(...))", test=self.name)
+        if self.trajectory is not None:
+            raise SimError("world.signals(): the world has already run", test=self.name)
+        lights = self.traffic_lights
+        if lights is None:
+            raise SimError(f"world.signals(): the {self.road.kind} road has no traffic lights "
+                           "(a map file with <signal type=\"1000001\"> elements has)",
+                           test=self.name)
+        return lights.configure(green=green, amber=amber, all_red=all_red, cycle=cycle,
+                                offset=offset, phase=phase, test=self.name)
+
+    def lights_ahead(self, agent: Any, horizon: float = 150.0) -> list[tuple[float, str, str]]:
+        """The traffic lights on ``agent``'s route ahead within ``horizon`` [m]: ``(distance
+        [m] from its centre to the stop position (negative once passed, until it leaves that
+        lane), state now, signal id)``, nearest first; [] on a road without lights."""
+        lights = self._lights if self._lights is not None else self.traffic_lights
+        plan, ri = agent.plan, agent.route_index
+        if not lights or not plan:
+            return []
+        memo = agent.__dict__.get("_lights_memo")
+        if memo is None or memo[0] is not plan or memo[1] != ri:
+            memo = agent._lights_memo = (plan, ri, lights.ahead(plan, ri, horizon))
+        if not memo[2]:
+            return []
+        rs = float(agent.route_s)
+        t = self.t
+        state = lights.state
+        return [(acc - rs, state(sid, t), sid) for _, _, acc, sid in memo[2]]
 
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
@@ -774,7 +861,16 @@ class World:
             "agents": tuple(self._state(o) for _, _, o in near), "stop_lines": stops,
             "speed_limit": float(ego.plan[ri].geometry.speed_limit),
             "target_speed": ego.target_speed_request, "goal": ego.goal,
-            "sensor_range": self.sensor_range})
+            "sensor_range": self.sensor_range, "traffic_lights": self._lights_seen(ego)})
+
+    def _lights_seen(self, ego: Any) -> tuple:
+        lights = self.traffic_lights
+        if lights is None:
+            return ()
+        if not self.lights_ahead(ego):  # (refreshes the memo of the stops ahead)
+            return ()
+        return tuple(TrafficLight(j, s, lights.state(sid, self.t), sid)
+                     for j, s, _, sid in ego._lights_memo[2])
 
     def view(self) -> Any:
         """A read-only :class:`~.view.SceneView` of the simulation now: every lane of the road

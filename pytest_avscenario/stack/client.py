@@ -93,11 +93,16 @@ class _Gone(Exception):
 
 
 class _Channel:
-    """One REQ socket to a stack, replaced after every timeout (lazy pirate)."""
+    """One REQ socket to a stack, replaced after every timeout (lazy pirate).
+
+    The answer is awaited in a blocking receive bounded by the socket's ``RCVTIMEO`` (set
+    only when it changes), not with ``poll`` before the receive: pyzmq's ``poll`` builds a
+    poller each call, and libzmq polls again inside the receive."""
 
     def __init__(self, address: str) -> None:
         self.address = address
         self.sock: Any = None
+        self._rcvtimeo = -1  # [ms] the socket's receive timeout now
 
     def request(self, frames: list[bytes], timeout_s: float, alive: Any = None) -> list[bytes]:
         import zmq
@@ -110,6 +115,7 @@ class _Channel:
         if self.sock is None:
             self.sock = zmq.Context.instance().socket(zmq.REQ)
             self.sock.setsockopt(zmq.LINGER, 0)
+            self._rcvtimeo = -1
             self.sock.connect(self.address)
             self.sock.send_multipart(frames)
         deadline = time.monotonic() + timeout_s
@@ -119,8 +125,14 @@ class _Channel:
                 self.drop()
                 raise _Timeout()
             wait = min(left, _POLL_S) if alive is not None else left
-            if self.sock.poll(int(math.ceil(wait * 1000))):
+            ms = max(1, int(math.ceil(wait * 1000)))
+            if ms != self._rcvtimeo:
+                self.sock.setsockopt(zmq.RCVTIMEO, ms)
+                self._rcvtimeo = ms
+            try:
                 return self.sock.recv_multipart()
+            except zmq.Again:
+                pass
             if alive is not None:
                 why = alive()
                 if why:
@@ -244,8 +256,7 @@ class OSIStack:
         self.startup_timeout_s = float(startup_timeout_s)
         self.limits = limits
         self._world: Any = None
-        self._static = b""
-        self._ids: dict = {}
+        self._views: Any = None  # frame.SensorViews of the case
 
     def __repr__(self) -> str:
         return f"OSIStack({self.address!r})" if self.spawn is None else f"OSIStack(spawn={self.spawn!r})"
@@ -270,9 +281,9 @@ class OSIStack:
         if len(agents) > frame.MAX_AGENTS:
             raise SimError(f"{len(agents)} agents: the OSI ids of agents stop at {frame.MAX_AGENTS}",
                            test=world.name)
-        self._ids = {a: i + 1 for i, a in enumerate(agents)}  # stable for the case (frame doc)
+        ids = {a: i + 1 for i, a in enumerate(agents)}  # stable for the case (frame doc)
         view = world.view()
-        self._static = frame.lane_ground_truth(view)
+        self._views = frame.SensorViews(frame.lane_ground_truth(view), ids)
         ego = agents[0]
         lane_ids = {lane.id: frame.LANE_ID0 + i for i, lane in enumerate(view.lanes)}
         marks: dict[str, list] = {}
@@ -289,6 +300,7 @@ class OSIStack:
             "lanes": [{"id": lane_ids[l.id], "name": l.id, "width": l.width,
                        "speed_limit": l.speed_limit, "kind": l.kind,
                        "stop_marks": marks.get(l.id, [])} for l in view.lanes],
+            "traffic_lights": _lights_hello(world, lane_ids),
             "ego": {"route": [lane_ids[l.id] for l in ego.plan], "route_index": ego.route_index,
                     "target_speed": ego.target_speed_request, "goal": ego.goal,
                     "sensor_range": world.sensor_range},
@@ -327,14 +339,13 @@ class OSIStack:
             raise SimError(f"{self!r} was not reset before its first step (the world calls "
                            "reset(world) before the run)", agent=getattr(ego, "name", ""))
         t_ns = wire.ns(w.t)
-        msg = frame.sensor_view(w, t_ns, self._static, self._ids)
+        msg = self._views.build(w, t_ns)
         kind, body = self._ask(wire.pack(wire.SENSOR_VIEW, msg), wire.ANSWERS,
                                "the SensorView", ego)
         if kind == wire.ERROR:
             self._fail(f"the stack answered Error: {body.decode(errors='replace')}", ego)
         if kind == wire.MOTION_REQUEST:
-            from osi3 import osi_motionrequest_pb2 as M
-
+            M = frame._osi()["motionrequest"]
             mr = self._checked(lambda: wire.parse(M.MotionRequest, body, "MotionRequest"), ego, "its answer")
             self._check_timestamp(mr, t_ns, "MotionRequest", ego)
             if mr.motion_request_type == M.MotionRequest.MOTION_REQUEST_TYPE_TRAJECTORY:
@@ -354,8 +365,7 @@ class OSIStack:
                 mr.desired_state, t_ns, float(ego.heading), float(ego.speed), float(ego.LENGTH),
                 w.dt), ego, "its MotionRequest")
             return "action", (a, d)
-        from osi3 import osi_trafficupdate_pb2 as T
-
+        T = frame._osi()["trafficupdate"]
         tu = self._checked(lambda: wire.parse(T.TrafficUpdate, body, "TrafficUpdate"), ego, "its answer")
         self._check_timestamp(tu, t_ns, "TrafficUpdate", ego)
         mine = [mo for mo in tu.update if mo.id.value == 1]
@@ -449,3 +459,15 @@ class OSIStack:
         except wire.ProtocolError as exc:
             self._fail(f"answer to {what}: {exc}", ego)
         raise AssertionError("unreachable")
+
+
+def _lights_hello(world: Any, lane_ids: dict[str, int]) -> list[dict]:
+    """The traffic lights' static facts for the Reset: OSI id, signal id and stop positions
+    ``[lane OSI id, s [m]]`` (their state comes with every SensorView)."""
+    lights = world.traffic_lights
+    if lights is None:
+        return []
+    return [{"id": osi_id, "signal": sid,
+             "stops": [[lane_ids[p.lane], p.s] for p in lights.lights[sid].stops
+                       if p.lane in lane_ids]}
+            for sid, osi_id in frame.light_ids(lights).items()]

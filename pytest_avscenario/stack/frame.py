@@ -10,7 +10,9 @@ that never reaches the wire (see docs/osi-protocol.md, "Frames").
 Ids: an agent's OSI id is 1 + its place in ``world.agents`` (the ego first, so the host
 vehicle is 1), stable for a whole case whether or not the agent is on the road yet; lane i
 of ``world.view().lanes`` is ``LANE_ID0 + i`` and its right and left boundaries are
-``BOUNDARY_ID0 + 2i`` and ``+ 2i + 1``. Names travel in ``source_reference``.
+``BOUNDARY_ID0 + 2i`` and ``+ 2i + 1``; traffic light k (the world's lights by signal id)
+is ``LIGHT_ID0 + k``, its state in ``classification.color``, its stop positions in the
+Reset (OSI's TrafficLight has no field for them). Names travel in ``source_reference``.
 
 A MotionRequest's desired state is turned into the ego's (acceleration, steering) by the
 one-step inverse of highway-env's kinematic bicycle model (:func:`motion_to_action`), and
@@ -29,13 +31,14 @@ from typing import Any
 
 from . import wire
 
-__all__ = ["LANE_ID0", "BOUNDARY_ID0", "HEIGHT_M", "wrap_yaw", "set_object", "object_state",
-           "lane_ground_truth", "sensor_view", "motion_to_action", "action_to_motion",
+__all__ = ["LANE_ID0", "BOUNDARY_ID0", "LIGHT_ID0", "light_ids", "add_traffic_lights", "HEIGHT_M", "wrap_yaw", "set_object", "object_state",
+           "lane_ground_truth", "sensor_view", "SensorViews", "motion_to_action", "action_to_motion",
            "MIN_TURN_SPEED", "trajectory_to_action", "action_to_trajectory", "TAU_ACC", "TAU_HEADING",
            "TAU_LATERAL"]
 
 LANE_ID0 = 10_000
 BOUNDARY_ID0 = 20_000
+LIGHT_ID0 = 40_000  # traffic light k of the world's lights (sorted by signal id)
 MAX_AGENTS = LANE_ID0 - 1  # agent ids stay below the lanes'
 
 #: heights [m] of the boxes OSI wants (the world is flat; z only places the box centre)
@@ -63,9 +66,11 @@ def _osi() -> dict[str, Any]:
     """osi3's generated modules, imported on first use (every step needs them: no import
     statement per call)."""
     if not _OSI:
-        from osi3 import osi_object_pb2, osi_sensorview_pb2
+        from osi3 import (osi_motionrequest_pb2, osi_object_pb2, osi_sensorview_pb2,
+                          osi_trafficupdate_pb2)
 
-        _OSI.update(object=osi_object_pb2, sensorview=osi_sensorview_pb2)
+        _OSI.update(object=osi_object_pb2, sensorview=osi_sensorview_pb2,
+                    motionrequest=osi_motionrequest_pb2, trafficupdate=osi_trafficupdate_pb2)
     return _OSI
 
 
@@ -138,8 +143,8 @@ def object_flags(mo: Any) -> dict[str, bool]:
 def lane_ground_truth(view: Any) -> bytes:
     """A serialized ``osi3.SensorView`` holding only the lanes and lane boundaries of a
     :class:`~pytest_avscenario.sim.view.SceneView`: static for a case, so it is built once
-    and appended to every step's message (protobuf merges concatenated messages: repeated
-    fields append, so the receiver parses one SensorView with everything)."""
+    and appended to the case's first SensorView (protobuf merges concatenated messages:
+    repeated fields append, so the receiver parses one SensorView with everything)."""
     from osi3 import osi_lane_pb2 as L
     from osi3 import osi_sensorview_pb2 as S
 
@@ -207,23 +212,124 @@ def new_sensor_view(t_ns: int) -> tuple[Any, Any]:
     return sv, gt
 
 
+def light_ids(lights: Any) -> dict[str, int]:
+    """The OSI id of every traffic light of a :class:`~..sim.signals.TrafficLights`."""
+    return {sid: LIGHT_ID0 + k for k, sid in enumerate(sorted(lights.controller_of))}
+
+
+_COLOURS: dict[str, int] = {}
+
+
+def add_traffic_lights(gt: Any, lights: Any, t: float, lane_ids: dict[str, int]) -> None:
+    """Append every traffic light of ``lights`` in its state at ``t`` [s] to the
+    ``osi3.GroundTruth`` ``gt``: its head's position and yaw, the colour of its lit lamp, the
+    OSI ids of the lanes it stops (``lane_ids``: lane name -> OSI id) and its signal id."""
+    from osi3 import osi_trafficlight_pb2 as TL
+
+    C = TL.TrafficLight.Classification
+    colour = {"green": C.COLOR_GREEN, "amber": C.COLOR_YELLOW, "red": C.COLOR_RED}
+    for sid, osi_id in light_ids(lights).items():
+        sg = lights.lights[sid]
+        tl = gt.traffic_light.add()
+        tl.id.value = osi_id
+        b = tl.base
+        b.dimension.length, b.dimension.width, b.dimension.height = 0.3, 0.3, 1.0
+        b.position.x, b.position.y, b.position.z = float(sg.x), float(sg.y), 4.5
+        b.orientation.yaw = wrap_yaw(float(sg.heading))
+        cl = tl.classification
+        cl.color = colour[lights.state(sid, t)]
+        cl.icon = C.ICON_NONE
+        cl.mode = C.MODE_CONSTANT
+        for p in sg.stops:
+            if p.lane in lane_ids:
+                cl.assigned_lane_id.add().value = lane_ids[p.lane]
+        ref = tl.source_reference.add()
+        ref.reference, ref.type = _SOURCE, "signal"
+        ref.identifier.append(sid)
+
+
 def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
     """The serialized ``osi3.SensorView`` of ``world`` now: header, host vehicle id (1),
     every agent on the road (``ids``: agent -> OSI id), and the case's lanes ``static``
-    (:func:`lane_ground_truth`)."""
-    sv, gt = new_sensor_view(t_ns)
-    index = world.lane_index
-    lanes = index.lanes
-    code = index.code
-    for a in world.movers:
-        action = getattr(a, "action", None) or {}
-        li = a.lane_index
-        set_object(gt.moving_object.add(), ids[a], a.name, a.kind, float(a.position[0]),
-                   float(a.position[1]), float(a.heading), float(a.speed), float(a.LENGTH),
-                   float(a.WIDTH), float(action.get("acceleration", 0.0)),
-                   LANE_ID0 + code[li] if li in lanes else None,
-                   {"stop_arm": bool(a.stop_arm)} if a.kind == "bus" else None)
-    return sv.SerializeToString() + static
+    (:func:`lane_ground_truth`). Built afresh: the first SensorView of a case;
+    :class:`SensorViews` gives it and then the same bytes without the lanes at less cost."""
+    return SensorViews(static, ids).build(world, t_ns)
+
+
+def _mover_key(a: Any, lanes: Any, code: Any) -> tuple:
+    """What of a mover is set only when its ``MovingObject`` is made: the agent, its lane
+    (OSI id or None) and its flags."""
+    li = a.lane_index
+    return (a, LANE_ID0 + code[li] if li in lanes else None,
+            bool(a.stop_arm) if a.kind == "bus" else None)
+
+
+class SensorViews:
+    """The serialized SensorViews of one case, step after step, from one ``osi3.SensorView``
+    kept between steps: while the same agents are on the road in the same lanes (with the
+    same flags), only the timestamps and each agent's position, yaw, velocity and
+    acceleration are written into it; otherwise it is built again with :func:`set_object`.
+    The bytes are those a fresh build gives (protobuf serializes fields in number order,
+    whatever order they were set in; tested), at a quarter of the cost.
+
+    The case's lanes (``static``) follow the first SensorView only (avs-osi/1 revision 2:
+    they do not change within a case, and on a large map they are megabytes a step)."""
+
+    def __init__(self, static: bytes, ids: dict) -> None:
+        self.static = static
+        self.ids = ids
+        self._keys: list = []
+        self._sv: Any = None
+        self._stamps: tuple = ()
+        self._slots: list = []  # per mover: (position, orientation, velocity, acceleration)
+        self._first = True  # the lanes not sent yet
+        self._light_lanes: dict | None = None  # lane name -> OSI id, for the lights' lanes
+
+    def build(self, world: Any, t_ns: int) -> bytes:
+        index = world.lane_index
+        lanes, code = index.lanes, index.code
+        movers = world.movers
+        keys = [_mover_key(a, lanes, code) for a in movers]
+        if keys != self._keys or self._sv is None:
+            self._fresh(keys, t_ns)
+        else:
+            sec, nanos = divmod(int(t_ns), 1_000_000_000)
+            for ts in self._stamps:
+                ts.seconds, ts.nanos = sec, nanos
+        for a, (pos, ori, vel, acc) in zip(movers, self._slots):
+            p = a.position
+            h, v = float(a.heading), float(a.speed)
+            action = a.action if getattr(a, "action", None) else {}
+            u = float(action.get("acceleration", 0.0))
+            c, s = math.cos(h), math.sin(h)
+            pos.x, pos.y = float(p[0]), float(p[1])
+            ori.yaw = h if -math.pi <= h <= math.pi else wrap_yaw(h)
+            vel.x, vel.y = v * c, v * s
+            acc.x, acc.y = u * c, u * s
+        lights = world.traffic_lights
+        if lights is not None:  # every light in its state now (they change within a case)
+            gt = self._sv.global_ground_truth
+            del gt.traffic_light[:]
+            if self._light_lanes is None:
+                self._light_lanes = {l.id: LANE_ID0 + code[l.index] for l in index.order}
+            add_traffic_lights(gt, lights, world.t, self._light_lanes)
+        if self._first:
+            self._first = False
+            return self._sv.SerializeToString() + self.static
+        return self._sv.SerializeToString()
+
+    def _fresh(self, keys: list, t_ns: int) -> None:
+        sv, gt = new_sensor_view(t_ns)
+        slots = []
+        for a, lane_id, stop_arm in keys:
+            mo = gt.moving_object.add()
+            set_object(mo, self.ids[a], a.name, a.kind, 0.0, 0.0, 0.0, 0.0, float(a.LENGTH),
+                       float(a.WIDTH), 0.0, lane_id,
+                       {"stop_arm": stop_arm} if stop_arm is not None else None)
+            b = mo.base
+            slots.append((b.position, b.orientation, b.velocity, b.acceleration))
+        self._sv, self._keys, self._slots = sv, keys, slots
+        self._stamps = (sv.timestamp, gt.timestamp)
 
 
 # -- motion requests --------------------------------------------------------------------------

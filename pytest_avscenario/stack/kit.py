@@ -140,6 +140,13 @@ class Session:
         self.sensor_range = float(ego.get("sensor_range", 80.0))
         self.route: tuple = ()
         self.stop_lines: dict[int, tuple] = {}
+        self._limits: dict[int, float] = {}  # route index -> speed limit [m/s]
+        # traffic lights: stop positions by lane OSI id -> [(s, light OSI id, signal id)]
+        self.light_stops: dict[int, list] = {}
+        for light in hello.get("traffic_lights", ()):
+            for lane, s in light["stops"]:
+                self.light_stops.setdefault(int(lane), []).append(
+                    (float(s), int(light["id"]), str(light["signal"])))
         # a name is made afresh for each case, as the world makes it; an object is reused and
         # its per-case hook called (with no world: the stack has only what the wire carries)
         self.driver = resolve(policy)
@@ -163,9 +170,8 @@ class Session:
 
     def observation(self, sv: Any) -> Any:
         """The Observation the world would have handed an in-process driver."""
-        from ..sim.observation import AgentState, Observation, StopLine
-        from ..sim.world import _frozen
-
+        sim = _sim()
+        frozen, AgentState = sim["frozen"], sim["AgentState"]
         gt = sv.global_ground_truth
         if not self.route:
             self._build_route(gt)
@@ -177,8 +183,19 @@ class Session:
         ego_mo = states.get(self.host)
         if ego_mo is None:
             raise ValueError(f"the SensorView has no host vehicle (id {self.host})")
-        e = frame.object_state(ego_mo)
-        x, y = e["x"], e["y"]
+        agents = self.agents
+
+        def state(oid: int, mo: Any, kind: str | None = None) -> Any:
+            st = frame.object_state(mo)
+            info = agents.get(oid, _NO_INFO)
+            k = kind or info.get("kind", "car")
+            st["name"] = info.get("name", str(oid))
+            st["kind"] = k
+            st["flags"] = frame.object_flags(mo) if k == "bus" else {}
+            return frozen(AgentState, st)
+
+        ego = state(self.host, ego_mo, "ego")
+        x, y = ego.x, ego.y
         # route progress, as the world's lane tracker advances it
         ri = self.route_index
         g = self.route[ri]
@@ -193,43 +210,45 @@ class Session:
         for oid, mo in states.items():
             if oid == self.host:
                 continue
-            dx, dy = mo.base.position.x - x, mo.base.position.y - y
+            p = mo.base.position
+            dx, dy = p.x - x, p.y - y
             d2 = dx * dx + dy * dy
             if d2 <= rng2:
                 near.append((d2, oid, mo))
         near.sort(key=lambda q: (q[0], q[1]))
 
-        def state(oid: int, mo: Any, kind: str | None = None) -> Any:
-            st = frame.object_state(mo)
-            info = self.agents.get(oid, {})
-            k = kind or info.get("kind", "car")
-            flags = frame.object_flags(mo) if k == "bus" else {}
-            return _frozen(AgentState, {
-                "name": info.get("name", str(oid)), "kind": k, "x": st["x"], "y": st["y"],
-                "vx": st["vx"], "vy": st["vy"], "speed": st["speed"], "heading": st["heading"],
-                "length": st["length"], "width": st["width"], "flags": flags})
-
         stops = self.stop_lines.get(ri)
         if stops is None:
+            StopLine = sim["StopLine"]
             stops = tuple(StopLine(j, float(sm), kind) for j in range(ri, len(self.route))
                           for sm, kind in self.lanes[self.route_ids[j]].get("stop_marks", ()))
             self.stop_lines[ri] = stops
-        return _frozen(Observation, {
-            "t": t, "dt": self.dt, "ego": state(self.host, ego_mo, "ego"), "route": self.route,
+        limit = self._limits.get(ri)
+        if limit is None:
+            limit = self._limits[ri] = _number(self.lanes[self.route_ids[ri]].get("speed_limit"))
+        lights: tuple = ()
+        if self.light_stops:
+            from osi3 import osi_trafficlight_pb2 as TL
+
+            C = TL.TrafficLight.Classification
+            names = {C.COLOR_GREEN: "green", C.COLOR_YELLOW: "amber", C.COLOR_RED: "red"}
+            lit = {tl.id.value: names.get(tl.classification.color, "red")
+                   for tl in gt.traffic_light}
+            lights = tuple(sim["TrafficLight"](j, s, lit.get(oid, "red"), sid)
+                           for j in range(ri, len(self.route))
+                           for s, oid, sid in sorted(self.light_stops.get(self.route_ids[j], ())))
+        return frozen(sim["Observation"], {
+            "t": t, "dt": self.dt, "ego": ego, "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
             "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
-            "speed_limit": _number(self.lanes[self.route_ids[ri]].get("speed_limit")),
-            "target_speed": self.target_speed, "goal": self.goal,
-            "sensor_range": self.sensor_range})
+            "speed_limit": limit, "target_speed": self.target_speed, "goal": self.goal,
+            "sensor_range": self.sensor_range, "traffic_lights": lights})
 
     def answer(self, sv: Any) -> bytes:
         """The serialized MotionRequest answering one SensorView."""
-        from osi3 import osi_motionrequest_pb2 as M
-
-        from ..sim.drivers import action_pair
-
+        M = frame._osi()["motionrequest"]
         obs = self.observation(sv)
-        a, d = action_pair(self.driver.act(obs))
+        a, d = _sim()["action_pair"](self.driver.act(obs))
         ego = obs.ego
         mr = M.MotionRequest()
         wire.set_version(mr.version)
@@ -244,6 +263,22 @@ class Session:
         return mr.SerializeToString()
 
 
+_NO_INFO: dict = {}
+_SIM: dict[str, Any] = {}
+
+
+def _sim() -> dict[str, Any]:
+    """The simulator's pieces an answer needs, imported on first use (not once a step)."""
+    if not _SIM:
+        from ..sim.drivers import action_pair
+        from ..sim.observation import AgentState, Observation, StopLine, TrafficLight
+        from ..sim.world import _frozen
+
+        _SIM.update(action_pair=action_pair, AgentState=AgentState, Observation=Observation,
+                    StopLine=StopLine, TrafficLight=TrafficLight, frozen=_frozen)
+    return _SIM
+
+
 #: what :func:`serve` answers with: a MotionRequest's desired state one step ahead (the
 #: driver's command, exactly), or its desired trajectory (the command held for one second)
 ANSWERS = ("desired_state", "trajectory")
@@ -252,8 +287,6 @@ ANSWERS = ("desired_state", "trajectory")
 def handle(frames: list[bytes], session: Session | None, policy: Any,
            answer: str = "desired_state") -> tuple[list[bytes], Session | None]:
     """The answer to one request and the session after it (a step of :func:`serve`)."""
-    from osi3 import osi_sensorview_pb2 as S
-
     try:
         kind, body = wire.unpack(frames, (wire.RESET, wire.SENSOR_VIEW))
         if kind == wire.RESET:
@@ -268,7 +301,7 @@ def handle(frames: list[bytes], session: Session | None, policy: Any,
                 "host_vehicle_id": hello["host_vehicle_id"], "answer": "MotionRequest"}), session
         if session is None:
             return wire.pack(wire.ERROR, "SensorView before any Reset"), None
-        sv = wire.parse(S.SensorView, body, "SensorView")
+        sv = wire.parse(frame._osi()["sensorview"].SensorView, body, "SensorView")
         return wire.pack(wire.MOTION_REQUEST, session.answer(sv)), session
     except Exception as exc:  # the driver is user code: its error goes back to the plugin
         return wire.pack(wire.ERROR, f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"), session
@@ -296,13 +329,16 @@ def serve(policy: Any, address: str, *, answer: str = "desired_state",
     # a stack the plugin spawned (it hands the address in AVS_OSI_ADDRESS) ends with the
     # process that started it, even when that one was killed and could not stop it
     parent = os.getppid() if os.environ.get("AVS_OSI_ADDRESS") == address else None
+    if parent is not None:
+        sock.setsockopt(zmq.RCVTIMEO, 1000)  # [ms] a blocking receive, not a poll before each
     try:
         while requests is None or n < requests:
-            if parent is not None:
-                while not sock.poll(1000):
-                    if os.getppid() != parent:
-                        return
-            frames = sock.recv_multipart()
+            try:
+                frames = sock.recv_multipart()
+            except zmq.Again:
+                if os.getppid() != parent:
+                    return
+                continue
             reply, session = handle(frames, session, policy, answer)
             sock.send_multipart(reply)
             n += 1

@@ -53,7 +53,7 @@ import sys
 import time
 
 PROTOCOL = b"avs-osi/1"
-REVISION = 1
+REVISION = 2
 RESEND_S = 0.5  # [s] while no command answers a step, its messages are published again this often
 
 DEFAULTS = {

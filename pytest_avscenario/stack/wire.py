@@ -22,7 +22,8 @@ __all__ = ["PROTOCOL", "REVISION", "ProtocolError", "ns", "timestamp_ns", "set_t
            "pack", "unpack", "osi_version", "OSI_VERSION"]
 
 PROTOCOL = b"avs-osi/1"
-REVISION = 1  # the protocol's own revision, checked in the handshake
+REVISION = 2  # the protocol's own revision, checked in the handshake (2: lanes in the first
+#              SensorView after a Reset only)
 
 #: message kinds (the second frame)
 RESET, READY, SENSOR_VIEW, TRAFFIC_UPDATE, MOTION_REQUEST, ERROR = (
@@ -116,12 +117,14 @@ def json_body(body: bytes, what: str) -> dict:
 
 def parse(cls: Any, body: bytes, what: str) -> Any:
     """An OSI message of class ``cls`` from ``body``; :class:`ProtocolError` if it does not parse."""
-    from google.protobuf.message import DecodeError
-
     msg = cls()
     try:
         msg.ParseFromString(body)
-    except (DecodeError, RuntimeError, ValueError) as exc:
+    except Exception as exc:
+        from google.protobuf.message import DecodeError
+
+        if not isinstance(exc, (DecodeError, RuntimeError, ValueError)):
+            raise
         raise ProtocolError(f"{what}: unparseable bytes ({type(exc).__name__}: {exc}; "
                             f"{len(body)} bytes starting {body[:16]!r})") from None
     return msg

@@ -10,7 +10,7 @@ with a desired trajectory of 2 s (a point every step) along +x, its speed closin
 y moving smoothly to Y (default: staying where it is). ``--fault`` misbehaves on purpose in the case
 whose name ends with SUFFIX, at step N: ``hang`` (never answers), ``crash`` (exits with code
 3), ``timestamp`` (answers one step late), ``error`` (an Error answer), ``garbage`` (unparseable bytes), ``type`` (a
-wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position); ``handshake`` answers that case's Reset with revision 2 at dt 0.05;
+wrong message type), ``teleport`` (a TrafficUpdate 20 m away), ``nan`` (a NaN position); ``handshake`` answers that case's Reset with revision 1 at dt 0.05;
 with ``trajectory``: ``empty`` (no points), ``past`` (the first point one step before the
 request), ``nan`` (a NaN point).
 """
@@ -54,7 +54,7 @@ def main() -> None:
             case, dt, host, step = hello["case"], hello["dt"], hello["host_vehicle_id"], 0
             wrong = args.fault == "handshake" and case.endswith(args.case_suffix)
             sock.send_multipart([PROTOCOL, b"Ready", json.dumps({
-                "protocol": "avs-osi/1", "revision": 2 if wrong else 1, "osi_version": version(),
+                "protocol": "avs-osi/1", "revision": 1 if wrong else 2, "osi_version": version(),
                 "dt": 0.05 if wrong else dt, "host_vehicle_id": host}).encode()])
             continue
         sv = osi_sensorview_pb2.SensorView()

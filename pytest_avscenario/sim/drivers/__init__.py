@@ -313,6 +313,11 @@ def action_pair(raw: Any) -> tuple[float, float]:
     from a batched policy) and a mapping with ``acceleration`` and ``steering``. Text
     (``"1"``) and booleans are not numbers here: a policy returning them has a bug.
     """
+    if type(raw) is tuple and len(raw) == 2 and type(raw[0]) is float and type(raw[1]) is float:
+        a, d = raw  # the common answer, checked without numpy (the same checks as below)
+        if math.isfinite(a) and math.isfinite(d) and abs(a) <= MAX_ACTION_MAGNITUDE \
+                and abs(d) <= MAX_ACTION_MAGNITUDE:
+            return a, d
     import numpy as np
 
     def not_number(v: Any) -> bool:

@@ -7,7 +7,8 @@ oracle's. Per step it (1) follows its route with pure pursuit on the route's cen
 curves by a lateral-acceleration limit, behind the nearest agent found on its path, (3) stops
 at stop lines (full stop, then at an all-way stop goes in arrival order, first to stop first
 to go, the one on the right first on a tie, once nothing moves in the box and no conflict
-is predicted) and for a school bus with its stop arm out, (4) predicts every other agent at constant velocity over a finite horizon
+is predicted), at red traffic lights (and at amber ones when it can stop comfortably)
+and for a school bus with its stop arm out, (4) predicts every other agent at constant velocity over a finite horizon
 against its own path and yields when it could not clear a predicted conflict zone with a time
 margin, and (5) parallel parks (two reverse arcs, or several moves in a tight slot) when its
 observation carries a parking goal. Its weaknesses are deliberate and realistic: perception
@@ -120,6 +121,7 @@ class Autopilot:
         self._accel = 0.0  # last commanded acceleration [m/s^2]
         self._stop_state: dict[tuple[int, float], list] = {}
         self._yielding: set[str] = set()
+        self._light_went: set[str] = set()  # lights it went on through at amber
         self._evade = 0.0  # [m] wanted shift to the right for oncoming traffic
         self._offset = 0.0  # [m] lateral offset from the centre line it steers for (left +)
         self._parker: Parker | None = None
@@ -232,6 +234,7 @@ class Autopilot:
             want += self._parker.approach_offset(path, s_ego, W)
         self._offset += max(-0.5 * dt, min(0.5 * dt, want - self._offset))
         stops.extend(self._stop_lines(obs, path, s_ego, L, v, dt, clear, seen))
+        stops.extend(self._lights(obs, path, s_ego, L, v))
         if self._parker is not None:  # approaching the parking start point
             d = self._parker.approach_distance(ego)
             if d is not None:
@@ -353,6 +356,30 @@ class Autopilot:
                     continue
                 why = "right of way"
             out.append((target, why))
+        return out
+
+    def _lights(self, obs, path, s_ego, L, v) -> list[tuple[float, str]]:
+        """Stop targets for the traffic lights ahead: red, and amber when it can stop at its
+        comfortable deceleration; once it went on at amber it keeps going through that
+        light (:func:`~pytest_avscenario.sim.signals.must_stop`)."""
+        from pytest_avscenario.sim.signals import GREEN, must_stop
+
+        o = self.options
+        out = []
+        for light in getattr(obs, "traffic_lights", ()):
+            if not 0 <= light.route_index < len(path.offsets):
+                continue
+            front = path.offsets[light.route_index] + light.s - (s_ego + 0.5 * L)
+            if front < 0.0:
+                continue
+            if light.state == GREEN:
+                self._light_went.discard(light.signal)
+                continue
+            if must_stop(light.state, front, v, o.comfort_decel, o.max_decel,
+                         light.signal in self._light_went):
+                out.append((max(front - o.stop_margin, 0.0), f"{light.state} light"))
+                break
+            self._light_went.add(light.signal)
         return out
 
     # -- other agents -------------------------------------------------------------------------

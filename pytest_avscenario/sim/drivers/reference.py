@@ -551,6 +551,15 @@ class CarefulDriver:
                                      / (2.0 * math.sqrt(o.max_accel * o.comfort_decel)))
             accel -= o.max_accel * (s_star / max(gap, 0.1)) ** 2
             reason = "follow"
+        light = self._light(obs, v)
+        if light is not None:
+            # a red light (amber when it can stop comfortably): a standing car at its line
+            s_star = o.min_gap + max(0.0, v * o.time_headway + v * v
+                                     / (2.0 * math.sqrt(o.max_accel * o.comfort_decel)))
+            free = 1.0 - (v / v0) ** o.idm_delta if v0 > 0.1 else 0.0
+            a_light = o.max_accel * (free - (s_star / max(light + o.min_gap, 0.1)) ** 2)
+            if a_light < accel:
+                accel, reason = a_light, "light"
         # ordinary driving's braking builds up at the model's jerk as well
         if accel < self._accel:
             accel = max(accel, min(self._accel, 0.0) - o.brake_jerk * dt)
@@ -575,6 +584,32 @@ class CarefulDriver:
                               ego.length)
         self.last_reason = "stopped" if v <= 0.0 and accel <= 0.0 else reason
         return self._finish(obs.t, accel, steer, v, dt)
+
+    def _light(self, obs: Any, v: float) -> float | None:
+        """Distance [m] from the front bumper to where it stops for a traffic light ahead
+        (1 m before the stop position), or None (as :func:`..signals.must_stop`, stopping
+        on amber when 3 m/s^2 does — the amber-time formula's deceleration; its own IDM
+        comfort, 1.5 m/s^2, would run many ambers into red — at most its maximum on red)."""
+        from ..signals import AMBER_DECEL, GREEN, must_stop
+
+        lights = getattr(obs, "traffic_lights", ())
+        if not lights:
+            return None
+        o = self.options
+        went = self.__dict__.setdefault("_light_went", set())
+        for light in lights:
+            ahead = sum(obs.route[j].length for j in range(obs.route_index, light.route_index))
+            front = ahead + light.s - obs.s - 0.5 * obs.ego.length
+            if front < 0.0:
+                continue
+            if light.state == GREEN:
+                went.discard(light.signal)
+                continue
+            if must_stop(light.state, front, v, max(o.comfort_decel, AMBER_DECEL),
+                         o.max_decel, light.signal in went):
+                return max(front - 1.0, 0.0)
+            went.add(light.signal)
+        return None
 
     def _profile(self, t: float, dt: float) -> float:
         """The regulation's response averaged over the step [t, t + dt], so the speed follows
