@@ -197,16 +197,33 @@ def map_sidewalks(data: Any, lanes: dict[str, Any]) -> dict[str, Any]:
     ``lanes`` (the recorded ones), written as :func:`road_meta` writes a lane (``kind``
     "sidewalk"; centre line points about every :data:`LANE_POINT_SPACING_M`; ``width`` the
     narrowest along it, so a point counted on the sidewalk is on it)."""
-    sections = {(l.road, l.section) for k, l in data.lanes.items() if k in lanes}
+    every = _SIDEWALKS.get(id(data))
+    if every is None or every[0] is not data:  # once per map and process: its lanes never change
+        every = (data, _sidewalks(data))
+        _SIDEWALKS[id(data)] = every
+    sections = {(l.road, l.section) for l in (data.lanes.get(k) for k in lanes) if l is not None}
     out: dict[str, Any] = {}
+    for k, section, width, xy in every[1]:
+        if section in sections and k not in lanes:
+            out[k] = {"kind": "sidewalk", "group": "", "width": width, "xy": xy.tolist()}
+    return out
+
+
+_SIDEWALKS: dict[int, tuple[Any, list]] = {}
+
+
+def _sidewalks(data: Any) -> list[tuple[str, tuple, float, np.ndarray]]:
+    """(id, (road, section), width [m], points [m]) of every sidewalk lane of a map, in file
+    order."""
+    out = []
     for k, l in data.lanes.items():
-        if l.kind != "sidewalk" or (l.road, l.section) not in sections or k in lanes:
+        if l.kind != "sidewalk":
             continue
         step = max(int(round(LANE_POINT_SPACING_M / max(float(l.s[1] - l.s[0]), 1e-9))), 1) \
             if len(l.s) > 1 else 1
         keep = np.unique(np.r_[np.arange(0, len(l.s), step), len(l.s) - 1])
-        out[k] = {"kind": "sidewalk", "group": "", "width": round(float(l.width.min()), 6),
-                  "xy": np.round(l.xy[keep], 4).tolist()}
+        out.append((k, (l.road, l.section), round(float(l.width.min()), 6),
+                    np.round(l.xy[keep], 4)))
     return out
 
 
