@@ -251,3 +251,38 @@ def test_the_careful_driver_turns_left_across_an_oncoming_car_without_an_error()
           name="oncoming")
     tr = w.run(10)
     assert tr.n_steps == 101 and tr.lane[0, -1] == "3/0/1"
+
+
+_ONE_ROAD = ("<OpenDRIVE><road id='1' length='20' junction='-1'><planView>{geoms}</planView>"
+             "<lanes><laneSection s='0'><right><lane id='{lid}' type='driving'>"
+             "<width sOffset='0' a='{a}' b='{b}' c='0' d='0'/></lane></right></laneSection>"
+             "</lanes></road></OpenDRIVE>")
+_LINE = "<geometry s='0' x='0' y='0' hdg='0' length='20'><line/></geometry>"
+
+
+@pytest.mark.parametrize("lid, a, b, match", [
+    ("abc", "3.5", "0", r"road 1 lane section 0 <right> has a <lane id='abc'>, not a whole"),
+    ("-1", "1e308e", "0", r"road 1 lane section 0 lane -1 has a='1e308e'"),
+    ("-1", "3.5", "1e307", r"road 1 lane section 0 lane -1's centre line is not finite"),
+])
+def test_odd_values_in_a_map_are_map_errors_naming_the_element(tmp_path, lid, a, b, match):
+    path = tmp_path / "odd.xodr"
+    path.write_text(_ONE_ROAD.format(geoms=_LINE, lid=lid, a=a, b=b))
+    with pytest.raises(MapError, match=match):
+        od.load(path)
+
+
+def test_a_geometry_that_stands_still_gives_a_lane_of_increasing_arc_length(tmp_path):
+    """A paramPoly3 whose coefficients are all zero places every sample at one point: the
+    lane keeps one sample of those, so positions along it are defined (no division by a
+    zero step)."""
+    still = ("<geometry s='10' x='10' y='0' hdg='0' length='10'><paramPoly3 aU='0' bU='0' "
+             "cU='0' dU='0' aV='0' bV='0' cV='0' dV='0' pRange='normalized'/></geometry>")
+    path = tmp_path / "still.xodr"
+    path.write_text(_ONE_ROAD.format(geoms=_LINE.replace("length='20'", "length='10'") + still,
+                                     lid="-1", a="3.5", b="0"))
+    lane = od.load(path).lanes["1/0/-1"]
+    assert (np.diff(lane.s) > 0).all() and lane.length == pytest.approx(10.0, abs=0.01)
+    town = World(0, name="t").map(path)
+    g = town.lane("1/0/-1").geometry
+    assert np.isfinite(g.position(g.length, 0.0)).all() and math.isfinite(g.heading_at(g.length))
