@@ -17,6 +17,9 @@ wall time beside it:
    of each; the built road gets the speed limit of the case's map lane (the autopilot
    cruises at it). The ratio is the result.
 
+Each goal of the maps issue is printed with PASS or MISS: Town06 loaded in <= 1.5 s (CPU),
+a closest-lane query <= 0.5 ms, a case on Town06 <= 1.5x the same case on the built road.
+
     python bench/bench_maps.py --repeats 3 --queries 2000 --cases 20 --pyxodr
 """
 
@@ -148,8 +151,11 @@ def main() -> None:
     print("## load (fresh process, median of", args.repeats, "runs) [s]")
     print(f"{'map':44s} {'lanes':>6s} {'driving':>7s} {'cpu':>6s} {'wall':>6s}"
           + ("  pyxodr cpu  wall  (its import cpu)" if args.pyxodr else ""))
+    town_cpu = None
     for path in maps:
         r = load_times(path, "numpy", args.repeats)
+        if path.name == TOWN06.name:
+            town_cpu = r["cpu"]
         line = f"{path.name:44s} {r['lanes']:6.0f} {r['driving']:7.0f} {r['cpu']:6.3f} {r['wall']:6.3f}"
         if args.pyxodr:
             p = load_times(path, "pyxodr", args.repeats)
@@ -162,8 +168,17 @@ def main() -> None:
           f"{q['highway_env_ms']:.2f} ms (same lane for {q['agree']})")
     c = cases(args.cases)
     print(f"\n## a 12-s vehicle-following case, autopilot, median CPU of {args.cases}")
-    print(f"Town06 lane: {c['map_ms']:.0f} ms; built straight road: {c['built_ms']:.0f} ms; "
+    print(f"Town06 lane: {c['map_ms']:.1f} ms; built straight road: {c['built_ms']:.1f} ms; "
           f"ratio {c['ratio']:.2f}")
+    print("\n## goals")
+    if town_cpu is None:
+        town_cpu = load_times(TOWN06, "numpy", args.repeats)["cpu"]
+    for label, value, goal, unit in (
+            ("Town06 load, CPU", town_cpu, 1.5, " s"),
+            ("closest-lane query", q["strtree_ms"], 0.5, " ms"),
+            ("a case on Town06 / on the built road", c["ratio"], 1.5, "x")):
+        print(f"{'PASS' if value <= goal else 'MISS'}  {label}: {value:.3g}{unit} "
+              f"(goal <= {goal:g}{unit})")
 
 
 if __name__ == "__main__":

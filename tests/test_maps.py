@@ -205,6 +205,27 @@ def test_lane_coordinates_are_the_nearest_foot_whatever_was_asked_before():
                 assert (s, r) == pytest.approx((s_all, r_all), abs=1e-9), lane.id
 
 
+def test_lane_coordinates_near_a_long_curved_lane_are_the_scan_of_every_segment():
+    """On lanes of many blocks a point near the centre line finds its blocks in a grid cell
+    (points further out measure every block): both give exactly the scan's answer."""
+    town = World(0, name="t").map(Path(__file__).parents[1] / "example_tests" / "maps"
+                                  / "Town06.xodr")
+    curved = [l for l in town.all_lanes if len(l.geometry._bl) > 8 and l.geometry._line is None]
+    assert len(curved) >= 20
+    rng = np.random.default_rng(7)
+    near = 0
+    for lane in curved[::6]:
+        g = lane.geometry
+        for s, r in zip(rng.uniform(-2, g.length + 2, 25), rng.uniform(-9, 9, 25)):
+            x, y = (float(v) for v in g.position(s, r))
+            d2, s_all, r_all = g._foot(x, y, 0, g._nseg)
+            got = g._local(x, y)
+            near += g._local_near(x, y) is not None
+            if d2 < 1e9:
+                assert got == (s_all, r_all), (lane.id, s, r)
+    assert near > 50
+
+
 @pytest.mark.parametrize("driver", ["autopilot", "careful"])
 def test_the_autopilot_and_the_careful_driver_turn_through_the_junction_in_lane(driver):
     w = World(2, name="t", driver=driver)
@@ -216,3 +237,52 @@ def test_the_autopilot_and_the_careful_driver_turn_through_the_junction_in_lane(
     assert tr.lane[0, -1] == "3/0/1" and tr.on_road[0].all()
     assert np.nanmax(np.abs(tr.lane_offset[0])) < 0.6
     assert w.view().lanes and {l.id for l in w.view().lanes} == {l.id for l in town.all_lanes}
+
+
+def test_the_careful_driver_turns_left_across_an_oncoming_car_without_an_error():
+    """An oncoming car crossing the careful driver's path inside a junction comes toward it
+    (a negative speed along its route): it is judged as a standing obstacle would be, never
+    handed to the braking-lead closed form, which takes speeds >= 0 only."""
+    w = World(3, name="t", driver="careful")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    south, north = town.lane("0/0/1"), town.lane("2/0/-1")
+    w.ego(south.at(south.length - 35.0), speed=9.0, route=town.route(south, "3/0/1"))
+    w.car(north.at(north.length - 60.0), speed=13.0, route=town.route(north, "0/0/-1"),
+          name="oncoming")
+    tr = w.run(10)
+    assert tr.n_steps == 101 and tr.lane[0, -1] == "3/0/1"
+
+
+_ONE_ROAD = ("<OpenDRIVE><road id='1' length='20' junction='-1'><planView>{geoms}</planView>"
+             "<lanes><laneSection s='0'><right><lane id='{lid}' type='driving'>"
+             "<width sOffset='0' a='{a}' b='{b}' c='0' d='0'/></lane></right></laneSection>"
+             "</lanes></road></OpenDRIVE>")
+_LINE = "<geometry s='0' x='0' y='0' hdg='0' length='20'><line/></geometry>"
+
+
+@pytest.mark.parametrize("lid, a, b, match", [
+    ("abc", "3.5", "0", r"road 1 lane section 0 <right> has a <lane id='abc'>, not a whole"),
+    ("-1", "1e308e", "0", r"road 1 lane section 0 lane -1 has a='1e308e'"),
+    ("-1", "3.5", "1e307", r"road 1 lane section 0 lane -1's centre line is not finite"),
+])
+def test_odd_values_in_a_map_are_map_errors_naming_the_element(tmp_path, lid, a, b, match):
+    path = tmp_path / "odd.xodr"
+    path.write_text(_ONE_ROAD.format(geoms=_LINE, lid=lid, a=a, b=b))
+    with pytest.raises(MapError, match=match):
+        od.load(path)
+
+
+def test_a_geometry_that_stands_still_gives_a_lane_of_increasing_arc_length(tmp_path):
+    """A paramPoly3 whose coefficients are all zero places every sample at one point: the
+    lane keeps one sample of those, so positions along it are defined (no division by a
+    zero step)."""
+    still = ("<geometry s='10' x='10' y='0' hdg='0' length='10'><paramPoly3 aU='0' bU='0' "
+             "cU='0' dU='0' aV='0' bV='0' cV='0' dV='0' pRange='normalized'/></geometry>")
+    path = tmp_path / "still.xodr"
+    path.write_text(_ONE_ROAD.format(geoms=_LINE.replace("length='20'", "length='10'") + still,
+                                     lid="-1", a="3.5", b="0"))
+    lane = od.load(path).lanes["1/0/-1"]
+    assert (np.diff(lane.s) > 0).all() and lane.length == pytest.approx(10.0, abs=0.01)
+    town = World(0, name="t").map(path)
+    g = town.lane("1/0/-1").geometry
+    assert np.isfinite(g.position(g.length, 0.0)).all() and math.isfinite(g.heading_at(g.length))

@@ -96,6 +96,98 @@ def test_on_map(case, world):
     assert re.search(match, out), out[-3000:]
 
 
+_ROAD = ("<road id='{rid}' length='50' junction='-1'>{link}<planView><geometry s='0' x='{x}' "
+         "y='0' hdg='0' length='50'><{geom}/></geometry></planView><lanes><laneSection s='0'>"
+         "<right><lane id='-1' type='{kind}'><width sOffset='0' a='3.5' b='0' c='0' d='0'/>"
+         "</lane></right></laneSection></lanes></road>")
+
+
+def _odr(*roads: str) -> str:
+    return "<?xml version='1.0'?><OpenDRIVE><header/>" + "".join(roads) + "</OpenDRIVE>"
+
+
+_BAD_MAPS = {
+    "not-xml": ("<OpenDRIVE><road", "MapLane(\"maps/bad.xodr\")",
+                r"parameter 'lane'.*bad\.xodr is not XML"),
+    "unknown-geometry": (_odr(_ROAD.format(rid=1, link="", x=0, geom="clothoid", kind="driving")),
+                         "MapLane(\"maps/bad.xodr\")",
+                         r"parameter 'lane'.*bad\.xodr.*road 1 geometry at s=0 is <clothoid>"),
+    "no-driving-lane": (_odr(_ROAD.format(rid=1, link="", x=0, geom="line", kind="sidewalk")),
+                        "MapLane(\"maps/bad.xodr\")",
+                        r"parameter 'lane'.*bad\.xodr: no driving lane in it"),
+    # the map's edge where the scenario needs 100 m of road ahead
+    "dead-end": (_odr(_ROAD.format(rid=1, link="", x=0, geom="line", kind="driving")),
+                 "MapLane(\"maps/bad.xodr\", ahead=100)",
+                 r"parameter 'lane'.*bad\.xodr.*route runs 100 m.*at lane 1/0/-1, which has no "
+                 r"successor \(road 1's <link> has no <successor>"),
+    # the road names a successor the file does not have
+    "dangling-link": (_odr(_ROAD.format(
+        rid=1, link="<link><successor elementType='road' elementId='9' contactPoint='start'/>"
+                    "</link>", x=0, geom="line", kind="driving")),
+        "MapLane(\"maps/bad.xodr\", ahead=80)",
+        r"parameter 'lane'.*bad\.xodr.*lane 1/0/-1, which has no successor \(road 1's "
+        r"<link><successor elementType='road' elementId='9'> names a road the file lacks"),
+    # the lane's own link names a lane the next road lacks
+    "missing-lane-link": (_odr(
+        _ROAD.format(rid=1, link="<link><successor elementType='road' elementId='2' "
+                                 "contactPoint='start'/></link>", x=0, geom="line",
+                     kind="driving").replace(
+            "d='0'/></lane>", "d='0'/><link><successor id='-4'/></link></lane>"),
+        _ROAD.format(rid=2, link="", x=50, geom="line", kind="driving")),
+        "MapLane(\"maps/bad.xodr\", ahead=80)",
+        r"lane 1/0/-1, which has no successor \(road 1 lane -1's <link><successor id='-4'> "
+        r"into road 2 names a lane the file lacks there"),
+}
+
+
+@pytest.mark.parametrize("name", list(_BAD_MAPS))
+def test_a_bad_map_file_is_a_collection_error_naming_the_file_and_element(pytester, name):
+    """Every kind of bad map is reported at collection by the MapLane parameter that reads
+    it: the test, the parameter, the file and the element, never the parser's traceback."""
+    text, decl, match = _BAD_MAPS[name]
+    (pytester.path / "maps").mkdir()
+    (pytester.path / "maps" / "bad.xodr").write_text(text)
+    pytester.makepyfile(test_bad=f"""
+from pytest_avscenario import MapLane, scenario
+
+@scenario(lane={decl}, samples=2)
+def test_on_map(case, world):
+    pass
+""")
+    res = pytester.runpytest("--avs-db=none", "-p", "no:cacheprovider", "--collect-only")
+    out = res.stdout.str()
+    assert res.ret != 0
+    assert "test_on_map" in out or "test_bad.py" in out
+    assert "Traceback" not in out and "lxml" not in out
+    import re
+
+    assert re.search(match, out.replace("\n", " ")), out[-3000:]
+
+
+def test_lanes_whose_route_ends_too_soon_are_left_out_and_named_at_run_time():
+    """MapLane(ahead=) keeps only lanes from which the default route runs that far (Town06's
+    lane 48/0/-3 ends after 184 m: its file link to road 49 is missing); a route that runs
+    past such an end at run time names the lane and the missing element too."""
+    every = od.MapLane(TOWN06, kind="driving", min_length=100)
+    kept = od.MapLane(TOWN06, kind="driving", min_length=100, ahead=250)
+    assert every.error is None and kept.error is None
+    assert set(every.options) - set(kept.options) == {"48/0/-3"}
+    data = od.load(TOWN06)
+    run, last = od.route_end(data, "48/0/-3", 250)
+    assert last == "48/0/-3" and 180 < run < 190
+    assert od.route_end(data, kept.options[0], 250) is None
+    assert "road 48 lane -3 has no <link><successor> into road 49" in od.why_no_successor(data, last)
+    bad = od.MapLane(TOWN06, ahead=-1)
+    assert bad.error is not None and "ahead" in bad.error
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.sim.errors import SimError
+
+    town = World(0, name="test_x").map(TOWN06)
+    with pytest.raises(SimError, match=r"48/0/-3.*no successor \(road 48 lane -3 has no "
+                                       r"<link><successor> into road 49\).*ahead="):
+        town.ahead(town.lane("48/0/-3").at(10.0), 200.0)
+
+
 @pytest.mark.slow
 def test_town06_lane_campaign_has_stable_case_ids_under_xdist(pytester):
     """Every Town06 driving lane of 100 m or more is a possible ego lane; serial and -n 2

@@ -273,8 +273,14 @@ class _Agent:
             pos = o.position
             if abs(pos[0] - px) > reach or abs(pos[1] - py) > reach:
                 continue
+            known = getattr(o, "tracked", None)
+            if known is not None and (known[0] != pos[0] or known[1] != pos[1]):
+                known = None  # it moved since
             for g, offset in lanes:
-                s_o, r_o = g.local_coordinates(pos)
+                if known is not None and known[2] is g:
+                    s_o, r_o = known[3], known[4]
+                else:
+                    s_o, r_o = g.local_coordinates(pos)
                 if abs(r_o) > (self.WIDTH + o.WIDTH) / 2 + 0.2:
                     continue
                 if s_o < -o.LENGTH / 2 or s_o > g.length + o.LENGTH / 2:

@@ -158,6 +158,9 @@ class LaneIndex:
             g = route[ri].geometry
             s, r = g.local_coordinates(pos)
         agent.route_index, agent.route_s, agent.route_r = ri, s, r
+        # what was asked and answered, for whoever asks the same lane about this agent before
+        # it moves again (another agent's leader(): a second projection per step on a map)
+        agent.tracked = (float(pos[0]), float(pos[1]), g, s, r)
 
     def current_lane(self, agent: Any) -> None:
         """Set ``lane_index``, ``lane``, ``lane_r`` [m] and ``is_on_road`` (after :meth:`progress`)."""

@@ -31,13 +31,16 @@ import numpy as np
 
 from .errors import SimError
 from .lanes import LaneIndex
-from .opendrive import DRIVABLE, LaneData, MapData, MapError, load
+from .opendrive import (DRIVABLE, LaneData, MapData, MapError, default_successor, load,
+                        why_no_successor)
 from .places import Lane, Route, Spot
 
 __all__ = ["MapRoad", "MapLaneShape", "RoadLane", "MapLaneIndex", "DEFAULT_SPEED_LIMIT"]
 
 DEFAULT_SPEED_LIMIT = 13.9  # [m/s] (50 km/h) for lanes whose file gives no limit
 _BLOCK = 10  # segments per block of MapLaneShape's nearest-foot search
+_CELL = 5.0  # [m] grid cell of the nearest-foot search's block lists
+_NEAR = 4.0  # [m] points this close to a lane's centre line find its blocks in their cell
 
 
 def _abstract_lane() -> type:
@@ -144,6 +147,10 @@ def _shape_class() -> type:
                         self._line = (float(self._xy[0, 0]), float(self._xy[0, 1]), float(ux), float(uy),
                                       clen / self.length)
                 self._memo: tuple | None = None
+                self._grid: dict | None = None  # see _local_near, made on first use
+                # for what other modules compute from this lane alone (the autopilot's route
+                # samples): the lane never changes and is shared by every world on the map
+                self.memo: dict = {}
 
             def _at(self, s: float) -> tuple[int, float]:
                 k = bisect.bisect_right(self._sl, s) - 1
@@ -169,6 +176,19 @@ def _shape_class() -> type:
                 k, f = self._at(float(longitudinal))
                 f = min(max(f, 0.0), 1.0)
                 return self._wl[k] + f * (self._wl[k + 1] - self._wl[k])
+
+            def positions(self, ss: Any, lateral: float = 0.0) -> np.ndarray:
+                """``position(s, lateral)`` for every ``s`` of ``ss`` [m] as an (N, 2) array
+                [m], vectorized with the same arithmetic (bit-identical)."""
+                ss = np.asarray(ss, dtype=float)
+                k = np.clip(np.searchsorted(self._s, ss, side="right") - 1, 0, len(self._s) - 2)
+                s0, x, y, rh = self._s, self._xy[:, 0], self._xy[:, 1], self._rh
+                f = (ss - s0[k]) / (s0[k + 1] - s0[k])
+                g = np.clip(f, 0.0, 1.0)
+                h = rh[k] + g * (rh[k + 1] - rh[k])
+                lat = float(lateral)
+                return np.stack([x[k] + f * (x[k + 1] - x[k]) - lat * np.sin(h),
+                                 y[k] + f * (y[k + 1] - y[k]) + lat * np.cos(h)], axis=1)
 
             def centre_points(self, ss: Any) -> np.ndarray:
                 """Centre-line points (N, 2) [m] at arc lengths ``ss`` [m] (vectorized)."""
@@ -197,6 +217,10 @@ def _shape_class() -> type:
                 # that hold it (0 <= f <= 1), the nearest. The block whose bounding circle is
                 # nearest is searched first, then only blocks that could hold a nearer foot:
                 # the same answer as a scan of every segment, whatever was asked before.
+                if len(self._bl) > 8:
+                    got = self._local_near(px, py)
+                    if got is not None:
+                        return got
                 if len(self._bl) <= 8:  # few blocks: plain Python beats numpy's call overhead
                     lower = [math.hypot(cx - px, cy - py) - r for cx, cy, r in self._bl]
                     b0 = min(range(len(lower)), key=lower.__getitem__)
@@ -217,6 +241,46 @@ def _shape_class() -> type:
                         if (got[0], got[3]) < (best[0], best[3]):
                             best = got
                 return best[1], best[2]
+
+            def _local_near(self, px: float, py: float) -> tuple[float, float] | None:
+                # A point within _NEAR of the centre line (a vehicle on or beside the lane):
+                # every block that could hold its foot is listed in its cell of a grid made
+                # once, so the blocks are not all measured. Searched nearest first, stopping
+                # when no further block can hold a nearer foot: the same answer as a scan of
+                # every segment. None for a point further out (the caller scans).
+                grid = self._grid
+                if grid is None:
+                    grid = self._grid = self._make_grid()
+                cell = grid.get((math.floor(px / _CELL), math.floor(py / _CELL)))
+                if cell is None:
+                    return None
+                bl = self._bl
+                order = sorted((math.hypot(bl[b][0] - px, bl[b][1] - py) - bl[b][2], b)
+                               for b in cell)
+                best = None
+                reach = math.inf
+                for lo, b in order:
+                    if lo > reach:
+                        break
+                    got = self._foot(px, py, *self._blocks[b]) + (b,)
+                    if best is None or (got[0], got[3]) < (best[0], best[3]):
+                        best = got
+                        if best[0] < 1e9:
+                            reach = math.sqrt(best[0])
+                if best is None or best[0] > _NEAR * _NEAR:
+                    return None
+                return best[1], best[2]
+
+            def _make_grid(self) -> dict:
+                # cell -> the blocks whose bounding circle comes within _NEAR of the cell
+                grid: dict[tuple[int, int], list[int]] = {}
+                for b, (cx, cy, r) in enumerate(self._bl):
+                    e = r + _NEAR
+                    for ix in range(math.floor((cx - e) / _CELL), math.floor((cx + e) / _CELL) + 1):
+                        for iy in range(math.floor((cy - e) / _CELL),
+                                        math.floor((cy + e) / _CELL) + 1):
+                            grid.setdefault((ix, iy), []).append(b)
+                return grid
 
             def _foot(self, px: float, py: float, i: int, j: int) -> tuple[float, float, float]:
                 """(squared distance, s, r) of the foot on segments i..j-1, 1e9 added to the
@@ -297,6 +361,10 @@ class MapLaneIndex(LaneIndex):
         self.stop_marks = {}
         self.straight_on = {}
         self.drops: dict[tuple, str] = {}
+        # what the recorder writes of each lane, shared by every world on the map (its lanes
+        # never change): the lane ids by code, and road_meta's entry per lane once computed
+        self.id_array = np.asarray([l.id for l in self.order] + [""])
+        self.lane_records: dict[str, Any] = {}
         boxes = []
         for lane in self.order:
             d = lane.data
@@ -319,6 +387,7 @@ class MapLaneIndex(LaneIndex):
             self._beside[lane.index] = [o for o in groups[lane.group]
                                         if abs(o.number - lane.number) == 1]
         self.near = {}
+        datas = {l.id: l.data for l in self.order}
         for lane in self.order:
             near: list[RoadLane] = []
             cands = (self.successors[lane.index] + preds[lane.index] + self._beside[lane.index]
@@ -329,8 +398,8 @@ class MapLaneIndex(LaneIndex):
                     near.append(other)
             self.near[lane.index] = tuple(near)
             if self.successors[lane.index]:
-                self.straight_on[lane.index] = min(
-                    self.successors[lane.index], key=lambda s: (_turn(lane, s), s.id))
+                # the rule MapLane(ahead=) checks routes by at collection
+                self.straight_on[lane.index] = by_id[default_successor(lane.data, datas).id]
             elif float(lane.data.width[-1]) < 0.5:
                 # a lane that narrows to nothing with a lane beside it (an acceleration
                 # lane, a lane drop): its traffic merges there (behaviours' keep_lane does)
@@ -350,13 +419,6 @@ class MapLaneIndex(LaneIndex):
         twin.straight_on = dict(self.straight_on)
         twin.drops = dict(self.drops)
         return twin
-
-
-def _turn(a: RoadLane, b: RoadLane) -> float:
-    """How much [rad] driving from ``a`` on through ``b`` turns (a connector's whole turn)."""
-    h0 = float(a.data.heading[-1])
-    h1 = float(b.data.heading[-1])
-    return abs(math.atan2(math.sin(h1 - h0), math.cos(h1 - h0)))
 
 
 @dataclass
@@ -493,7 +555,9 @@ class MapRoad:
             k += 1
         if s > lanes[k].length:
             raise SimError(f"{self.path}: {d:g} m ahead of {spot.lane.id!r} at s={spot.s:g} m "
-                           f"runs past the end of {lanes[k].id!r}, which has no successor",
+                           f"runs past the end of {lanes[k].id!r}, which has no successor "
+                           f"({why_no_successor(self.data, lanes[k].id)}); declare the road "
+                           "needed with MapLane(..., ahead=...) to draw only lanes that have it",
                            test=self.world.name)
         return Spot(lanes[k], s, spot.r)
 
@@ -525,7 +589,8 @@ class MapRoad:
             return [a]
         if not succ.get(a.index):
             raise SimError(f"{self.path}: no way from {a.id!r} to {b.id!r}: {a.id!r} has no "
-                           "successor (the map ends there)", test=self.world.name)
+                           f"successor ({why_no_successor(self.data, a.id)})",
+                           test=self.world.name)
         dist = {a.index: 0.0}
         prev: dict[tuple, RoadLane] = {}
         heap = [(0.0, a.id, a)]

@@ -22,6 +22,7 @@ highway-env; :mod:`.maps` makes highway-env lanes of this data.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import os
@@ -160,14 +161,22 @@ def _caller_dirs() -> list[Path]:
     """The folder of the first caller outside this package (the test module using a map)."""
     import sys
 
-    pkg = str(Path(__file__).resolve().parents[1])
     frame = sys._getframe(1)
     while frame is not None:
         f = frame.f_code.co_filename
-        if f.endswith(".py") and not f.startswith(pkg) and "importlib" not in f:
-            return [Path(f).resolve().parent]
+        if f.endswith(".py") and not f.startswith(_PKG) and "importlib" not in f:
+            return [_folder_of(f)]
         frame = frame.f_back
     return []
+
+
+_PKG = str(Path(__file__).resolve().parents[1])
+
+
+@functools.lru_cache(maxsize=256)
+def _folder_of(source: str) -> Path:
+    # a module's folder, resolved once (every world that loads a map asks, once per case)
+    return Path(source).resolve().parent
 
 
 def load(path: Any, *, base: Any = None, evaluator: str = "numpy") -> MapData:
@@ -448,6 +457,16 @@ def _poly(records: list[tuple[float, float, float, float, float]], s: np.ndarray
     return a + ds * (b + ds * (c + ds * d))
 
 
+def _lane_number(el: Any, path: str, where: str) -> int:
+    """A <lane>'s id, a whole number (0 is the centre lane)."""
+    raw = el.get("id")
+    try:
+        return int(raw)
+    except (TypeError, ValueError):
+        raise MapError(f"map file {path}: {where} has a <lane id={raw!r}>, not a whole "
+                       "number") from None
+
+
 def _records(els: Iterable[Any], start: str, path: str, where: str) -> list:
     out = []
     for e in els:
@@ -493,11 +512,11 @@ def _road_lanes(path: str, road: Any, ref: Any, lanes: dict) -> list:
                            for ts, t in reversed(types) if ts <= s0 + 1e-9), math.nan)
         made = []
         for side, sign in (("left", 1.0), ("right", -1.0)):
-            lane_els = sec.findall(f"{side}/lane")
-            lane_els.sort(key=lambda e: abs(int(e.get("id", "0"))))
+            ided = [(_lane_number(el, path, f"road {rid} lane section {k} <{side}>"), el)
+                    for el in sec.findall(f"{side}/lane")]
+            ided.sort(key=lambda t: abs(t[0]))
             inner = np.zeros_like(ss)
-            for el in lane_els:
-                lid = int(el.get("id", "0"))
+            for lid, el in ided:
                 where = f"road {rid} lane section {k} lane {lid}"
                 if el.find("border") is not None and el.find("width") is None:
                     raise MapError(f"map file {path}: {where} gives its shape by <border>, "
@@ -515,8 +534,14 @@ def _road_lanes(path: str, road: Any, ref: Any, lanes: dict) -> list:
                 wid, rh = w, h
                 if not forward:
                     pts, wid, rh = pts[::-1], wid[::-1], h[::-1] + np.pi
+                if not (np.isfinite(pts).all() and np.isfinite(wid).all()):
+                    raise MapError(f"map file {path}: {where}'s centre line is not finite (its "
+                                   "road's geometry or its <width>/<laneOffset> overflows)")
                 seg = np.hypot(*np.diff(pts, axis=0).T)
                 s_lane = np.concatenate([[0.0], np.cumsum(seg)])
+                keep = np.concatenate([[True], np.diff(s_lane) > 0])
+                if not keep.all():  # samples that coincide (a degenerate geometry): one of each
+                    pts, wid, rh, s_lane = pts[keep], wid[keep], rh[keep], s_lane[keep]
                 if s_lane[-1] < 1e-3:
                     continue  # a lane of no length (a lane that is a point on a tight curve)
                 head = _headings(pts)
@@ -613,6 +638,115 @@ def _links(path: str, root: Any, raw: dict, lanes: dict) -> dict:
 # -- a parameter over a map's lanes ---------------------------------------------------------------------
 
 
+def default_successor(lane: LaneData, lanes: Any) -> LaneData | None:
+    """The lane traffic on ``lane`` drives on into when it goes straight on: of its drivable
+    successors (looked up in ``lanes``, id -> :class:`LaneData`), the one that turns least
+    (then the first by id); None where it has none (the map ends there for traffic)."""
+    nxt = [lanes[i] for i in lane.successors if i in lanes and lanes[i].kind in DRIVABLE]
+    if not nxt:
+        return None
+    h0 = float(lane.heading[-1])
+
+    def turn(b: LaneData) -> float:
+        h1 = float(b.heading[-1])
+        return abs(math.atan2(math.sin(h1 - h0), math.cos(h1 - h0)))
+
+    return min(nxt, key=lambda b: (turn(b), b.id))
+
+
+def route_end(data: MapData, lane_id: str, need: float) -> tuple[float, str] | None:
+    """Where the default route from the start of ``lane_id`` (straight on through junctions,
+    as ``MapRoad.default_route`` drives it) ends, when that is less than ``need`` [m] on:
+    ``(metres run, id of the lane that has no successor)``; None when it runs ``need`` m (or
+    comes back on itself)."""
+    lane = data.lanes[lane_id]
+    run = 0.0
+    seen = set()
+    while True:
+        run += lane.length
+        if run >= need or lane.id in seen:
+            return None
+        seen.add(lane.id)
+        nxt = default_successor(lane, data.lanes)
+        if nxt is None:
+            return run, lane.id
+        lane = nxt
+
+
+def why_no_successor(data: MapData, lane_id: str) -> str:
+    """Why the file gives lane ``lane_id`` no drivable successor, naming the element: the
+    road's ``<link>`` has none (the map's edge), it names a road or junction the file lacks,
+    the lane's own ``<link>`` is missing or names a lane that is not there, the successor is
+    not a driving lane, or the two do not meet. Reads the file again (an error path)."""
+    lane = data.lanes[lane_id]
+    tag = "successor" if lane.forward else "predecessor"
+    where = f"road {lane.road} lane {lane.lane}"
+    for other in lane.successors:
+        o = data.lanes.get(other)
+        if o is not None and o.kind not in DRIVABLE:
+            return f"{where}'s {tag} {other} is a {o.kind} lane, not one to drive on"
+    try:
+        from lxml import etree as ET
+
+        root = ET.fromstring(Path(data.path).read_bytes(), parser=ET.XMLParser(huge_tree=True))
+    except Exception:  # noqa: BLE001 - only an explanation: the file changed or went away
+        return f"{where} has no {tag} in the file's links"
+    roads = {r.get("id", ""): r for r in root.findall("road")}
+    road = roads.get(lane.road)
+    sections = road.findall("lanes/laneSection") if road is not None else []
+    last = len(sections) - 1 if lane.forward else 0
+    lane_el = None
+    if 0 <= lane.section < len(sections):
+        for el in sections[lane.section].iter("lane"):
+            if el.get("id") == str(lane.lane):
+                lane_el = el
+    own = lane_el.find(f"link/{tag}") if lane_el is not None else None
+
+    def named(target: str) -> str:
+        # what is wrong with the lane a link names
+        t = data.lanes.get(target)
+        if t is None:
+            return "a lane the file lacks there"
+        gap = float(np.hypot(*(lane.xy[-1] - t.xy[0])))
+        if gap > 1.0:
+            return (f"lane {target}, which starts {gap:.1f} m from this lane's end (links "
+                    "whose lanes do not meet within 1 m are not followed)")
+        return f"lane {target}, which runs the other way"
+
+    if lane.section != last:
+        if own is None:
+            return (f"{where} in lane section {lane.section} has no <link><{tag}> into the "
+                    "next lane section")
+        nxt = lane.section + (1 if lane.forward else -1)
+        return (f"{where}'s <link><{tag} id='{own.get('id')}'> names "
+                + named(f"{lane.road}/{nxt}/{own.get('id')}"))
+    link = road.find(f"link/{tag}") if road is not None else None
+    if link is None:
+        return f"road {lane.road}'s <link> has no <{tag}>: the map ends there"
+    kind, eid = link.get("elementType", "road"), link.get("elementId", "")
+    if kind == "junction":
+        junction = next((j for j in root.findall("junction") if j.get("id") == eid), None)
+        if junction is None:
+            return (f"road {lane.road}'s <link><{tag} elementType='junction' elementId='{eid}'> "
+                    "names a junction the file lacks")
+        froms = [ll for c in junction.findall("connection") if c.get("incomingRoad") == lane.road
+                 for ll in c.findall("laneLink") if ll.get("from") == str(lane.lane)]
+        if not froms:
+            return (f"junction {eid} has no <connection incomingRoad='{lane.road}'> with a "
+                    f"<laneLink from='{lane.lane}'>")
+        return (f"junction {eid}'s <laneLink from='{lane.lane}'> of road {lane.road} leads to a "
+                "lane that is missing or does not meet this one's end")
+    if eid not in roads:
+        return (f"road {lane.road}'s <link><{tag} elementType='road' elementId='{eid}'> names a "
+                "road the file lacks")
+    if own is None:
+        return f"{where} has no <link><{tag}> into road {eid}"
+    theirs = roads[eid].findall("lanes/laneSection")
+    k = 0 if link.get("contactPoint", "start") == "start" else len(theirs) - 1
+    return (f"{where}'s <link><{tag} id='{own.get('id')}'> into road {eid} names "
+            + named(f"{eid}/{k}/{own.get('id')}"))
+
+
 class MapLane(Choice):
     """A categorical parameter over the lanes of a map file, read at collection::
 
@@ -623,21 +757,49 @@ class MapLane(Choice):
     ``path`` is looked up from the declaring test module's folder, then the working
     directory. ``kind`` is a lane type or a list of them (None: every lane); ``min_length``
     [m] drops shorter lanes; ``junctions`` False (the default) leaves out lanes inside
-    junctions. Its description is the plain ``Choice`` over the ids, so stored cases replay
-    without the file.
+    junctions. ``ahead`` [m] is the road the scenario needs straight on from the start of the
+    lane (the map's default route through junctions, as ``town.ahead`` and the drivers follow
+    it): lanes whose route ends sooner, at a lane with no successor, are left out; when none
+    is left, the collection error names the file, the lane where each route ends and why the
+    file gives it no successor. Its description is the plain ``Choice`` over the ids, so
+    stored cases replay without the file.
     """
 
     def _setup(self, path: Any, kind: Any = "driving", min_length: float = 0.0,
-               junctions: bool = False) -> None:
+               junctions: bool = False, ahead: float = 0.0) -> None:
         try:
             data = load(path, base=_declaring_dir())
         except MapError as exc:
             raise SpaceError(str(exc)) from None
+        call = f"MapLane({os.fspath(path)!r}, kind={kind!r}, min_length={min_length!r}"
+        try:
+            need = float(ahead)
+        except (TypeError, ValueError):
+            need = math.nan
+        if not math.isfinite(need) or need < 0:
+            raise SpaceError(f"{call}, ahead={ahead!r}): ahead is the road [m] the scenario "
+                             "needs straight on from the lane's start, a finite number >= 0")
         ids = [l.id for l in data.of_kind(kind, float(min_length))
                if junctions or not l.junction]
         if not ids:
-            raise SpaceError(f"MapLane({os.fspath(path)!r}, kind={kind!r}, "
-                             f"min_length={min_length!r}): no lane of the map matches")
+            raise SpaceError(f"{call}): no lane of the map matches")
+        if need > 0:
+            ends = {i: route_end(data, i, need) for i in ids}
+            ids = [i for i in ids if ends[i] is None]
+            if not ids:
+                # a route needs a successor the map does not give: say where and why
+                by_end: dict[str, list[tuple[float, str]]] = {}
+                for i, (run, last) in ends.items():
+                    by_end.setdefault(last, []).append((run, i))
+                shown = sorted(by_end.items(), key=lambda kv: -max(r for r, _ in kv[1]))[:3]
+                parts = [f"from {max(v)[1]} the route ends {max(v)[0]:.0f} m on at lane {last}, "
+                         f"which has no successor ({why_no_successor(data, last)})"
+                         for last, v in shown]
+                raise SpaceError(
+                    f"{call}, ahead={ahead!r}): map file {data.path}: no matching lane's route "
+                    f"runs {need:g} m: " + "; ".join(parts)
+                    + (f"; and {len(by_end) - 3} more dead ends" if len(by_end) > 3 else "")
+                    + ". Ask for less road ahead, or use a map whose lanes continue there")
         self.map_path = data.path
         super()._setup(ids)
 

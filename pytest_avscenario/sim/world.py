@@ -481,7 +481,7 @@ class World:
                            f"{[l.id for l in lanes]} nor beside its first lane",
                            test=self.name, agent=agent)
         for a, b in zip(lanes, lanes[1:]):
-            gap = float(np.hypot(*(a.end.position - b.start.position)))
+            gap = _joint_gap(a, b)
             if gap > 1.0:
                 raise SimError(f"route is broken: {b.id!r} starts {gap:.1f} m from the end of "
                                f"{a.id!r}", test=self.name, agent=agent)
@@ -1067,6 +1067,19 @@ class World:
         from .render import render_gif
 
         return render_gif(self, path, every=every, **kw)
+
+
+def _joint_gap(a: Lane, b: Lane) -> float:
+    """[m] from the end of lane ``a`` to the start of lane ``b`` (a route's joint); kept with
+    ``a``'s geometry when it offers a ``memo`` (a map's lanes never change)."""
+    memo = getattr(a.geometry, "memo", None)
+    key = ("gap to", b.geometry)
+    got = memo.get(key) if memo is not None else None
+    if got is None:
+        got = float(np.hypot(*(a.end.position - b.start.position)))
+        if memo is not None:
+            memo[key] = got
+    return got
 
 
 def _quietly_resolved(driver: Any) -> Any:

@@ -491,7 +491,11 @@ class CarefulDriver:
             return True
         ordinary = replace(o, risk_perception_time=0.0,
                            max_decel_g=o.comfort_decel / STANDARD_GRAVITY)
-        return braking_lead_min_gap(max(gap, 0.0), v, v_other, 0.0, options=ordinary) < o.min_gap
+        # something coming toward us on our path (an oncoming car across a junction) is taken
+        # as standing here: no less demanding than that, and its closing speed counts in
+        # the time-to-collision test above
+        return braking_lead_min_gap(max(gap, 0.0), v, max(v_other, 0.0), 0.0,
+                                    options=ordinary) < o.min_gap
 
     def _along(self, name: str, obs: Any) -> tuple | None:
         rec = self._last.get(name)

@@ -20,6 +20,7 @@ import numpy as np
 __all__ = ["RoutePath", "bicycle_steering", "pursuit_steering"]
 
 _ARC_SAMPLE_M = 1.0  # [m] sampling step for curved lanes before resampling (chord error ds²/8R)
+_KBLOCK = 16  # grid points per block of the curvature bound
 
 
 def bicycle_steering(curvature: float, length: float, max_steering: float) -> float:
@@ -68,6 +69,50 @@ def _is_straight(lane: Any) -> bool:
             and not hasattr(lane, "amplitude"))
 
 
+def _memo(lane: Any) -> dict | None:
+    # a lane that never changes (a map's, shared by every world on it) offers a dict for
+    # what is computed from it alone: a route through it then samples it once per process
+    return getattr(lane, "memo", None)
+
+
+def _end(lane: Any, length: float) -> np.ndarray:
+    memo = _memo(lane)
+    got = memo.get("end") if memo is not None else None
+    if got is None:
+        got = np.asarray(lane.position(length, 0.0), dtype=float)
+        if memo is not None:
+            memo["end"] = got
+    return got
+
+
+def _start(lane: Any) -> np.ndarray:
+    memo = _memo(lane)
+    got = memo.get("start") if memo is not None else None
+    if got is None:
+        got = np.asarray(lane.position(0.0, 0.0))
+        if memo is not None:
+            memo["start"] = got
+    return got
+
+
+def _samples(lane: Any, s_from: float, s_to: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n + 1`` arc lengths from ``s_from`` to ``s_to`` [m] on ``lane`` and its centre line
+    there (N, 2) [m]."""
+    memo = _memo(lane)
+    key = ("samples", s_from, s_to, n)
+    got = memo.get(key) if memo is not None else None
+    if got is None:
+        ss = np.linspace(s_from, s_to, n + 1)
+        if hasattr(lane, "centre_points"):  # a map lane samples its centre line at once
+            xy = np.asarray(lane.centre_points(ss), dtype=float)
+        else:
+            xy = np.array([lane.position(float(s), 0.0) for s in ss], dtype=float)
+        got = (ss, xy)
+        if memo is not None and len(memo) < 64:
+            memo[key] = got
+    return got
+
+
 class RoutePath:
     """The route's centre line resampled every ``ds`` metres, extended straight at both ends.
 
@@ -96,8 +141,8 @@ class RoutePath:
             nxt = route[k + 1] if k + 1 < len(route) else None
             change = None
             if nxt is not None:
-                end = np.asarray(lane.position(length, 0.0), dtype=float)
-                if float(np.hypot(*(np.asarray(nxt.position(0.0, 0.0)) - end))) > 1.0:
+                end = _end(lane, length)
+                if float(np.hypot(*(_start(nxt) - end))) > 1.0:
                     s1, r1 = nxt.local_coordinates(end)
                     if abs(r1) < 2.5 * float(nxt.width_at(s1)) and -1.0 < s1 <= nxt.length + 1.0:
                         # A parallel neighbour: change lanes from here (or from the entry).
@@ -106,11 +151,7 @@ class RoutePath:
                         change = s_to
             offsets.append(acc - s_from)
             n = 1 if _is_straight(lane) else max(2, int(math.ceil((s_to - s_from) / _ARC_SAMPLE_M)))
-            ss = np.linspace(s_from, s_to, n + 1)
-            if hasattr(lane, "centre_points"):  # a map lane samples its centre line at once
-                xy = np.asarray(lane.centre_points(ss), dtype=float)
-            else:
-                xy = np.array([lane.position(float(s), 0.0) for s in ss], dtype=float)
+            ss, xy = _samples(lane, s_from, s_to, n)
             # Consecutive lanes share their junction point; drop the duplicate knot so the
             # interpolation below sees strictly increasing arc length.
             if knots_s:
@@ -165,6 +206,11 @@ class RoutePath:
         k = max(1, int(round(5.0 / self.ds)))
         self.curvature = np.convolve(curv, np.ones(k) / k, mode="same")
         self.max_abs_curvature = float(np.max(np.abs(self.curvature)))
+        # |curvature|'s maximum per block of _KBLOCK points: a bound over any window in a few
+        # list look-ups (most of a map's route is straight enough to need no curve limit)
+        ak = np.abs(self.curvature)
+        pad = (-len(ak)) % _KBLOCK
+        self._kmax = np.concatenate([ak, np.zeros(pad)]).reshape(-1, _KBLOCK).max(axis=1).tolist()
         self.n = len(grid)
         self._xl = self.x.tolist()
         self._yl = self.y.tolist()
@@ -202,6 +248,12 @@ class RoutePath:
         i0 = self.index(s_from)
         i1 = min(self.n, self.index(s_to) + 2)
         return slice(i0, i1)
+
+    def max_curvature_bound(self, w: slice) -> float:
+        """An upper bound of |curvature| [1/m] over the grid indices of ``w`` (a slice from
+        :meth:`window`): the largest of the blocks it touches."""
+        b0, b1 = w.start // _KBLOCK, (max(w.stop, w.start + 1) - 1) // _KBLOCK
+        return max(self._kmax[b0:b1 + 1])
 
     def project_near(self, x: float, y: float, s_guess: float) -> tuple[float, float, float, float]:
         """Arc length, lateral offset [m] and unit tangent of the route point nearest (x, y).
