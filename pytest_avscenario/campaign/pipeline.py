@@ -187,7 +187,8 @@ def run_item(ctx: CampaignContext, ci: CaseItem) -> ItemResult:
                    minimized_violations=violations_of(min_outcome.results, min_outcome.first)
                    if min_outcome is not None else None,
                    minimized_avoidable=min_judged.avoidable if min_judged else None,
-                   minimized_conflicts=min_judged.conflicts_json() if min_judged else None)
+                   minimized_conflicts=min_judged.conflicts_json() if min_judged else None,
+                   minimized_rho=min_outcome.rho if min_outcome is not None else None)
     if min_judged is not None:
         shrink.rows = judged_shrink_rows(shrink.rows, shrink.minimized, min_judged)
     ci.keep_row(row, shrink.rows if shrink is not None else [])
@@ -318,7 +319,8 @@ def render_case(ctx: CampaignContext, ci: CaseItem, campaign: Campaign, outcome:
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
         data = recording_data(world if world is not None else traj, violations=violations, monitors=monitors,
-                              title=ci.name, fallback_t=worst.t if worst is not None else None)
+                              title=ci.name, fallback_t=worst.t if worst is not None else None,
+                              case="minimized" if shown is not outcome else None)
         # the file keeps its earlier name (".replay.json"): reports and tools read it
         atomic_write_text(f"{base}.replay.json", dumps(data), durable=False)  # one of many
         pictures["recording"] = f"{base}.replay.json"
