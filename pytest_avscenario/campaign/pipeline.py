@@ -382,16 +382,39 @@ def update_db(ctx: CampaignContext, ci: CaseItem, plan: ScenarioPlan, slot: Case
                         "removed", exc)
                 return f"fixed, but not removed from the database: {exc}"
             return "fixed: this stored counterexample passes now and was removed from the database"
+        if outcome.failed:  # still a counterexample: is another entry the same one?
+            entry = plan.replays[slot.index]
+            try:
+                kept = db.redundant(entry, plan.space)
+                if kept is not None:
+                    db.delete(entry)
+            except DatabaseError as exc:
+                trouble(f"the near-duplicate {entry.path.name} could not be removed", exc)
+                return None
+            if kept is not None:
+                return (f"removed from the replay database: {kept.path.name} holds the same "
+                        "counterexample, at least as close to the nominal scenario")
         return None
     if case.origin != "sampled" or not outcome.failed or (shrink is not None and shrink.flaky):
         return None
     minimized = shrink is not None and shrink.minimized is not None and shrink.minimized != case.params
     params = shrink.minimized if minimized else case.params
     rho = shrink.outcome.rho if minimized and shrink.outcome is not None else outcome.rho
+    found = {"case": ci.nodeid.partition("[")[2].rstrip("]") or ci.nodeid, "params": dict(case.params)}
     try:
-        entry = db.save(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
-                        versions=versions())
+        # one file per counterexample: not again when it is stored already, nor beside a
+        # near-duplicate of it (the same failure found from another sample, another run)
+        stored = db.store(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
+                          versions=versions(), found=found)
     except DatabaseError as exc:
         trouble("could not store a counterexample for replay", exc)
         return f"could not store for replay: {exc}"
-    return f"stored for replay in {entry.path}"
+    if not stored.written:
+        return (f"not stored again: the replay database holds the same counterexample, at least as "
+                f"close to the nominal scenario, in {stored.entry.path}")
+    text = f"stored for replay in {stored.entry.path}"
+    if stored.replaced:
+        text += f", replacing {', '.join(p.name for p in stored.replaced)} (the same counterexample, farther from nominal)"
+    for problem in stored.problems:
+        text += f"; {problem}"
+    return text
