@@ -317,9 +317,12 @@ class ReplayDB:
 
         Among this test's entries of the same declaration (fingerprint), another entry is the
         same counterexample when it was minimized from the same sampled case (same case id,
-        values as found and seed), or when it is a *near-duplicate*: it violates the same metrics
-        and departs from the nominal scenario in the same parameters, by values within
-        ``near`` of each other in the sampler's unit coordinates (categories equal). Of a
+        values as found and seed), or, both minimized, when it is a *near-duplicate*: it
+        violates the same metrics and departs from the nominal scenario in the same
+        parameters, by values within ``near`` of each other in the sampler's unit coordinates
+        (categories equal) — minimizing drives failures found apart to the same boundary.
+        Cases stored as found (shrinking off or without success) are distinct samples and
+        are kept each. Of a
         near-duplicate pair, or two minimized from the same case, the one closer to the
         nominal scenario stays (what minimizing aims for; the stored one on a tie). What
         goes is deleted only if it is one of this database's entries (its name, kind and
@@ -335,8 +338,8 @@ class ReplayDB:
                 continue
             same_case = origin is not None and other.found is not None and other.seed == seed and \
                 (other.found["case"], _canon(other.found["params"])) == origin
-            if not same_case and (other.violated != violated
-                                  or not near_duplicate(space, params, other.params, near)):
+            if not same_case and not (minimized and other.minimized and other.violated == violated
+                                      and near_duplicate(space, params, other.params, near)):
                 continue
             if departure(space, other.params) <= departure(space, params):
                 return Stored(other, written=False)
@@ -365,8 +368,8 @@ class ReplayDB:
                 continue
             same_case = origin is not None and other.found is not None and other.seed == entry.seed \
                 and (other.found["case"], _canon(other.found["params"])) == origin
-            if not same_case and (other.violated != entry.violated
-                                  or not near_duplicate(space, entry.params, other.params, near)):
+            if not same_case and not (entry.minimized and other.minimized and other.violated == entry.violated
+                                      and near_duplicate(space, entry.params, other.params, near)):
                 continue
             theirs = departure(space, other.params)
             if theirs < mine or (theirs == mine and (other.created, other.path.name)

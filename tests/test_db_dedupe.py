@@ -7,7 +7,8 @@ repeated runs). Now a counterexample is stored once: the same minimized paramete
 minimized from the same sampled case, or a near-duplicate (the same metrics violated, the
 same parameters departing from nominal, within 5 % of their ranges) keeps the one closest to
 the nominal scenario; a database that gathered near-duplicates earlier sheds them as their
-replays run; files that are not the plugin's entries are never touched.
+replays run; cases stored as found (shrinking off) are distinct samples and are kept each;
+files that are not the plugin's entries are never touched.
 """
 
 from __future__ import annotations
@@ -128,6 +129,10 @@ def test_store_keeps_the_closer_case_and_never_deletes_what_is_not_an_entry(tmp_
     # counterexample even beyond NEAR; the closer one stays
     same = db.store(t, {"gap": 14.0}, {"d": -1.0}, 2, space, True, {}, {"case": "halton-004", "params": {"gap": 15.0}})
     assert not same.written and same.entry.path == near.entry.path
+    # cases stored as found (not minimized) are distinct samples, however near: kept each
+    a = db.store(t, {"gap": 30.0}, {"d": -1.0}, 8, space, False, {}, {"case": "halton-020", "params": {"gap": 30.0}})
+    b = db.store(t, {"gap": 30.2}, {"d": -1.0}, 9, space, False, {}, {"case": "halton-021", "params": {"gap": 30.2}})
+    assert a.written and b.written and a.entry.path.exists() and not b.replaced
     # an entry-shaped name holding someone else's file is not an entry: never deleted
     alien = tmp_path / ("f" * 12 + "-" + "f" * 20 + ".json")
     alien.write_text(json.dumps({"kind": "pytest-avscenario counterexample", "format": 1, "test": t,
