@@ -79,7 +79,7 @@ def test_found_and_minimized_numbers_agree_everywhere_and_say_which_case(run):
 
     # the replay plays the minimized case and says so beside its numbers
     data = json.loads(re.search(r"id='replay-data'>(.*?)</script>", card, re.S).group(1))
-    assert data["case"] == "minimized"
+    assert data["case"] == "minimized" and data["title"] == "test_follow[halton-000], minimized case"
     (shown,) = data["violations"]
     assert shown["t"] == pytest.approx(small_t) and shown["rho"] == round(small_rho, 3)
     assert "first violation of the minimized case" in card

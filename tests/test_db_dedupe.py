@@ -44,7 +44,8 @@ def entries(path):
     return sorted((path / ".avscenario").glob("*.json"))
 
 
-def test_repeated_runs_keep_one_file_per_counterexample(pytester):
+def test_repeated_runs_keep_one_file_per_counterexample(pytester, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")  # the terminal table on one line per campaign
     pytester.makepyfile(test_gap=TOO_CLOSE)
     db = pytester.path / ".avscenario"
     db.mkdir()

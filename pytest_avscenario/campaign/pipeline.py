@@ -315,11 +315,12 @@ def render_case(ctx: CampaignContext, ci: CaseItem, campaign: Campaign, outcome:
         where["rho"] = shown.rho.get(metric)
     worst = min(shown.results.values(), key=lambda r: r.rho, default=None)
     monitors = list(campaign.plan.monitor_set or ())
+    title = ci.name if shown is outcome else f"{ci.name}, minimized case"  # the item id is the found case's
     data = None
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
         data = recording_data(world if world is not None else traj, violations=violations, monitors=monitors,
-                              title=ci.name, fallback_t=worst.t if worst is not None else None,
+                              title=title, fallback_t=worst.t if worst is not None else None,
                               case="minimized" if shown is not outcome else None)
         # the file keeps its earlier name (".replay.json"): reports and tools read it
         atomic_write_text(f"{base}.replay.json", dumps(data), durable=False)  # one of many
@@ -343,7 +344,7 @@ def render_case(ctx: CampaignContext, ci: CaseItem, campaign: Campaign, outcome:
             first_t = data["first_t"] if data["first_kind"] != "moment" or worst is not None else None
             pictures["timeseries"] = str(plot_case_timeseries(
                 f"{base}.timeseries.png", traj, agent=data["critical"], first_t=first_t,
-                monitors=monitors, title=ci.name))
+                monitors=monitors, title=title))
         if campaign.gifs < settings.gifs:
             pictures["gif"] = world.render_gif(f"{base}.gif", every=2)
             campaign.gifs += 1
