@@ -85,11 +85,11 @@ def test_found_and_minimized_numbers_agree_everywhere_and_say_which_case(run):
     assert "first violation of the minimized case" in card
 
     # the terminal: the same two sets of numbers, each labelled
-    line = next(l for l in out.splitlines() if l.startswith("  ttc (as found): "))
-    assert line.startswith(f"  ttc (as found): rho {fmt_rho(found_rho)}, threshold 2 — min TTC")
-    assert line.endswith(f"; first violated at t={found_t:.2f} s")
+    line = next(l for l in out.splitlines() if l.startswith("  ttc: rho "))
+    assert line.startswith(f"  ttc: rho {fmt_rho(found_rho)}, threshold 2 — min TTC")
+    assert line.endswith(f"; first violated at t={found_t:.2f} s (as found)")
     assert f"minimized case: ttc rho {fmt_rho(small_rho)}, first violated at t={small_t:.2f} s" in out
-    assert "parameters (as found): gap=" in out
+    assert re.search(r"\n  parameters: gap=[0-9.]+, brake_at=[0-9.]+ \(as found\)\n", out)
 
     # JUnit keeps both as well
     assert f'name="avs.minimized_rho.ttc" value="{small_rho!r}"' in junit

@@ -39,9 +39,10 @@ def failure_message(ctx: Any, ci: Any, case: Case, outcome: CaseOutcome,
             if res.rho < 0:
                 thr = "" if res.threshold is None else f", threshold {res.threshold:g}"
                 # the detail names the worst moment; the card's column, the first violation
-                lines.append(f"  {name}{found}: rho {fmt_rho(res.rho)}{thr} — {res.detail}"
-                             f"{first_text(first.get(name), '; ')}")
-        lines.append(f"  parameters{found}: " + ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items()))
+                lines.append(f"  {name}: rho {fmt_rho(res.rho)}{thr} — {res.detail}"
+                             f"{first_text(first.get(name), '; ')}{found}")
+        lines.append("  parameters: " + ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items())
+                     + found)
         if shrunk:
             lines.append(f"  minimized ({shrink.sims} simulations): "
                          + ", ".join(f"{k}={fmt_value(v)}" for k, v in shrink.minimized.items()))
