@@ -3,6 +3,7 @@
     python example_tests/results_table.py avs-report                     # one run
     python example_tests/results_table.py autopilot=avs-report idm=/tmp/idm-report
     python example_tests/results_table.py --failures avs-report          # worst case per metric
+    python example_tests/results_table.py --modules avs-report           # cases, failed per module
 
 Reads ``summary.json`` (the paper's table: samples, violations per metric, epsilon) and, with
 ``--failures``, ``errors.jsonl`` (one row per case) to list for every scenario and metric how
@@ -17,8 +18,9 @@ import math
 import os
 
 SHORT = {"progress": "Prog", "distance": "Dist", "ttc": "TTC", "lane_keeping": "Lane",
-         "collision": "Coll", "school_bus": "Bus", "parked": "Park", "clearance": "Clear"}
-EXTRA = ("collision", "school_bus", "parked", "clearance")
+         "collision": "Coll", "school_bus": "Bus", "parked": "Park", "clearance": "Clear",
+         "ran_stop": "Stop", "post_encroachment_time": "PET", "off_road": "Off"}
+EXTRA = ("collision", "school_bus", "parked", "clearance", "ran_stop", "post_encroachment_time", "off_road")
 
 
 def _name(test: str) -> str:
@@ -36,8 +38,8 @@ def table(runs: list[tuple[str, str]]) -> str:
     head = "| scenario | sampler |"
     rule = "|---|---|"
     for label, _ in runs:
-        head += f" {label}: n | Prog | Dist | TTC | Lane | other | ε |"
-        rule += "--:|--:|--:|--:|--:|---|--:|"
+        head += f" {label}: n | cex (unavoid.) | Prog | Dist | TTC | Lane | other | ε |"
+        rule += "--:|--:|--:|--:|--:|--:|---|--:|"
     lines += [head, rule]
     data = [{(_name(r["test"]), r["sampler"]): r for r in summary(p)} for _, p in runs]
     for key in sorted(set().union(*data)):
@@ -47,16 +49,35 @@ def table(runs: list[tuple[str, str]]) -> str:
         for d in data:
             r = d.get(key)
             if r is None:
-                line += " – | | | | | | |"
+                line += " – | | | | | | | |"
                 continue
             v = r["violations"]
             other = ", ".join(f"{SHORT[m]} {v[m]}" for m in EXTRA if m in v)
             eps = r.get("epsilon")
             missing = eps is None or (isinstance(eps, float) and math.isnan(eps))
             eps_s = "—" if missing else f"{eps:.2f}"
-            line += (f" {r['samples']} | {v.get('progress', 0)} | {v.get('distance', 0)} |"
+            cex = f"{r['counterexamples']}" + (f" ({r['unavoidable']})" if r.get("judged") else "")
+            line += (f" {r['samples']} | {cex} | {v.get('progress', 0)} | {v.get('distance', 0)} |"
                      f" {v.get('ttc', 0)} | {v.get('lane_keeping', 0)} | {other} | {eps_s} |")
         lines.append(line)
+    return "\n".join(lines)
+
+
+def modules(path: str) -> str:
+    """Per module: cases, failed (counterexamples), errors, passed (the rest)."""
+    per: dict[str, list[int]] = {}
+    for r in summary(path):
+        if r["sampler"] == "replay":
+            continue
+        n = per.setdefault(r["test"].split("::")[0].split("/")[-1], [0, 0, 0])
+        n[0] += r["cases"]
+        n[1] += r["counterexamples"]
+        n[2] += r["errors"]
+    lines = ["| module | cases | failed | errors | passed |", "|---|--:|--:|--:|--:|"]
+    for name, (cases, failed, errors) in per.items():
+        lines.append(f"| `{name}` | {cases} | {failed} | {errors} | {cases - failed - errors} |")
+    total = [sum(n[i] for n in per.values()) for i in range(3)]
+    lines.append(f"| all | {total[0]} | {total[1]} | {total[2]} | {total[0] - total[1] - total[2]} |")
     return "\n".join(lines)
 
 
@@ -92,10 +113,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+", help="DIR or LABEL=DIR of a report")
     ap.add_argument("--failures", action="store_true")
+    ap.add_argument("--modules", action="store_true", help="cases, failed and passed per module")
     args = ap.parse_args()
     runs = [(r.split("=", 1) if "=" in r else (os.path.basename(r.rstrip("/")), r))
             for r in args.runs]
-    if args.failures:
+    if args.modules:
+        for label, path in runs:
+            print(f"## {label}\n{modules(path)}\n")
+    elif args.failures:
         for label, path in runs:
             print(f"## {label}\n{failures(path)}\n")
     else:

@@ -39,7 +39,8 @@ from .files import atomic_write_bytes, read_regular, unlink_file
 if TYPE_CHECKING:
     from .space import FeatureSpace
 
-__all__ = ["FORMAT", "DatabaseError", "Entry", "ReplayDB", "replay_params", "space_changes"]
+__all__ = ["FORMAT", "NEAR", "DatabaseError", "Entry", "ReplayDB", "Stored", "departure",
+           "near_duplicate", "replay_params", "space_changes"]
 
 #: version of the entry format this module writes and reads
 FORMAT = 1
@@ -56,6 +57,68 @@ _MAX_DEPTH = 32
 #: case seeds are 63-bit (``case.stable_seed``); anything else is not a seed the plugin wrote
 SEED_RANGE = "an integer from 0 to 2**63-1"
 _SEED_END = 2**63
+
+
+#: how close two stored counterexamples' parameters are, in the sampler's unit coordinates
+#: (a fraction of each parameter's range), to be the same one found twice (:meth:`ReplayDB.store`)
+NEAR = 0.05
+
+
+@dataclass(frozen=True)
+class Stored:
+    """What :meth:`ReplayDB.store` did: ``entry`` is the stored counterexample that stands for
+    the case (the new one, or the one already there when ``written`` is False); ``replaced``
+    the files of the entries it made redundant (deleted), ``problems`` why any could not be."""
+
+    entry: "Entry"
+    written: bool
+    replaced: tuple[Path, ...] = ()
+    #: why a redundant entry could not be deleted (it stays; the new one is stored)
+    problems: tuple[str, ...] = ()
+
+
+def _unit(dist: Any, value: Any) -> float | None:
+    try:
+        u = float(dist.to_unit(value))
+    except (TypeError, ValueError, KeyError, ArithmeticError):
+        return None
+    return u if math.isfinite(u) else None
+
+
+def near_duplicate(space: FeatureSpace, a: Mapping[str, Any], b: Mapping[str, Any], near: float = NEAR) -> bool:
+    """Whether parameter sets ``a`` and ``b`` are the same counterexample found twice: every
+    parameter departs from its nominal value in both or in neither, categories are equal, and
+    numbers lie within ``near`` of each other in unit coordinates."""
+    for name, dist in space.parameters.items():
+        if dist.kind == "constant":
+            continue
+        if name not in a or name not in b:
+            return False
+        if dist.kind == "categorical":
+            if _canon(a[name]) != _canon(b[name]):
+                return False
+            continue
+        ua, ub, un = _unit(dist, a[name]), _unit(dist, b[name]), _unit(dist, dist.nominal)
+        if ua is None or ub is None or un is None:
+            return False
+        if (abs(ua - un) > 1e-12) != (abs(ub - un) > 1e-12) or abs(ua - ub) > near:
+            return False
+    return True
+
+
+def departure(space: FeatureSpace, params: Mapping[str, Any]) -> float:
+    """How far ``params`` lie from the nominal scenario: the sum over parameters of the
+    distance in unit coordinates (1 per category that is not the nominal one)."""
+    total = 0.0
+    for name, dist in space.parameters.items():
+        if dist.kind == "constant" or name not in params:
+            continue
+        if dist.kind == "categorical":
+            total += 0.0 if _canon(params[name]) == _canon(dist.nominal) else 1.0
+            continue
+        u, un = _unit(dist, params[name]), _unit(dist, dist.nominal)
+        total += 1.0 if u is None or un is None else abs(u - un)
+    return total
 
 
 class DatabaseError(OSError):
@@ -79,10 +142,13 @@ class Entry:
     format: int
     path: Path
     created: float
+    #: the sampled case it was minimized from: {"case": its id in the test ("halton-007"),
+    #: "params": its parameters as found}; None in entries written before it was recorded
+    found: dict | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The file content (plain JSON; ±inf rho as strings)."""
-        return {
+        out = {
             "kind": _KIND,
             "format": self.format,
             "test": self.test,
@@ -95,6 +161,14 @@ class Entry:
             "versions": self.versions,
             "created": self.created,
         }
+        if self.found is not None:
+            out["found"] = self.found
+        return out
+
+    @property
+    def violated(self) -> frozenset[str]:
+        """The metrics the stored case violates (ρ < 0)."""
+        return frozenset(m for m, v in self.rho.items() if v < 0)
 
 
 class _Invalid(ValueError):
@@ -200,9 +274,11 @@ class ReplayDB:
 
     # ------------------------------------------------------------------ writing
     def save(self, test: str, params: Mapping[str, Any], rho: Mapping[str, float], seed: int,
-             space: FeatureSpace, minimized: bool, versions: Mapping[str, str]) -> Entry:
+             space: FeatureSpace, minimized: bool, versions: Mapping[str, str],
+             found: Mapping[str, Any] | None = None) -> Entry:
         """Store a counterexample; saving the same (test, params) again rewrites the same
-        file (keeping its creation time), so the database holds it once."""
+        file (keeping its creation time), so the database holds it once. ``found``: the
+        sampled case it comes from, ``{"case": id, "params": values as found}``."""
         if not isinstance(test, str) or not test:
             raise ValueError(f"test must be a non-empty string, got {test!r}")
         params = _plain(params)
@@ -226,10 +302,89 @@ class ReplayDB:
             format=FORMAT,
             path=path,
             created=float(created),
+            found=None if found is None else {"case": str(found["case"]),
+                                              "params": _plain(found["params"])},
         )
         text = json.dumps(entry.to_json(), indent=2, sort_keys=True, allow_nan=False)
         self._write_atomically(path, text.encode("utf-8"))
         return entry
+
+    def store(self, test: str, params: Mapping[str, Any], rho: Mapping[str, float], seed: int,
+              space: FeatureSpace, minimized: bool, versions: Mapping[str, str],
+              found: Mapping[str, Any] | None = None, *, near: float = NEAR) -> "Stored":
+        """:meth:`save` a counterexample unless the database holds it already, and replace what
+        it makes redundant: one file per counterexample however often runs find it.
+
+        Among this test's entries of the same declaration (fingerprint), another entry is the
+        same counterexample when it was minimized from the same sampled case (same case id,
+        values as found and seed), or, both minimized, when it is a *near-duplicate*: it
+        violates the same metrics and departs from the nominal scenario in the same
+        parameters, by values within ``near`` of each other in the sampler's unit coordinates
+        (categories equal) — minimizing drives failures found apart to the same boundary.
+        Cases stored as found (shrinking off or without success) are distinct samples and
+        are kept each. Of a
+        near-duplicate pair, or two minimized from the same case, the one closer to the
+        nominal scenario stays (what minimizing aims for; the stored one on a tie). What
+        goes is deleted only if it is one of this database's entries (its name, kind and
+        content agree); anything else in the directory is never touched.
+        """
+        name = entry_name(test, _plain(params))
+        fingerprint = space.fingerprint()
+        violated = frozenset(m for m, v in rho.items() if v < 0)
+        origin = None if found is None else (str(found["case"]), _canon(found["params"]))
+        replaced: list[Entry] = []
+        for other in self._current(test):
+            if other.path.name == name or other.fingerprint != fingerprint:
+                continue
+            same_case = origin is not None and other.found is not None and other.seed == seed and \
+                (other.found["case"], _canon(other.found["params"])) == origin
+            if not same_case and not (minimized and other.minimized and other.violated == violated
+                                      and near_duplicate(space, params, other.params, near)):
+                continue
+            if departure(space, other.params) <= departure(space, params):
+                return Stored(other, written=False)
+            replaced.append(other)
+        entry = self.save(test, params, rho, seed, space, minimized, versions, found)
+        gone, left = [], []
+        for other in replaced:
+            try:
+                self.delete(other)
+                gone.append(other.path)
+            except DatabaseError as exc:  # stored all the same; the redundant file stays
+                left.append(str(exc))
+        return Stored(entry, written=True, replaced=tuple(gone), problems=tuple(left))
+
+    def redundant(self, entry: Entry, space: FeatureSpace, *, near: float = NEAR) -> Entry | None:
+        """The stored entry that makes ``entry`` redundant, by :meth:`store`'s rule (the same
+        counterexample, at least as close to the nominal scenario, the older one on a tie),
+        or None: how a database that gathered near-duplicates before it was deduplicated at
+        saving sheds them, one replay at a time."""
+        fingerprint = space.fingerprint()
+        mine = departure(space, entry.params)
+        origin = None if entry.found is None else (entry.found["case"], _canon(entry.found["params"]))
+        for other in self._current(entry.test):
+            if other.path.name == entry.path.name or other.fingerprint != fingerprint \
+                    or entry.fingerprint != fingerprint:
+                continue
+            same_case = origin is not None and other.found is not None and other.seed == entry.seed \
+                and (other.found["case"], _canon(other.found["params"])) == origin
+            if not same_case and not (entry.minimized and other.minimized and other.violated == entry.violated
+                                      and near_duplicate(space, entry.params, other.params, near)):
+                continue
+            theirs = departure(space, other.params)
+            if theirs < mine or (theirs == mine and (other.created, other.path.name)
+                                 < (entry.created, entry.path.name)):
+                return other
+        return None
+
+    def _current(self, test: str) -> list[Entry]:
+        """``test``'s entries on disk now (not an xdist snapshot: another worker may have
+        stored one since the run started)."""
+        try:
+            found = list(self._scan())
+        except DatabaseError:
+            return []
+        return sorted((e for e in found if e.test == test), key=lambda e: (e.created, e.path.name))
 
     def _read_existing(self, path: Path) -> Entry | None:
         try:
@@ -432,9 +587,13 @@ def _entry_from_json(data: Any, path: Path) -> Entry:
         created = math.inf
     if not math.isfinite(created):
         raise _Invalid(f"{of} has a malformed 'created' field (not a Unix time)")
+    found = data.get("found")
+    if found is not None and not (isinstance(found, dict) and isinstance(found.get("case"), str)
+                                  and isinstance(found.get("params"), dict)):
+        raise _Invalid(f"{of} has a malformed 'found' field")
     return Entry(test=test, params=params, rho=rho, seed=seed, fingerprint=fingerprint,
                  space=space, minimized=minimized, versions=dict(versions), format=fmt,
-                 path=path, created=created)
+                 path=path, created=created, found=found)
 
 
 def replay_params(space: FeatureSpace, stored: Mapping[str, Any]) -> dict[str, Any]:

@@ -181,12 +181,17 @@ class CaseRow:
     minimized_violations: Mapping[str, Mapping[str, Any]] | None = None
     minimized_avoidable: Mapping[str, bool | None] | None = None
     minimized_conflicts: Mapping[str, Mapping[str, Any]] | None = None
+    #: the minimized case's own robustness per metric (as ``rho``, which is the case as
+    #: found's); None when the case was not minimized
+    minimized_rho: Mapping[str, float | None] | None = None
     #: the agent that entered an RSS-unsafe state first by its own responsibility, and when
     #: ({"agent": name or "both", "t": seconds}); None: not judged or nobody did
     unsafe_first: Mapping[str, Any] | None = None
     #: per violated metric, where it was violated: {"t": seconds of the first violation (or
     #: of the deciding moment when the monitor cannot tell), "agent": the agent involved,
-    #: "threshold": the bound}; None for a case that violated nothing or was not simulated
+    #: "threshold": the bound, "worst_t": seconds of the worst value (the moment the
+    #: monitor's own text names, e.g. the minimum TTC)}; None for a case that violated
+    #: nothing or was not simulated
     violations: Mapping[str, Mapping[str, Any]] | None = None
     #: what the run drew from ``case.rng``: {"count": N, "draws": [{"n", "call", "value",
     #: "t"}, ...]} (the first draws in full); None when it drew nothing
@@ -238,6 +243,9 @@ class CaseRow:
                 out[key] = {k: jsonable(dict(v)) for k, v in value.items()}
         if self.minimized_avoidable is not None:
             out["minimized_avoidable"] = dict(self.minimized_avoidable)
+        if self.minimized_rho is not None:
+            out["minimized_rho"] = {k: None if v is None else rho_to_json(v)
+                                    for k, v in self.minimized_rho.items()}
         if self.violations is not None:
             out["violations"] = {k: jsonable(dict(v)) for k, v in self.violations.items()}
         if self.drawn is not None:
@@ -279,6 +287,7 @@ class CaseRow:
             minimized_violations=_violations(data.get("minimized_violations")),
             minimized_avoidable=_avoidable(data.get("minimized_avoidable")),
             minimized_conflicts=_violations(data.get("minimized_conflicts")),
+            minimized_rho=_rho_map(data.get("minimized_rho")),
             violations=_violations(data.get("violations")),
             drawn=data.get("drawn") if isinstance(data.get("drawn"), Mapping) else None,
             driver=dict(data["driver"]) if isinstance(data.get("driver"), Mapping) else None,
@@ -309,6 +318,12 @@ def _avoidable(data: Any) -> dict[str, bool | None] | None:
     return {str(k): v if isinstance(v, bool) else None for k, v in data.items()}
 
 
+def _rho_map(data: Any) -> dict[str, float | None] | None:
+    if not isinstance(data, Mapping):
+        return None
+    return {str(k): None if v is None or v == "" else rho_from_json(v) for k, v in data.items()}
+
+
 def _violations(data: Any) -> dict[str, dict[str, Any]] | None:
     if not isinstance(data, Mapping):
         return None
@@ -319,15 +334,19 @@ def violations_of(results: Mapping[str, Any],
                   first: Mapping[str, Any] | None = None) -> dict[str, dict[str, Any]] | None:
     """The ``violations`` of a row from a case's monitor results (violated metrics only);
     ``first``: {metric: (t, agent)} of the first violation, where known (else the result's
-    deciding moment)."""
+    deciding moment); ``worst_t``: the result's deciding moment (its worst value), which its
+    text names."""
     out = {}
     for name, res in results.items():
         rho = getattr(res, "rho", None)
         if rho is None or not rho < 0:
             continue
-        t, agent = (first or {}).get(name) or (getattr(res, "t", None), getattr(res, "agent", None))
+        worst = getattr(res, "t", None)
+        t, agent = (first or {}).get(name) or (worst, getattr(res, "agent", None))
         out[name] = {"t": None if t is None else float(t), "agent": agent,
                      "threshold": getattr(res, "threshold", None)}
+        if worst is not None:
+            out[name]["worst_t"] = float(worst)
     return out or None
 
 

@@ -346,7 +346,9 @@ def test_a_minimized_case_is_judged_too_and_the_card_says_which_case_is_which(py
     assert 'name="avs.minimized_avoidable.collision" value="true"' in (pytester.path / "out.xml").read_text()
     item = row["item"].partition("[")[2].rstrip("]")
     card = next((pytester.path / "avs-report" / "cases").glob(f"*.{item}.html")).read_text()
-    assert "reference driver, case as found" in card and "reference driver, minimized case" in card
+    # a header over each case's columns, the reference driver's judgement among them
+    assert "class='group'>case as found</th>" in card and "class='group'>minimized case</th>" in card
+    assert card.count("<th>reference driver</th>") == 2
     assert "show the <b>minimized case</b> (gap=120)" in card
     assert "(minimized case)</figcaption>" in card
 

@@ -47,7 +47,7 @@ class Avoidability:
                 c = self.conflicts.get(m)
                 if c is not None:
                     where = f" with {c.agent}" if c.agent and not c.ego_alone else ""
-                    when = f" at t = {c.t:.1f} s" if c.t is not None else ""
+                    when = f" at t = {c.t:.2f} s" if c.t is not None else ""
                     verb = {True: "keeps it", False: "violates it too", None: "cannot tell"}[ok]
                     lines.append(f"{m}{where}{when}{of}: {word} — the {self.driver} reference driver "
                                  f"{verb}: {c.why}")

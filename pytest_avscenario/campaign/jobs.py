@@ -109,7 +109,8 @@ def make_row(ci: Any, case: Case, outcome: CaseOutcome, *,
              conflicts: Mapping[str, Mapping[str, Any]] | None = None,
              minimized_violations: Mapping[str, Mapping[str, Any]] | None = None,
              minimized_avoidable: Mapping[str, bool | None] | None = None,
-             minimized_conflicts: Mapping[str, Mapping[str, Any]] | None = None) -> CaseRow:
+             minimized_conflicts: Mapping[str, Mapping[str, Any]] | None = None,
+             minimized_rho: Mapping[str, float] | None = None) -> CaseRow:
     """The error-table row of one finished case."""
     return CaseRow(
         test=ci.test, item=ci.nodeid, sampler=case.sampler, index=case.index,
@@ -119,4 +120,4 @@ def make_row(ci: Any, case: Case, outcome: CaseOutcome, *,
         unsafe_first=unsafe_first, violations=violations_of(outcome.results, outcome.first), drawn=outcome.drawn,
         conflicts=conflicts, minimized_violations=minimized_violations,
         minimized_avoidable=minimized_avoidable, minimized_conflicts=minimized_conflicts,
-        driver=ci.identity(), score=outcome.score)
+        minimized_rho=minimized_rho, driver=ci.identity(), score=outcome.score)

@@ -9,7 +9,7 @@ from typing import Any, Mapping
 
 from ..case import Case
 from ..codec import fmt_rho, fmt_value
-from ..outcome import CaseOutcome
+from ..outcome import CaseOutcome, violations_of
 from .plan import ScenarioPlan, call_text
 
 
@@ -31,15 +31,27 @@ def failure_message(ctx: Any, ci: Any, case: Case, outcome: CaseOutcome,
     if verbose:
         lines += _full_tables(ci.plan, case, outcome, shrink if shrunk else None)
     else:
-        # compact: the violated metrics, the parameters, what to paste and what to run
+        # compact: the violated metrics, the parameters, what to paste and what to run; with a
+        # minimized case each number says which case it is about, as the card does
+        found = " (as found)" if shrunk else ""
+        first = violations_of(outcome.results, outcome.first) or {}
         for name, res in outcome.results.items():
             if res.rho < 0:
                 thr = "" if res.threshold is None else f", threshold {res.threshold:g}"
-                lines.append(f"  {name}: rho {fmt_rho(res.rho)}{thr} — {res.detail}")
-        lines.append("  parameters: " + ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items()))
+                # the detail names the worst moment; the card's column, the first violation
+                lines.append(f"  {name}: rho {fmt_rho(res.rho)}{thr} — {res.detail}"
+                             f"{first_text(first.get(name), '; ')}{found}")
+        lines.append("  parameters: " + ", ".join(f"{k}={fmt_value(v)}" for k, v in case.params.items())
+                     + found)
         if shrunk:
             lines.append(f"  minimized ({shrink.sims} simulations): "
                          + ", ".join(f"{k}={fmt_value(v)}" for k, v in shrink.minimized.items()))
+            small = shrink.outcome
+            there = violations_of(small.results, small.first) or {}
+            said = [f"{name} rho {fmt_rho(res.rho)}{first_text(there.get(name))}"
+                    for name, res in small.results.items() if res.rho < 0]
+            if said:
+                lines.append("  minimized case: " + "; ".join(said))
     if shrunk:
         lines.append(f"  pin it as a regression above the test: {call_text('example', shrink.minimized)}")
         lines.append("      (with: from pytest_avscenario import example)")
@@ -60,17 +72,38 @@ def failure_message(ctx: Any, ci: Any, case: Case, outcome: CaseOutcome,
     return "\n".join(lines)
 
 
+def first_text(where: Mapping[str, Any] | None, sep: str = ", ") -> str:
+    """"first violated at t=… s" after ``sep``: the moment the card's "first violation"
+    column gives; "" when unknown."""
+    t = (where or {}).get("t")
+    return "" if t is None else f"{sep}first violated at t={float(t):.2f} s"
+
+
+def _first_cell(where: Mapping[str, Any] | None) -> str:
+    t = (where or {}).get("t")
+    return "—" if t is None else f"{float(t):.2f}"
+
+
 def _full_tables(plan: ScenarioPlan, case: Case, outcome: CaseOutcome, shrink: Any) -> list[str]:
     """Every metric (and, for a minimized case, found / minimized / nominal side by side)."""
     lines = []
     if outcome.results:
-        head = "  metric            rho" + ("   minimized" if shrink else "") + "  threshold  verdict   worst (as found)"
+        first = violations_of(outcome.results, outcome.first) or {}
+        there = violations_of(shrink.outcome.results, shrink.outcome.first) or {} if shrink else {}
+        head = ("  metric       rho (found)" + ("   minimized" if shrink else "")
+                + "  threshold  verdict   first [s] (found" + (" / minimized)" if shrink else ")")
+                + "  worst (as found)")
         lines.append(head)
         for name, res in outcome.results.items():
             thr = "" if res.threshold is None else f"{res.threshold:g}"
             mid = f"  {fmt_rho(shrink.outcome.rho.get(name)):>10}" if shrink else ""
             verdict = "VIOLATED" if res.rho < 0 else "ok"
-            lines.append(f"  {name:<12} {fmt_rho(res.rho):>9}{mid}  {thr:>9}  {verdict:<8}  {res.detail}")
+            when = _first_cell(first.get(name)) if res.rho < 0 else ""
+            if shrink and name in there:
+                when += " / " + _first_cell(there.get(name))
+            width = 29 if shrink else 17
+            lines.append(f"  {name:<12} {fmt_rho(res.rho):>11}{mid}  {thr:>9}  {verdict:<8}  "
+                         f"{when:<{width}}  {res.detail}")
     if shrink:
         nominal = plan.space.nominal()
         lines.append("  parameter          found      minimized        nominal")

@@ -181,7 +181,8 @@ def run_item(ctx: CampaignContext, ci: CaseItem) -> ItemResult:
                    minimized_violations=violations_of(min_outcome.results, min_outcome.first)
                    if min_outcome is not None else None,
                    minimized_avoidable=min_judged.avoidable if min_judged else None,
-                   minimized_conflicts=min_judged.conflicts_json() if min_judged else None)
+                   minimized_conflicts=min_judged.conflicts_json() if min_judged else None,
+                   minimized_rho=min_outcome.rho if min_outcome is not None else None)
     if min_judged is not None:
         shrink.rows = judged_shrink_rows(shrink.rows, shrink.minimized, min_judged)
     ci.keep_row(row, shrink.rows if shrink is not None else [])
@@ -308,11 +309,13 @@ def render_case(ctx: CampaignContext, ci: CaseItem, campaign: Campaign, outcome:
         where["rho"] = shown.rho.get(metric)
     worst = min(shown.results.values(), key=lambda r: r.rho, default=None)
     monitors = list(campaign.plan.monitor_set or ())
+    title = ci.name if shown is outcome else f"{ci.name}, minimized case"  # the item id is the found case's
     data = None
     try:
         base.parent.mkdir(parents=True, exist_ok=True)
         data = recording_data(world if world is not None else traj, violations=violations, monitors=monitors,
-                              title=ci.name, fallback_t=worst.t if worst is not None else None)
+                              title=title, fallback_t=worst.t if worst is not None else None,
+                              case="minimized" if shown is not outcome else None)
         # the file keeps its earlier name (".replay.json"): reports and tools read it
         atomic_write_text(f"{base}.replay.json", dumps(data), durable=False)  # one of many
         pictures["recording"] = f"{base}.replay.json"
@@ -335,7 +338,7 @@ def render_case(ctx: CampaignContext, ci: CaseItem, campaign: Campaign, outcome:
             first_t = data["first_t"] if data["first_kind"] != "moment" or worst is not None else None
             pictures["timeseries"] = str(plot_case_timeseries(
                 f"{base}.timeseries.png", traj, agent=data["critical"], first_t=first_t,
-                monitors=monitors, title=ci.name))
+                monitors=monitors, title=title))
         if campaign.gifs < settings.gifs:
             pictures["gif"] = world.render_gif(f"{base}.gif", every=2)
             campaign.gifs += 1
@@ -374,16 +377,39 @@ def update_db(ctx: CampaignContext, ci: CaseItem, plan: ScenarioPlan, slot: Case
                         "removed", exc)
                 return f"fixed, but not removed from the database: {exc}"
             return "fixed: this stored counterexample passes now and was removed from the database"
+        if outcome.failed:  # still a counterexample: is another entry the same one?
+            entry = plan.replays[slot.index]
+            try:
+                kept = db.redundant(entry, plan.space)
+                if kept is not None:
+                    db.delete(entry)
+            except DatabaseError as exc:
+                trouble(f"the near-duplicate {entry.path.name} could not be removed", exc)
+                return None
+            if kept is not None:
+                return (f"removed from the replay database: {kept.path.name} holds the same "
+                        "counterexample, at least as close to the nominal scenario")
         return None
     if case.origin != "sampled" or not outcome.failed or (shrink is not None and shrink.flaky):
         return None
     minimized = shrink is not None and shrink.minimized is not None and shrink.minimized != case.params
     params = shrink.minimized if minimized else case.params
     rho = shrink.outcome.rho if minimized and shrink.outcome is not None else outcome.rho
+    found = {"case": ci.nodeid.partition("[")[2].rstrip("]") or ci.nodeid, "params": dict(case.params)}
     try:
-        entry = db.save(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
-                        versions=versions())
+        # one file per counterexample: not again when it is stored already, nor beside a
+        # near-duplicate of it (the same failure found from another sample, another run)
+        stored = db.store(plan.test, params, rho, case.seed, plan.space, minimized=minimized,
+                          versions=versions(), found=found)
     except DatabaseError as exc:
         trouble("could not store a counterexample for replay", exc)
         return f"could not store for replay: {exc}"
-    return f"stored for replay in {entry.path}"
+    if not stored.written:
+        return (f"not stored again: the replay database holds the same counterexample, at least as "
+                f"close to the nominal scenario, in {stored.entry.path}")
+    text = f"stored for replay in {stored.entry.path}"
+    if stored.replaced:
+        text += f", replacing {', '.join(p.name for p in stored.replaced)} (the same counterexample, farther from nominal)"
+    for problem in stored.problems:
+        text += f"; {problem}"
+    return text

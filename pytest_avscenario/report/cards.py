@@ -66,6 +66,7 @@ h3 { font-size: 1em; margin: 1.2em 0 .3em; }
 table { border-collapse: collapse; margin: .5em 0; }
 th, td { border: 1px solid #ccc; padding: .2em .55em; vertical-align: top; }
 th { background: #f3f3f3; text-align: left; white-space: nowrap; }
+th.group { text-align: center; background: #e9eef5; }
 td.num { text-align: right; white-space: nowrap; font-variant-numeric: tabular-nums; }
 .bad { color: #b33c00; font-weight: 600; }
 .good { color: #2a7a2a; font-weight: 600; }
@@ -164,8 +165,8 @@ def _first(row: CaseRow) -> tuple[float | None, str | None]:
 def counterexample_table(directory: Path, rows: Sequence[CaseRow], *, modes: Mapping[str, str] | None = None) -> str:
     """The index's list of a test's counterexamples: one line each, linked to its card."""
     out = ["<div class='wide'><table class='cex'>",
-           "<thead><tr><th>case</th><th>violated</th><th>worst ρ</th><th>first violation [s]</th>"
-           "<th>agent</th><th>minimized</th>" + ("<th>mode</th>" if modes else "") + "</tr></thead><tbody>"]
+           "<thead><tr><th>case</th><th>violated</th><th>worst ρ (as found)</th>"
+           "<th>first violation [s] (as found)</th><th>agent (as found)</th><th>minimized</th>" + ("<th>mode</th>" if modes else "") + "</tr></thead><tbody>"]
     for r in rows:
         metric, worst = _worst(r)
         t, agent = _first(r)
@@ -232,45 +233,59 @@ def _judgement_cell(avoidable: Mapping[str, Any] | None, conflicts: Mapping[str,
     return f"<td>{e(text)}" + (f"<br><span class='meta'>{e(why)}</span>" if why else "") + "</td>"
 
 
+def _when_cell(where: Mapping[str, Any]) -> str:
+    """The first violation's time and, when the worst value came later, that moment (the one
+    the monitor's own text, as the terminal prints it, names)."""
+    t, worst = where.get("t"), where.get("worst_t")
+    if t is None:
+        return f"<td class='num'>{DASH}</td>"
+    text = f"{float(t):.2f}"
+    if worst is not None and abs(float(worst) - float(t)) >= 0.005:
+        text += f"<br><span class='meta'>worst at {float(worst):.2f}</span>"
+    return f"<td class='num'>{text}</td>"
+
+
 def _metric_table(row: CaseRow, metrics: Sequence[str]) -> str:
-    """Each metric as found; with a minimized case, where that one violated it first and with
-    whom; with a judgement, what the reference driver did in each case's conflict — every
-    column says which case it is about."""
+    """Each metric's threshold, then the case as found — ρ, where it violated first, with whom
+    and, when judged, what the reference driver did there — and, for a minimized case, the
+    same of the minimized case: a header over each group says which case it is about."""
     names = list(dict.fromkeys([*metrics, *row.rho]))
     judged = row.avoidable is not None
-    small = row.minimized is not None and row.minimized_violations is not None
-    small_judged = row.minimized_avoidable is not None
-    head = ["metric", "ρ (as found)", "threshold", "first violation [s] (as found)", "agent (as found)"]
-    if judged:
-        head.append("reference driver, case as found")
-    if small:
-        head += ["first violation [s] (minimized)", "agent (minimized)"]
-    if small_judged:
-        head.append("reference driver, minimized case")
-    out = ["<table class='metrics'>", "<thead><tr>" + "".join(f"<th>{e(h)}</th>" for h in head)
-           + "</tr></thead><tbody>"]
+    small = row.minimized is not None and (row.minimized_violations is not None
+                                           or row.minimized_rho is not None)
+    small_judged = small and row.minimized_avoidable is not None
+    found_head = ["ρ", "first violation [s]", "agent"] + (["reference driver"] if judged else [])
+    small_head = ["ρ", "first violation [s]", "agent"] + (["reference driver"] if small_judged else [])
+    groups = (f"<th colspan='{len(found_head)}' class='group'>case as found</th>"
+              + (f"<th colspan='{len(small_head)}' class='group'>minimized case</th>" if small else ""))
+    sub = [*found_head, *(small_head if small else ())]
+    out = ["<div class='wide'><table class='metrics'>",
+           "<thead><tr><th rowspan='2'>metric</th><th rowspan='2'>threshold</th>" + groups + "</tr>",
+           "<tr>" + "".join(f"<th>{e(h)}</th>" for h in sub) + "</tr></thead><tbody>"]
     for m in names:
         rho = row.rho.get(m)
         where = (row.violations or {}).get(m) or {}
         bad = rho is not None and rho < 0
         thr = where.get("threshold")
+        if thr is None and small:
+            thr = ((row.minimized_violations or {}).get(m) or {}).get("threshold")
         thr_text = DASH if thr is None else fmt_value(float(thr)) if not isinstance(thr, str) else thr
-        t = where.get("t")
-        cells = [f"<td>{e(m)}</td>", f"<td class='num{' bad' if bad else ''}'>{e(fmt_rho(rho))}</td>",
-                 f"<td class='num'>{e(thr_text)}</td>",
-                 f"<td class='num'>{DASH if t is None else f'{float(t):.2f}'}</td>",
+        cells = [f"<td>{e(m)}</td>", f"<td class='num'>{e(thr_text)}</td>",
+                 f"<td class='num{' bad' if bad else ''}'>{e(fmt_rho(rho))}</td>", _when_cell(where),
                  f"<td>{e(where.get('agent') or DASH)}</td>"]
         if judged:
             cells.append(_judgement_cell(row.avoidable, row.conflicts, m, bad))
         if small:
+            mrho = (row.minimized_rho or {}).get(m)
+            mbad = mrho is not None and mrho < 0
             there = (row.minimized_violations or {}).get(m) or {}
-            ts = there.get("t")
-            cells += [f"<td class='num'>{DASH if ts is None else f'{float(ts):.2f}'}</td>",
+            cells += [f"<td class='num{' bad' if mbad else ''}'>{e(fmt_rho(mrho))}</td>", _when_cell(there),
                       f"<td>{e(there.get('agent') or DASH)}</td>"]
-        if small_judged:
-            cells.append(_judgement_cell(row.minimized_avoidable, row.minimized_conflicts, m, bad))
+            if small_judged:
+                cells.append(_judgement_cell(row.minimized_avoidable, row.minimized_conflicts, m,
+                                             mbad or bad))
         out.append("<tr>" + "".join(cells) + "</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return "\n".join(out)
 
 
@@ -379,6 +394,10 @@ def render_card(
     what = f"violated {', '.join(violated)}" if violated else f"failed: {row.error or 'the test body failed'}"
     if t is not None:
         what += f", first at t = {t:.2f} s" + (f" with {agent}" if agent else "")
+    if row.minimized is not None:
+        mt = min((float(w["t"]) for w in (row.minimized_violations or {}).values()
+                  if w.get("t") is not None), default=None)
+        what += " (case as found" + (f"; minimized case first at t = {mt:.2f} s)" if mt is not None else ")")
     facts = [f"{row.sampler} case {row.index}", f"origin {row.origin}", f"seed {row.seed}",
              f"simulated in {row.sim_time_s:.2f} s"]
     if row.driver:
@@ -399,8 +418,8 @@ def render_card(
     parts.append("<h2>Metrics</h2>")
     parts.append(_metric_table(row, metrics))
     parts.append("<p class='meta'>ρ: robustness in the metric's unit (≥ 0 holds, &lt; 0 violated by that much); "
-                 "first violation: the first moment the requirement was already violated; agent: the other "
-                 "road user involved.</p>")
+                 "first violation: the first moment the requirement was already violated (worst at: the "
+                 "moment of its worst value, when later); agent: the other road user involved.</p>")
     if row.score is not None:
         parts.append(_score_block(row.score))
     parts.append("<h2>Parameters</h2>")

@@ -71,8 +71,9 @@ def case_properties(
     ``avs.sampler``, ``avs.index``, ``avs.seed``, ``avs.origin``, ``avs.params`` (JSON,
     keys in declaration order), ``avs.rho.<metric>`` (``repr`` of the float, ``inf`` /
     ``-inf``), ``avs.verdict``, ``avs.sim_time_s``; for a shrunk counterexample also
-    ``avs.minimized`` (JSON of the minimal parameters) and ``avs.shrink_sims`` (simulations
-    the shrinking spent), from the row unless given; ``avs.error`` when the simulation raised;
+    ``avs.minimized`` (JSON of the minimal parameters), ``avs.minimized_rho.<metric>`` (the
+    minimized case's own robustness; ``avs.rho.*`` are the case as found's) and
+    ``avs.shrink_sims`` (simulations the shrinking spent), from the row unless given; ``avs.error`` when the simulation raised;
     ``avs.avoidable.<metric>`` (``true``/``false``/``unknown``) for a counterexample judged
     against the reference driver, ``avs.conflict.<metric>`` (the other agent of the conflict
     it was judged on, ``agent@seconds``), ``avs.minimized_avoidable.<metric>`` for the
@@ -102,6 +103,8 @@ def case_properties(
         props.append(("avs.minimized", json.dumps(jsonable(dict(minimized)), ensure_ascii=False)))
     if shrink_sims is not None:
         props.append(("avs.shrink_sims", str(int(shrink_sims))))
+    if minimized is not None and r.minimized_rho is not None:  # avs.rho.* is the case as found
+        props += [(f"avs.minimized_rho.{m}", _num(v)) for m, v in r.minimized_rho.items()]
     if r.error:
         props.append(("avs.error", r.error))
     if r.flaky:

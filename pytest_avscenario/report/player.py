@@ -160,7 +160,8 @@ function avsReplay(id) {
     D.violations.forEach(function (v) {
       var per = RT[v.metric];
       o.push(v.metric + ": " + (per && per[k] !== null ? "\u03c1(t) " + signed(per[k]) + ", " : "") + "run \u03c1 " +
-             (v.rho === null ? dash : signed(v.rho)) + (v.t === null ? "" : ", first at " + v.t.toFixed(2) + " s"));
+             (v.rho === null ? dash : (v.rho >= 0 ? "+" : "") + v.rho.toFixed(3)) + (v.t === null ? "" : ", first at " + v.t.toFixed(2) + " s") +
+             (D["case"] ? " (" + D["case"] + " case)" : ""));
     });
     return o;
   }
@@ -397,7 +398,8 @@ def player_html(data: Mapping[str, Any], element_id: str = "replay", player: str
     size = data["view"]["size"]
     what = {"violation": "first violation", "contact": "first contact"}.get(data.get("first_kind"), "moment shown")
     critical = data.get("critical")
-    legend = (f"Starts at the {what} (t = {data['first_t']:.2f} s). Arrows: where each agent is "
+    of = f" of the {html.escape(str(data['case']))} case" if data.get("case") else ""
+    legend = (f"Starts at the {what}{of} (t = {data['first_t']:.2f} s). Arrows: where each agent is "
               f"{data.get('arrow_s', 1.0):g} s later at its current speed; "
               + (f"ringed: {html.escape(critical)}, the critical agent; " if critical else "")
               + "red outline: crashed. "

@@ -218,7 +218,7 @@ def _view(world: Any | None) -> dict[str, Any]:
 
 def clip_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None = None,
               evidence: Any = None, title: str = "", hz: float = CLIP_HZ,
-              fallback_t: float | None = None) -> dict[str, Any]:
+              fallback_t: float | None = None, case: str | None = None) -> dict[str, Any]:
     """The clip of one recorded run as plain JSON data.
 
     ``source``: a world after its run, or a Trajectory (then no road is drawn). ``violations``:
@@ -227,7 +227,9 @@ def clip_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None
     :class:`~pytest_avscenario.monitors.evidence.Evidence` (the critical agent, the values
     toward it, ρ(t) of violated monitors; None: no values). ``hz``: frames per second (the
     steps of the first violation and the first contact are always frames). ``fallback_t``
-    [s]: the moment to start at when nothing says when the violation happened.
+    [s]: the moment to start at when nothing says when the violation happened. ``case``:
+    which case the run is when a reader could take it for another (``"minimized"``: the
+    card's numbers are the case as found's); its lines say so.
     """
     world = None if isinstance(source, Trajectory) else source
     traj: Trajectory = source if world is None else world.trajectory
@@ -299,6 +301,8 @@ def clip_data(source: Any, *, violations: Mapping[str, Mapping[str, Any]] | None
     lights = _lights(traj, steps)
     if lights:
         data["lights"] = lights
+    if case:
+        data["case"] = str(case)
     decisions = _decisions(traj)
     if decisions is not None:
         data["decisions"] = decisions
@@ -408,10 +412,11 @@ def frame_lines(data: Mapping[str, Any], k: int) -> list[str]:
     if made is not None:
         what = "decision" if data["decisions"]["source"] == "action" else "reason"
         lines.append(f"{data['agents'][0]['name']} {what}: {made[1]} (since {made[0]:.2f} s)")
+    of = f" ({data['case']} case)" if data.get("case") else ""  # "minimized": not the case as found
     for v in data["violations"]:
         per = (data.get("rho_t") or {}).get(v["metric"])
         now = f"ρ(t) {per[k]:+.2f}, " if per is not None and per[k] is not None else ""
         when = "" if v["t"] is None else f", first at {v['t']:.2f} s"
-        rho = "—" if v["rho"] is None else f"{v['rho']:+.2f}"
-        lines.append(f"{v['metric']}: {now}run ρ {rho}{when}")
+        rho = "—" if v["rho"] is None else f"{v['rho']:+.3f}"  # as the card and the terminal
+        lines.append(f"{v['metric']}: {now}run ρ {rho}{when}{of}")
     return lines
