@@ -139,7 +139,8 @@ class RunState:
             if getattr(report, "avs_partial", None) and not self.partial:
                 self.partial = report.avs_partial  # an xdist worker's selection
             # the case's shrink rows, then its own row, in one go
-            self.add_rows([*getattr(report, "avs_shrink_rows", ()), data], report.avs_test)
+            # the test's declaration came with its first report from this process or worker
+            self.add_rows([*getattr(report, "avs_shrink_rows", ()), data], getattr(report, "avs_test", None))
             pictures = getattr(report, "avs_pictures", None)
             if pictures:
                 self.case_files.setdefault(data["item"], {}).update(self.place_pictures(data["test"], pictures))
@@ -271,17 +272,24 @@ class RunState:
     def add(self, row: CaseRow, info: dict[str, Any]) -> None:
         self.add_rows([row], info)
 
-    def add_rows(self, rows: list[CaseRow | dict[str, Any]], info: dict[str, Any]) -> None:
+    def add_rows(self, rows: list[CaseRow | dict[str, Any]], info: dict[str, Any] | None) -> None:
         """Keep finished cases' rows (one item's shrink rows and its own row; rows or their
         JSON data), each handed to the ``pytest_avscenario_case_finished`` hooks and written to
-        the error table in turn."""
+        the error table in turn. ``info``: the test's declaration, None when an earlier
+        report brought it."""
         from ..outcome import CaseRow
 
-        for row in list(map(CaseRow.coerce, rows)):
-            if row.test not in self.tests or self.tests[row.test].get("unknown"):
+        for given in rows:
+            row = CaseRow.coerce(given)
+            known = self.tests.get(row.test)
+            if info is not None and (known is None or known.get("unknown")):
                 # the first row of the test, or the first one to know the test (a crashed
                 # worker's row knows nothing of its declaration)
                 self.tests[row.test] = info
+            elif known is None:
+                from .stopping import unknown_test_info
+
+                self.tests[row.test] = unknown_test_info(row.sampler)
             self.rows.append(row)
             try:
                 self.config.hook.pytest_avscenario_case_finished(config=self.config, row=row)
@@ -298,7 +306,8 @@ class RunState:
                     from ..report.table import ErrorTable
 
                     self.table = ErrorTable(folder.path, folder=folder)
-                self.table.append(row)
+                # JSON data from a worker is the row's to_json(): written as it came
+                self.table.append(row, data=given if given is not row else None)
             except OSError as exc:
                 # the run goes on (verdicts, the replay database and the terminal summary do not
                 # depend on the report); say once what was lost and where

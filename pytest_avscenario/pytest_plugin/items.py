@@ -19,7 +19,7 @@ import pytest
 from ..campaign.context import CaseItem
 from .collect import function_id, plan_of, slot_of
 from .identity import session_driver
-from .stash import case_item_key, controller_key, pictures_key, row_key, sent_key, settings_key, shrink_rows_key
+from .stash import case_item_key, controller_key, pictures_key, row_key, sent_key, settings_key, shrink_rows_key, told_key
 from .stopping import stuck_case_handler
 
 #: the module whose ``avs_driver`` fixture is the plugin's own (any other is a user's)
@@ -125,7 +125,13 @@ def report_case(item: pytest.Item, call: pytest.CallInfo[None], report: pytest.T
         report.avs_row = row.to_json()
         report.avs_shrink_rows = list(map(type(row).to_json, item.stash.get(shrink_rows_key, [])))
         report.avs_pictures = item.stash.get(pictures_key, {})
-        report.avs_test = plan.info()
+        # the test's declaration (the space, criteria: larger than the row) goes with the first
+        # report of each test this process sends; the controller keeps it by test, so later
+        # reports carry the row only (an xdist controller unpacks every report it is sent)
+        told = item.config.stash.setdefault(told_key, set())
+        if row.test not in told:
+            told.add(row.test)
+            report.avs_test = plan.info()
         report.avs_partial = item.config.stash[controller_key].partial
     pictures = item.stash.get(pictures_key, None)
     shown = call.when == "call" or (call.when == "setup" and not report.passed)

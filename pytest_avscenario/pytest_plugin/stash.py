@@ -19,6 +19,7 @@ shrink_rows_key = pytest.StashKey[list]()  # item -> its shrinking candidates' r
 pictures_key = pytest.StashKey[dict]()  # item -> {caption: picture path}
 result_key = pytest.StashKey[Any]()  # item -> its campaign.pipeline.ItemResult (set during setup)
 sent_key = pytest.StashKey[bool]()  # item -> its row went out with a report already
+told_key = pytest.StashKey[set]()  # tests whose declaration (plan.info) went out with a report
 guard_key = pytest.StashKey[Any]()  # the stopping.TermGuard of this process
 sentinel_key = pytest.StashKey[Any]()  # the lastresort.Sentinel of this process (made on first use)
 driver_key = pytest.StashKey[Any]()  # the identity of the --avs-driver driver (a dict)

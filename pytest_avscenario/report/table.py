@@ -229,10 +229,12 @@ class ErrorTable:
             out.setdefault(test, []).append(f.path)
         return out
 
-    def append(self, row: CaseRow | Mapping[str, Any]) -> CaseRow:
-        """Write one finished case (a row, or its JSON data); on disk when this returns."""
+    def append(self, row: CaseRow | Mapping[str, Any], data: Mapping[str, Any] | None = None) -> CaseRow:
+        """Write one finished case (a row, or its JSON data); on disk when this returns.
+        ``data``: the row's :meth:`~CaseRow.to_json` made already (an xdist worker's), written
+        as it is rather than made again."""
         row = CaseRow.coerce(row)
-        line = json.dumps(row.to_json(), allow_nan=False, ensure_ascii=False) + "\n"
+        line = json.dumps(row.to_json() if data is None else data, allow_nan=False, ensure_ascii=False) + "\n"
         shrink = row.origin == "shrink"
         cells = _csv_cells(row)
         with self._lock:
