@@ -80,6 +80,8 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[controller_key] = state = RunState(config)
     config.stash[session_key] = ScenarioSession(config, config.stash[db_key], state)
     config.pluginmanager.register(state, "avscenario-run")
+    if not hasattr(config, "workerinput"):  # a worker's reports go to the controller
+        config.pluginmanager.register(_QuietReports(config), "avscenario-quiet-reports")
     if config.pluginmanager.hasplugin("xdist"):
         config.pluginmanager.register(_XdistHooks(config), "avscenario-xdist")
 
@@ -196,6 +198,36 @@ class _XdistHooks:
             if self.snapshot is None:
                 self.snapshot = db.snapshot()
             node.workerinput["avs_db"] = self.snapshot
+
+
+class _QuietReports:
+    """pytest's terminal reporter keeps every report to the end of the run, each item's
+    passed setup and teardown too (category ``""``), though all it ever shows of those is
+    their captured output: each failure of the final summary then scans them all for its
+    teardown's output (O(failures x items) with the default ``--tb``), and they cost ~1 KB
+    of memory an item. Once every plugin has handled such a report of a scenario case, with
+    no captured output, the reporter forgets it: its output stays the same (issue #35)."""
+
+    def __init__(self, config: pytest.Config):
+        self.config = config
+        self.stats: dict[str, list[Any]] | None = None
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionstart(self, session: pytest.Session) -> None:
+        terminal = self.config.pluginmanager.get_plugin("terminalreporter")
+        stats = getattr(terminal, "stats", None)
+        self.stats = stats if isinstance(stats, dict) else None
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> Any:
+        try:
+            return (yield)
+        finally:
+            if self.stats is not None and report.when in ("setup", "teardown") and report.passed \
+                    and not report.sections and "scenario" in getattr(report, "keywords", ()):
+                kept = self.stats.get("")
+                if kept and kept[-1] is report:
+                    kept.pop()
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
