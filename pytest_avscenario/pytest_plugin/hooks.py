@@ -202,11 +202,12 @@ class _XdistHooks:
 
 class _QuietReports:
     """pytest's terminal reporter keeps every report to the end of the run, each item's
-    passed setup and teardown too (category ``""``), though all it ever shows of those is
-    their captured output: each failure of the final summary then scans them all for its
-    teardown's output (O(failures x items) with the default ``--tb``), and they cost ~1 KB
-    of memory an item. Once every plugin has handled such a report of a scenario case, with
-    no captured output, the reporter forgets it: its output stays the same (issue #35)."""
+    passed setup and teardown too (category ``""``), though it shows nothing of those but a
+    teardown's captured teardown output (after the item's entry in the failures or passes
+    summary): each such entry scans all of them for it, O(failures x items) with the default
+    ``--tb``, and they cost ~1 KB of memory an item. Once every plugin has handled such a
+    report of a scenario case, one with no teardown output, the reporter forgets it: its
+    output stays the same (issue #35)."""
 
     def __init__(self, config: pytest.Config):
         self.config = config
@@ -224,7 +225,8 @@ class _QuietReports:
             return (yield)
         finally:
             if self.stats is not None and report.when in ("setup", "teardown") and report.passed \
-                    and not report.sections and "scenario" in getattr(report, "keywords", ()):
+                    and not any("teardown" in name for name, _ in report.sections) \
+                    and "scenario" in getattr(report, "keywords", ()):
                 kept = self.stats.get("")
                 if kept and kept[-1] is report:
                     kept.pop()
