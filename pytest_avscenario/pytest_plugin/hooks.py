@@ -421,20 +421,37 @@ def _release(item: pytest.Item) -> None:
     for key in (result_key, row_key, shrink_rows_key, case_item_key):
         if key in item.stash and (key is result_key or item.stash.get(sent_key, False)):
             del item.stash[key]
+    if item.stash.get(sent_key, False):
+        # its teardown report has its copy for the JUnit writer (which reads the teardown's)
+        _drop_own_properties(item)
+
+
+def _drop_own_properties(holder: Any) -> None:
+    """The case's JUnit properties (``avs.*``, ~1 KB a case) off an item or a report that
+    no longer needs them; a user's own properties stay."""
+    props = getattr(holder, "user_properties", None)
+    if props and any(str(name).startswith("avs.") for name, _ in props):
+        props[:] = [(name, value) for name, value in props if not str(name).startswith("avs.")]
 
 
 @pytest.hookimpl(wrapper=True, tryfirst=True)
 def pytest_runtest_logreport(report: pytest.TestReport) -> Any:
     """Once every plugin has handled a report (tryfirst: around the others' implementations
     and wrappers), the JSON copy of its row that travelled with it goes (the controller keeps
-    the row itself); pytest's terminal reporter keeps every report to the end of the run. Not
-    on an xdist worker, whose reports are still to be sent."""
+    the row itself), and so do the case's JUnit properties: pytest's terminal reporter keeps
+    every report to the end of the run. Not on an xdist worker,
+    whose reports are still to be sent."""
     try:
         return (yield)
     finally:
-        if getattr(report, "avs_row", None) is not None and "PYTEST_XDIST_WORKER" not in os.environ:
-            for name in ("avs_row", "avs_shrink_rows", "avs_test"):
-                report.__dict__.pop(name, None)
+        if "PYTEST_XDIST_WORKER" not in os.environ:
+            if getattr(report, "avs_row", None) is not None:
+                for name in ("avs_row", "avs_shrink_rows", "avs_test"):
+                    report.__dict__.pop(name, None)
+            if "scenario" in getattr(report, "keywords", ()):
+                # pytest's JUnit writer took them (from the teardown report) as every other
+                # plugin did while handling it; the terminal reporter keeps the report
+                _drop_own_properties(report)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
