@@ -28,7 +28,11 @@ simulations and their judging are measured:
    (two Halton parameters, a body that asserts, 30 % failing, report on, no shrinking and no
    database), serial and ``-n 2``: ``ru_maxrss`` of the largest process (the pytest process;
    under xdist the largest of controller and workers) and the time from the last call's end
-   to the process's exit (the report, pytest's summary, the interpreter's end).
+   to the process's exit (the report, pytest's summary, the interpreter's end), with the
+   pytest process's CPU time for it (serial), the peak RSS every 10,000 items, and the goals
+   of issue #35 (500 MB, 30 s at 100,000 cases) PASS/MISS when 100,000 is among the sizes.
+   After a 50-case warm-up, with a bytecode cache of the run's own (as a developer's machine
+   has one); ``--memory-pytest-args`` gives pytest's options (default ``-q --tb=line -rN``).
 
 Medians over repeats. The machine is shared: the load average is printed with the numbers;
 compare ratios from one run, not absolute times across runs.
@@ -335,29 +339,128 @@ def test_trivial(case):
     assert case.x < 0.7
 '''
 
+# -p plugin of the memory benchmark: the process's CPU time and peak RSS when the last case
+# ends, and a line every 10,000 items (a long run that is stopped still tells its growth)
+MEMORY_PLUGIN = '''
+import atexit, json, os, resource, time
 
-def bench_memory(tmp: Path, sizes: list[int], parallel: list[str]) -> None:
-    """Peak RSS and the time after the last case, per campaign size, serial and -n 2."""
-    print(f"{'cases':>8} {'mode':<8} {'peak RSS MB':>12} {'after last s':>13} {'wall s':>8}  load")
-    for n in sizes:
+_seen = {"n": 0, "first_start": None, "last_stop": 0.0, "cpu_last": 0.0, "rss_last_kb": 0}
+
+def _cpu():
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
+
+def pytest_runtest_logreport(report):
+    if report.when != "call":
+        return
+    _seen["n"] += 1
+    if _seen["first_start"] is None:
+        _seen["first_start"] = report.start
+    _seen["last_stop"] = max(_seen["last_stop"], report.stop)
+    _seen["cpu_last"] = _cpu()
+    _seen["rss_last_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    if _seen["n"] % 10000 == 0:
+        with open(os.environ["AVS_BENCH_PROGRESS"], "a") as f:
+            f.write(f"{_seen['n']} items: peak RSS {_seen['rss_last_kb'] / 1024:.0f} MB, "
+                    f"cpu {_seen['cpu_last']:.1f} s, {time.strftime('%H:%M:%S')}\\n")
+
+def pytest_sessionfinish(session):
+    _seen["cpu_sessionfinish"] = _cpu()
+
+def _write():
+    if hasattr(_config, "workerinput") or not _seen["n"]:
+        return
+    _seen["cpu_atexit"] = _cpu()
+    with open(os.environ["AVS_BENCH_TIMING"], "w") as f:
+        json.dump(_seen, f)
+
+_config = None
+
+def pytest_configure(config):
+    global _config
+    _config = config
+    atexit.register(_write)
+'''
+
+#: the goals of issue #35 (items 1 and 2) at 100,000 cases
+GOAL_RSS_MB, GOAL_END_S, GOAL_AT = 500, 30.0, 100_000
+
+
+def bench_memory(tmp: Path, sizes: list[int], parallel: list[str], pytest_args: list[str]) -> None:
+    """Peak RSS and the time after the last case, per campaign size, serial and -n N."""
+    # as on a developer's machine: the bytecode of the plugin and of pytest's rewritten
+    # modules is cached (in a folder of this run's, so nothing outside it is written); the
+    # first run fills the cache, a warm-up of 50 cases runs before the measured ones
+    cache = tmp / "pycache"
+    base_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    base_env["PYTHONPYCACHEPREFIX"] = str(cache)
+    print(f"pytest options: {' '.join(pytest_args)}")
+    print(f"{'cases':>8} {'mode':<8} {'peak RSS MB':>12} {'after last s':>13} "
+          f"{'(cpu s)':>8} {'cases s':>8} {'ms/case':>8} {'(cpu ms)':>9} {'wall s':>8}  load")
+    # after last: from the last case's end to the process's exit, wall (cpu: the pytest
+    # process's, serial only); ms/case: the cases' span per case, wall (cpu: the process's
+    # CPU up to the last case, start-up and collection included, per case)
+    results: dict[tuple[int, str], dict[str, float]] = {}
+    for n in [50, *sizes]:
         d = tmp / f"mem{n}"
         d.mkdir()
         (d / "test_trivial.py").write_text(TRIVIAL.format(cases=n))
-        (d / "avs_bench_timing.py").write_text(TIMING_PLUGIN)
+        (d / "avs_bench_memory.py").write_text(MEMORY_PLUGIN)
         for mode in parallel:
-            timing = d / "timing.json"
+            timing, progress = d / f"timing-{mode}.json", d / f"progress-{mode}.txt"
             extra = [] if mode == "serial" else ["-n", mode]
+            cmd = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-p", "avs_bench_memory",
+                   *pytest_args, "--avs-seed=1", "--avs-db=none", "--avs-shrink-budget=0",
+                   f"--avs-report={d}/rep-{mode}", *extra]
             script = (f"import resource, subprocess, sys, time; t0 = time.time(); "
-                      f"p = subprocess.run({[sys.executable, '-m', 'pytest', '-p', 'no:cacheprovider', '-p', 'avs_bench_timing', '-q', '--tb=line', '-rN', '--avs-seed=1', '--avs-db=none', '--avs-shrink-budget=0', f'--avs-report={d}/rep-{mode}', *extra]!r}, "
-                      f"stdout=subprocess.DEVNULL); end = time.time(); "
-                      f"print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, end - t0, end)")
-            env = dict(os.environ, AVS_BENCH_TIMING=str(timing), PYTHONPATH=f"{d}:{ROOT}")
+                      f"p = subprocess.run({cmd!r}, stdout=subprocess.DEVNULL); end = time.time(); "
+                      f"ru = resource.getrusage(resource.RUSAGE_CHILDREN); "
+                      f"print(ru.ru_maxrss, end - t0, end, ru.ru_utime + ru.ru_stime, p.returncode)")
+            env = dict(base_env, AVS_BENCH_TIMING=str(timing), AVS_BENCH_PROGRESS=str(progress),
+                       PYTHONPATH=f"{d}:{ROOT}")
             out = subprocess.run([sys.executable, "-c", script], cwd=d, env=env, capture_output=True,
                                  text=True, check=True).stdout.split()
             span = json.loads(timing.read_text())
-            assert span["n"] == n, span
-            print(f"{n:>8} {mode:<8} {int(out[0]) / 1024:>12.0f} {float(out[2]) - span['last_stop']:>13.1f} "
-                  f"{float(out[1]):>8.1f}  {load()}", flush=True)
+            assert span["n"] == n and out[4] == "1", (span, out)
+            rss, wall, end, cpu_all = int(out[0]) / 1024, float(out[1]), float(out[2]), float(out[3])
+            cases = span["last_stop"] - span["first_start"]
+            after = end - span["last_stop"]
+            # the CPU after the last case: the pytest process's whole CPU less its CPU then
+            # (serial only: under xdist the children's CPU includes the workers')
+            after_cpu = cpu_all - span["cpu_last"] if mode == "serial" else float("nan")
+            res = {"rss": rss, "after": after, "after_cpu": after_cpu, "cases": cases, "wall": wall,
+                   "rss_last": span["rss_last_kb"] / 1024}
+            if n == 50:
+                continue  # the warm-up
+            results[(n, mode)] = res
+            per_case_cpu = (span["cpu_last"] / n) if mode == "serial" else float("nan")
+            print(f"{n:>8} {mode:<8} {rss:>12.0f} {after:>13.1f} {after_cpu:>8.1f} "
+                  f"{cases:>8.1f} {1e3 * cases / n:>8.2f} {1e3 * per_case_cpu:>9.2f} {wall:>8.1f}  {load()}",
+                  flush=True)
+            if progress.exists():
+                for line in progress.read_text().splitlines():
+                    print(f"{'':>10}{line}")
+    for mode in parallel:
+        sized = sorted(n for n, m in results if m == mode)
+        if len(sized) >= 2:
+            lo, hi = sized[0], sized[-1]
+            growth = (results[(hi, mode)]["rss"] - results[(lo, mode)]["rss"]) * 1024 / (hi - lo)
+            slope = (results[(hi, mode)]["after"] - results[(lo, mode)]["after"]) / (hi - lo)
+            print(f"{mode}: peak RSS grows {growth:.2f} KB per case ({lo:,} -> {hi:,}); the time after "
+                  f"the last case {1e3 * slope:.2f} ms per case")
+        top = max(sized, default=None)
+        if top is None:
+            continue
+        r = results[(top, mode)]
+        if top >= GOAL_AT:
+            verdict = "PASS" if r["rss"] <= GOAL_RSS_MB else "MISS"
+            print(f"goal {mode}: peak RSS at {top:,} cases {r['rss']:.0f} MB <= {GOAL_RSS_MB} MB: {verdict}")
+            verdict = "PASS" if r["after"] <= GOAL_END_S else "MISS"
+            print(f"goal {mode}: after the last case at {top:,} cases {r['after']:.1f} s "
+                  f"(cpu {r['after_cpu']:.1f} s) <= {GOAL_END_S:.0f} s: {verdict}")
+        else:
+            print(f"goal {mode}: not judged (the goals are stated at {GOAL_AT:,} cases; the largest "
+                  f"size run is {top:,})")
 
 
 def main() -> None:
@@ -369,6 +472,8 @@ def main() -> None:
     ap.add_argument("--skip-overhead", action="store_true")
     ap.add_argument("--memory", default="", help="peak RSS and end-of-run time at these sizes (1000,10000)")
     ap.add_argument("--memory-modes", default="serial,2", help="serial and/or worker counts for --memory")
+    ap.add_argument("--memory-pytest-args", default="-q --tb=line -rN",
+                    help="pytest's own options for --memory (the README's advice for huge campaigns)")
     ap.add_argument("--skip-pytest", action="store_true")
     args = ap.parse_args()
     print(f"load average {load()} on {os.cpu_count()} cores; python {sys.version.split()[0]}")
@@ -380,7 +485,7 @@ def main() -> None:
             return
         if args.memory:
             bench_memory(Path(tmp), [int(x) for x in args.memory.split(",")],
-                         args.memory_modes.split(","))
+                         args.memory_modes.split(","), args.memory_pytest_args.split())
             return
         sizes = [int(x) for x in str(args.cases).split(",")]
         if not args.skip_pytest:

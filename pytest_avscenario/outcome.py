@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import pickle
+import sys
 import traceback
 import types
 from dataclasses import dataclass, field, fields
@@ -144,7 +145,7 @@ def _revive_exception(packed: Mapping[str, Any] | None) -> BaseException | None:
     return exc
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class CaseRow:
     """One finished case in the error table (plain data).
 
@@ -269,9 +270,10 @@ class CaseRow:
         rho = data["rho"]
         if not isinstance(rho, Mapping):
             raise ValueError("row 'params' and 'rho' must be mappings {name: value}")
+        # the run holds every row to its end: the strings most rows repeat are kept once
         return cls(
-            test=str(data["test"]), item=str(data.get("item") or data["test"]),
-            sampler=str(data["sampler"]), index=int(data["index"]),
+            test=sys.intern(str(data["test"])), item=str(data.get("item") or data["test"]),
+            sampler=sys.intern(str(data["sampler"])), index=int(data["index"]),
             seed=None if data.get("seed") is None else int(data["seed"]),
             origin=data["origin"], params=data["params"],
             rho={str(k): None if v is None or v == "" else rho_from_json(v) for k, v in rho.items()},

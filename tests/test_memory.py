@@ -77,3 +77,67 @@ def test_no_world_or_trajectory_outlives_its_item(pytester, monkeypatch):
     assert len([r for r in rows if json.loads(r)["origin"] != "shrink"]) == 15
     # the failures' pictures are still drawn (before the world goes)
     assert list((pytester.path / "rep" / "rerun" / "cases").glob("*.moment.png"))
+
+
+TERMINAL_PROBE = """
+import json, os
+import pytest
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_terminal_summary(terminalreporter):
+    kept = {key: sorted({(r.nodeid.partition("[")[0].rpartition("::")[2], r.when) for r in reports
+                         if hasattr(r, "when")})
+            for key, reports in terminalreporter.stats.items()}
+    with open(os.environ["AVS_TERMINAL_LOG"], "w") as f:
+        json.dump(kept, f)
+"""
+
+QUIET = """
+import pytest
+from pytest_avscenario import scenario, Uniform
+
+
+@pytest.fixture
+def noisy():
+    yield
+    print("teardown output of a fixture")
+
+
+@scenario(x=Uniform(0.0, 1.0), samples=6, sampler="halton")
+def test_quiet(case):
+    assert case.x < 0.5
+
+
+@scenario(x=Uniform(0.0, 1.0), samples=4, sampler="halton")
+def test_noisy(case, noisy):
+    assert case.x < 0.5
+
+
+def test_plain():
+    pass
+"""
+
+
+def test_terminal_reporter_forgets_quiet_setup_and_teardown_reports(pytester, monkeypatch):
+    """pytest's terminal reporter kept three reports per item to the end of the run; a
+    scenario case's passed setup and teardown, once handled, are forgotten unless its
+    teardown printed something, which the failures summary still shows under each failure."""
+    log = pytester.path / "terminal.json"
+    monkeypatch.setenv("AVS_TERMINAL_LOG", str(log))
+    pytester.makepyfile(avs_terminal_probe=TERMINAL_PROBE, test_quiet=QUIET)
+    monkeypatch.syspath_prepend(pytester.path)
+    result = pytester.runpytest("-p", "avs_terminal_probe", "--avs-report=none", "--avs-db=none",
+                                "--avs-shrink-budget=0", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=6, failed=5)
+    kept = json.loads(log.read_text())
+    # the plain test keeps its setup and teardown; the quiet campaign keeps neither; the
+    # noisy one keeps its teardowns (their output), not its setups
+    assert kept[""] == [["test_noisy", "teardown"], ["test_plain", "setup"],
+                                            ["test_plain", "teardown"]]
+    assert kept["failed"] == [["test_noisy", "call"], ["test_quiet", "call"]]
+    assert kept["passed"] == [["test_noisy", "call"], ["test_plain", "call"],
+                                                  ["test_quiet", "call"]]
+    # each failure of the noisy campaign still shows its teardown's output in the summary
+    out = result.stdout.str()
+    assert out.count("Captured stdout teardown") == 2, out

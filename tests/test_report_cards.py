@@ -251,3 +251,36 @@ def test_the_replay_labels_each_car_beside_it_and_off_the_others_in_a_dense_scen
         assert _gap(box, cars[name]) <= NEAR_PX, (name, box, cars[name])
         assert not [n for n in cars if n != name and _overlaps(box, cars[n])], (name, box)
         assert not [n for n, o in placed.items() if n != name and _overlaps(box, o["box"])], (name, box)
+
+
+def test_a_campaign_with_more_counterexamples_than_the_cap_cards_the_first_and_says_so(tmp_path, monkeypatch):
+    """A huge campaign's counterexamples do not each get a page (issue #35: 30,000 pages at
+    the end of a 100,000-case run): each failure mode's representative, the minimized ones,
+    then those that ran first get one; the index says how many of how many, and that the
+    error table has them all."""
+    from pytest_avscenario.outcome import CaseRow
+    from pytest_avscenario.report import build
+    from pytest_avscenario.report.summary import TestInfo
+    from pytest_avscenario.space import FeatureSpace, Uniform
+
+    monkeypatch.setattr(build, "MAX_CARDS", 4)
+    test = "test_big.py::test_big"
+    rows = [CaseRow(test=test, item=f"{test}[halton-{i:03d}]", sampler="halton", index=i, seed=i,
+                    origin="sampled", params={"x": i / 20}, rho={"distance": 0.5 - i / 20},
+                    verdict="fail" if i > 10 else "pass",
+                    minimized={"x": 0.6} if i == 19 else None) for i in range(20)]
+    info = {test: TestInfo(("distance",), FeatureSpace({"x": Uniform(0, 1)}))}
+    summary = build.finish_report(tmp_path, info, rows=rows, pictures=False)
+    cards = sorted(p.name for p in (tmp_path / "cases").glob("*.html"))
+    assert len(cards) == 4
+    representatives = {m.representative for s in summary for m in s.modes}
+    assert representatives
+    from pytest_avscenario.report.cards import card_name
+
+    carded = {r.item for r in rows if card_name(r) in cards}
+    assert representatives <= carded and f"{test}[halton-019]" in carded  # the minimized one
+    index = (tmp_path / "index.html").read_text()
+    assert "9 counterexamples (1 minimized): pages for 4 of them" in index and "errors.jsonl" in index
+    # the index links only pages that exist
+    linked = set(re.findall(r"cases/([^'\"#]+\.html)", index))
+    assert linked and linked <= set(cards)

@@ -28,9 +28,10 @@ from .settings import DeclarationError, Settings
 SamplerHook = Callable[..., Any]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class CaseSlot:
-    """What collection fixes about one item: its index, origin and (if passive) its values."""
+    """What collection fixes about one item: its index, origin and (if passive) its values.
+    One per item, alive for the whole run: slots, no ``__dict__`` (a 100,000-case campaign)."""
 
     sampler: str
     index: int

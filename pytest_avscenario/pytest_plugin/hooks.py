@@ -80,6 +80,8 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[controller_key] = state = RunState(config)
     config.stash[session_key] = ScenarioSession(config, config.stash[db_key], state)
     config.pluginmanager.register(state, "avscenario-run")
+    if not hasattr(config, "workerinput"):  # a worker's reports go to the controller
+        config.pluginmanager.register(_QuietReports(config), "avscenario-quiet-reports")
     if config.pluginmanager.hasplugin("xdist"):
         config.pluginmanager.register(_XdistHooks(config), "avscenario-xdist")
         if not hasattr(config, "workerinput") and getattr(config.option, "dist", "no") != "no":
@@ -200,6 +202,38 @@ class _XdistHooks:
             if self.snapshot is None:
                 self.snapshot = db.snapshot()
             node.workerinput["avs_db"] = self.snapshot
+
+
+class _QuietReports:
+    """pytest's terminal reporter keeps every report to the end of the run, each item's
+    passed setup and teardown too (category ``""``), though it shows nothing of those but a
+    teardown's captured teardown output (after the item's entry in the failures or passes
+    summary): each such entry scans all of them for it, O(failures x items) with the default
+    ``--tb``, and they cost ~1 KB of memory an item. Once every plugin has handled such a
+    report of a scenario case, one with no teardown output, the reporter forgets it: its
+    output stays the same (issue #35)."""
+
+    def __init__(self, config: pytest.Config):
+        self.config = config
+        self.stats: dict[str, list[Any]] | None = None
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_sessionstart(self, session: pytest.Session) -> None:
+        terminal = self.config.pluginmanager.get_plugin("terminalreporter")
+        stats = getattr(terminal, "stats", None)
+        self.stats = stats if isinstance(stats, dict) else None
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> Any:
+        try:
+            return (yield)
+        finally:
+            if self.stats is not None and report.when in ("setup", "teardown") and report.passed \
+                    and not any("teardown" in name for name, _ in report.sections) \
+                    and "scenario" in getattr(report, "keywords", ()):
+                kept = self.stats.get("")
+                if kept and kept[-1] is report:
+                    kept.pop()
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
@@ -391,20 +425,37 @@ def _release(item: pytest.Item) -> None:
     for key in (result_key, row_key, shrink_rows_key, case_item_key):
         if key in item.stash and (key is result_key or item.stash.get(sent_key, False)):
             del item.stash[key]
+    if item.stash.get(sent_key, False):
+        # its teardown report has its copy for the JUnit writer (which reads the teardown's)
+        _drop_own_properties(item)
+
+
+def _drop_own_properties(holder: Any) -> None:
+    """The case's JUnit properties (``avs.*``, ~1 KB a case) off an item or a report that
+    no longer needs them; a user's own properties stay."""
+    props = getattr(holder, "user_properties", None)
+    if props and any(str(name).startswith("avs.") for name, _ in props):
+        props[:] = [(name, value) for name, value in props if not str(name).startswith("avs.")]
 
 
 @pytest.hookimpl(wrapper=True, tryfirst=True)
 def pytest_runtest_logreport(report: pytest.TestReport) -> Any:
     """Once every plugin has handled a report (tryfirst: around the others' implementations
     and wrappers), the JSON copy of its row that travelled with it goes (the controller keeps
-    the row itself); pytest's terminal reporter keeps every report to the end of the run. Not
-    on an xdist worker, whose reports are still to be sent."""
+    the row itself), and so do the case's JUnit properties: pytest's terminal reporter keeps
+    every report to the end of the run. Not on an xdist worker,
+    whose reports are still to be sent."""
     try:
         return (yield)
     finally:
-        if getattr(report, "avs_row", None) is not None and "PYTEST_XDIST_WORKER" not in os.environ:
-            for name in ("avs_row", "avs_shrink_rows", "avs_test"):
-                report.__dict__.pop(name, None)
+        if "PYTEST_XDIST_WORKER" not in os.environ:
+            if getattr(report, "avs_row", None) is not None:
+                for name in ("avs_row", "avs_shrink_rows", "avs_test"):
+                    report.__dict__.pop(name, None)
+            if "scenario" in getattr(report, "keywords", ()):
+                # pytest's JUnit writer took them (from the teardown report) as every other
+                # plugin did while handling it; the terminal reporter keeps the report
+                _drop_own_properties(report)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:

@@ -30,6 +30,12 @@ __all__ = ["finish_report", "SUMMARY_JSON"]
 
 SUMMARY_JSON = "summary.json"
 
+#: counterexamples of one test that get a card page and a line in the index: each failure
+#: mode's representative first, then the minimized ones, then in the order they ran; the
+#: others are in the error table (a 100,000-case campaign may have 30,000 counterexamples,
+#: ~0.5 ms of the end of the run each)
+MAX_CARDS = 1000
+
 OnError = Callable[[str, "str | None", Exception], None]
 
 
@@ -205,6 +211,12 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
     failing = card_rows(rows)
     if not failing:
         return []
+    found = len(failing)
+    if found > MAX_CARDS:
+        first = {m.representative for s in campaigns for m in s.modes}
+        ranked = sorted(failing, key=lambda r: (r.item not in first, r.minimized is None))
+        keep = {r.item for r in ranked[:MAX_CARDS]}
+        failing = [r for r in failing if r.item in keep]
     cases = root / "cases"
     make_dirs(cases)
     space = info.space if info is not None else None
@@ -242,10 +254,13 @@ def _cards(root: Path, folder: Any, test: str, rows: list[CaseRow], info: TestIn
                 unlink_file(recording)
             except FileNotFoundError:
                 pass
-    minimized = sum(r.minimized is not None for r in failing)
+    minimized = sum(r.minimized is not None for r in card_rows(rows))
+    pages = "one page each" if found == len(failing) else (
+        f"pages for {len(failing)} of them (each failure mode's representative, the minimized ones, "
+        f"then in the order they ran); all are in {MAIN_JSONL}")
     return [mode_table(root, campaigns, rows),
-            f"<details class='cex'><summary>{len(failing)} counterexample{'s' if len(failing) != 1 else ''}"
-            f"{f' ({minimized} minimized)' if minimized else ''}: one page each</summary>",
+            f"<details class='cex'><summary>{found} counterexample{'s' if found != 1 else ''}"
+            f"{f' ({minimized} minimized)' if minimized else ''}: {pages}</summary>",
             counterexample_table(root, failing, modes=labels or None), "</details>"]
 
 

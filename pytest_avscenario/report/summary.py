@@ -124,33 +124,33 @@ def _unit_coordinate(dist: Any, value: Any) -> float:
     return float(dist.to_unit(value))
 
 
-def _unit_row(space: Any, params: Mapping[str, Any]):
-    import numpy as np
-
-    parameters = getattr(space, "parameters", None)
-    dims = getattr(space, "dims", None)
-    if isinstance(parameters, Mapping) and dims is not None:
-        return np.array([_unit_coordinate(parameters[dim.name], params[dim.name]) for dim in dims], dtype=float)
-    return np.asarray(space.to_unit(dict(params)), dtype=float)
-
-
 def _unit_points(rows: Sequence[CaseRow], space: Any):
     import numpy as np
 
     mask = np.asarray(space.continuous_mask(), dtype=bool)
+    parameters = getattr(space, "parameters", None)
+    dims = getattr(space, "dims", None)
+    if isinstance(parameters, Mapping) and dims is not None:
+        # plain floats per row, one array at the end: no numpy array per row (100,000 rows)
+        to_unit = [(dim.name, parameters[dim.name]) for dim in dims]
+        unit_row = lambda params: [_unit_coordinate(dist, params[name]) for name, dist in to_unit]  # noqa: E731
+    else:
+        unit_row = lambda params: list(np.asarray(space.to_unit(dict(params)), dtype=float))  # noqa: E731
     pts = []
     for r in rows:
         try:
-            u = _unit_row(space, r.params)[mask]
+            pts.append(unit_row(r.params))
         except (KeyError, ValueError, TypeError, ArithmeticError):
             # A row whose parameters do not fit the space (hand-written, or from an older
             # declaration) cannot be placed; it still counts as a sample, just not for ε.
             continue
-        if np.all(np.isfinite(u)):
-            pts.append(u)
     if not pts:
         return None
-    return np.clip(np.vstack(pts), 0.0, 1.0)
+    u = np.array(pts, dtype=float).reshape(len(pts), -1)[:, mask]
+    u = u[np.all(np.isfinite(u), axis=1)]
+    if not len(u):
+        return None
+    return np.clip(u, 0.0, 1.0)
 
 
 def summarize(
