@@ -74,12 +74,11 @@ def test_a_campaign_over_map_lanes_runs_and_places_the_ego_on_the_drawn_lane(pyt
     assert verdicts == {"pass", "fail"}, rows
 
 
-@pytest.mark.parametrize("decl, match", [
-    ('MapLane("maps/nowhere.xodr")', r"parameter 'lane'.*nowhere\.xodr.*not found"),
-    ('MapLane("maps/fabriksgatan.xodr", kind="tram")', r"parameter 'lane'.*no lane of the map matches"),
-])
-def test_a_bad_map_is_a_collection_error_naming_test_and_parameter(pytester, decl, match):
-    _with_map(pytester, DATA / "fabriksgatan.xodr")
+def _collection_error(pytester, decl: str, match: str, traceback_free: bool = False) -> None:
+    """A test whose ``lane`` parameter is ``decl`` fails collection with ``match`` in the
+    output (lines joined), naming the test or its file."""
+    import re
+
     pytester.makepyfile(test_bad=f"""
 from pytest_avscenario import MapLane, scenario
 
@@ -91,9 +90,18 @@ def test_on_map(case, world):
     out = res.stdout.str()
     assert res.ret != 0
     assert "test_on_map" in out or "test_bad.py" in out
-    import re
+    if traceback_free:
+        assert "Traceback" not in out and "lxml" not in out
+    assert re.search(match, out.replace("\n", " ")), out[-3000:]
 
-    assert re.search(match, out), out[-3000:]
+
+@pytest.mark.parametrize("decl, match", [
+    ('MapLane("maps/nowhere.xodr")', r"parameter 'lane'.*nowhere\.xodr.*not found"),
+    ('MapLane("maps/fabriksgatan.xodr", kind="tram")', r"parameter 'lane'.*no lane of the map matches"),
+])
+def test_a_bad_map_is_a_collection_error_naming_test_and_parameter(pytester, decl, match):
+    _with_map(pytester, DATA / "fabriksgatan.xodr")
+    _collection_error(pytester, decl, match)
 
 
 _ROAD = ("<road id='{rid}' length='50' junction='-1'>{link}<planView><geometry s='0' x='{x}' "
@@ -147,21 +155,7 @@ def test_a_bad_map_file_is_a_collection_error_naming_the_file_and_element(pytest
     text, decl, match = _BAD_MAPS[name]
     (pytester.path / "maps").mkdir()
     (pytester.path / "maps" / "bad.xodr").write_text(text)
-    pytester.makepyfile(test_bad=f"""
-from pytest_avscenario import MapLane, scenario
-
-@scenario(lane={decl}, samples=2)
-def test_on_map(case, world):
-    pass
-""")
-    res = pytester.runpytest("--avs-db=none", "-p", "no:cacheprovider", "--collect-only")
-    out = res.stdout.str()
-    assert res.ret != 0
-    assert "test_on_map" in out or "test_bad.py" in out
-    assert "Traceback" not in out and "lxml" not in out
-    import re
-
-    assert re.search(match, out.replace("\n", " ")), out[-3000:]
+    _collection_error(pytester, decl, match, traceback_free=True)
 
 
 def test_lanes_whose_route_ends_too_soon_are_left_out_and_named_at_run_time():

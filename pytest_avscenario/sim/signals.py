@@ -41,6 +41,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from .opendrive import DRIVABLE, MapData, MapError
+from .opendrive import _num as _float  # an attribute as a finite number, or a MapError naming it
 
 __all__ = ["intersection_lights", "SignalData", "StopPosition", "ControllerData", "MapSignals", "map_signals",
            "TrafficLights", "LightAhead", "GREEN", "AMBER", "RED", "STATES", "must_stop",
@@ -162,21 +163,6 @@ def map_signals(data: MapData) -> MapSignals:
     with _LOCK:
         _CACHE[data.digest] = got
     return got
-
-
-def _float(el: Any, attr: str, path: str, where: str, default: float | None = None) -> float:
-    v = el.get(attr)
-    if v is None:
-        if default is not None:
-            return default
-        raise MapError(f"map file {path}: {where} has no {attr!r}")
-    try:
-        x = float(v)
-    except ValueError:
-        x = math.nan
-    if not math.isfinite(x):
-        raise MapError(f"map file {path}: {where} has {attr}={v!r}, not a finite number")
-    return x
 
 
 def _int(el: Any, attr: str, path: str, where: str) -> int:
