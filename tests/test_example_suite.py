@@ -29,7 +29,7 @@ def test_example_suite_quick_mode(tmp_path):
     summary = json.loads((report / "summary.json").read_text())
     assert {t["sampler"] for t in summary["tests"]} >= {"halton", "mab"}
     # the trained-agent example runs only where stable-baselines3 is installed
-    assert len({t["test"] for t in summary["tests"] if "test_trained_agent" not in t["test"]}) == 18
+    assert len({t["test"] for t in summary["tests"] if "test_trained_agent" not in t["test"]}) == 19
     assert all(t["samples"] == 5 and t["errors"] == 0 for t in summary["tests"])
     assert {t["verdict"] for t in summary["tests"]} == {"accepted"}
     assert (report / "index.html").exists()

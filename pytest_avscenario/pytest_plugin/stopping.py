@@ -474,11 +474,6 @@ def signals_held(guard: TermGuard | None) -> Iterator[None]:
                 raise KeyboardInterrupt
 
 
-#: at most this many queued xdist events handled under one hold of the signals (a Ctrl-C
-#: waits for them: a few milliseconds)
-DRAIN_EVENTS = 32
-
-
 @contextlib.contextmanager
 def whole_xdist_events(config: pytest.Config) -> Iterator[None]:
     """An xdist controller's run loop, where a stop lands only while it waits for an event,
@@ -500,13 +495,6 @@ def whole_xdist_events(config: pytest.Config) -> Iterator[None]:
                 events.not_empty.wait(2.0)
         with signals_held(guard):
             loop_once()  # takes the queued event at once and handles it
-            # the events queued meanwhile, under the same hold: holding costs three signal
-            # calls, and a worker's item brings five events (logstart, three reports, finish)
-            for _ in range(DRAIN_EVENTS):
-                if not len(events.queue) or getattr(dsession, "shouldstop", False) \
-                        or getattr(dsession, "session_finished", False) or not dsession._active_nodes:
-                    break
-                loop_once()
 
     dsession.loop_once = loop_once_whole
     try:
