@@ -211,7 +211,8 @@ def load(path: Any, *, base: Any = None, evaluator: str = "numpy") -> MapData:
     return got
 
 
-def _parse(path: str, digest: str, blob: bytes, evaluator: str) -> MapData:
+def xml_root(path: str, blob: bytes) -> Any:
+    """The root element of a map file's bytes, or a MapError naming the file."""
     try:  # lxml parses a 3-MB map four times faster; the standard library's does the same
         from lxml import etree as ET
 
@@ -222,9 +223,13 @@ def _parse(path: str, digest: str, blob: bytes, evaluator: str) -> MapData:
 
         errors, parse = (ET.ParseError,), ET.fromstring
     try:
-        root = parse(blob)
+        return parse(blob)
     except errors as exc:
         raise MapError(f"map file {path} is not XML ({exc})") from None
+
+
+def _parse(path: str, digest: str, blob: bytes, evaluator: str) -> MapData:
+    root = xml_root(path, blob)
     if root.tag != "OpenDRIVE":
         raise MapError(f"map file {path}: the root element is <{root.tag}>, not <OpenDRIVE>")
     roads = root.findall("road")

@@ -40,7 +40,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from .opendrive import DRIVABLE, MapData, MapError
+from .opendrive import DRIVABLE, MapData, MapError, xml_root
 from .opendrive import _num as _float  # an attribute as a finite number, or a MapError naming it
 
 __all__ = ["intersection_lights", "SignalData", "StopPosition", "ControllerData", "MapSignals", "map_signals",
@@ -245,19 +245,7 @@ def _parse(data: MapData, blob: bytes) -> MapSignals:
     path = data.path
     if b"<signal" not in blob and b"<controller" not in blob:
         return MapSignals(path, {}, {}, {})  # most maps: no need to parse the file again
-    try:  # lxml (the maps extra) parses a 3-MB map four times faster
-        from lxml import etree as ET
-
-        errors: tuple = (ET.XMLSyntaxError,)
-        parse = lambda b: ET.fromstring(b, parser=ET.XMLParser(huge_tree=True))  # noqa: E731
-    except ImportError:  # pragma: no cover - lxml comes with the maps extra
-        import xml.etree.ElementTree as ET
-
-        errors, parse = (ET.ParseError,), ET.fromstring
-    try:
-        root = parse(blob)
-    except errors as exc:
-        raise MapError(f"map file {path} is not XML ({exc})") from None
+    root = xml_root(path, blob)
     roads: dict[str, _Road] = {}
     raw: list[tuple[Any, _Road]] = []
     refs: list[tuple[Any, _Road]] = []
