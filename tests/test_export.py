@@ -2,6 +2,7 @@
 XSDs scenariogeneration ships, parsed back to the same scenario, replayed in the plugin's own
 simulator to the same collision, and the trace read back."""
 
+import pathlib
 import re
 import xml.etree.ElementTree as ET
 
@@ -373,15 +374,22 @@ def test_export_none_writes_nothing_and_a_failing_export_keeps_the_case(pytester
     assert "Not exported (xosc): RuntimeError: cannot write this road" in card
 
 
-def test_without_the_option_one_case_per_test_and_sampler_is_exported(pytester):
-    # the default keeps a report small: one export (~0.3 MB) per test and sampler, not one
-    # per pictured case (here 2)
+def test_without_the_option_every_pictured_counterexample_is_exported(pytester):
+    # the default exports what the report pictures: here 2 of the 3 failing cases (none is
+    # minimized with a budget of 0), each file set beside the card that shows its picture
     pytester.makepyfile(test_lead=BRAKING_LEAD)
     args = [a for a in FAST if a != "--avs-case-pictures=0"]
     result = pytester.runpytest(*args, "--avs-case-pictures=2")
     result.assert_outcomes(failed=3)
-    assert len([r for r in _rows(pytester) if r.get("exports")]) == 1
-    assert len(list((pytester.path / "avs-report" / "cases").glob("*.v1_0.xosc"))) == 1
+    exported = [r for r in _rows(pytester) if r.get("exports")]
+    assert len(exported) == 2
+    cases = pytester.path / "avs-report" / "cases"
+    assert len(list(cases.glob("*.v1_0.xosc"))) == 2
+    pictured = {p.name.split(".")[0] for p in cases.glob("*.png")}
+    assert {pathlib.Path(r["exports"]["xosc"]).name.split(".")[0] for r in exported} <= pictured
+    # a recorded trajectory's vertex is one line of the file (the files stay ~0.2 MB a case)
+    text = (cases / exported[0]["exports"]["xosc"]).read_text()
+    assert "<Vertex time=\"0.1\"><Position><WorldPosition " in text
 
 
 def test_bad_export_option_is_a_usage_error(pytester):

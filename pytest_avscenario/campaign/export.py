@@ -1,9 +1,9 @@
 """``--avs-export``: a failing case written for other simulators beside its card.
 
 Which cases: the minimized counterexamples and the first N more per test and sampler (N:
-``--avs-export N``, default :data:`DEFAULT_EXPORTS` = 1, at most ``--avs-case-pictures``),
-every one with ``all``, none with ``none``; without the option, only when scenariogeneration
-is installed. The files
+``--avs-export N``; by default every pictured one, N = ``--avs-case-pictures``), every one
+with ``all``, none with ``none``; without the option, only when scenariogeneration is
+installed. The files
 (:func:`pytest_avscenario.export.export_case`) join the case's pictures, so the report places
 them beside the card and the card links them; the row's ``exports`` names them. An export
 that fails is said in the row (``exports.errors``) and never fails or loses the case.
@@ -20,19 +20,15 @@ from .context import CampaignContext, CaseItem
 __all__ = ["export_counterexample"]
 
 
-#: without ``--avs-export``: the minimized counterexamples and this many more per test and
-#: sampler (at most ``--avs-case-pictures``). One case shows a failure mode in another tool;
-#: every export costs ~0.3 MB (two .xosc of the recorded trajectories, the .osi trace).
-DEFAULT_EXPORTS = 1
-
-
 def _limit(settings: Any) -> int | str | None:
     """N, "all", or None (no export)."""
     chosen = getattr(settings, "export", None)
     if chosen is None:
         if importlib.util.find_spec("scenariogeneration") is None:
             return None
-        return min(settings.case_pictures, DEFAULT_EXPORTS)
+        # every pictured counterexample: the cases a reader sees on their cards can be
+        # replayed elsewhere (~0.2 MB each: two .xosc with the recorded trajectories, the trace)
+        return settings.case_pictures
     return None if chosen == "none" else chosen
 
 

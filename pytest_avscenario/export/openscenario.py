@@ -377,8 +377,20 @@ def scenario_xosc(world: Any, params: Mapping[str, Any], *, units: Mapping[str, 
             header.set("description", description)
     _comment(root, out, units, params, t_end)
     ET.indent(root)
+    _one_line_vertices(root)
     out.xml = ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
     return out
+
+
+def _one_line_vertices(root: ET.Element) -> None:
+    """Each trajectory ``Vertex`` on one line: the indentation of its three nested elements was
+    about 40 % of a recorded trajectory's bytes (a 120-step case: ~77 kB an .xosc)."""
+    for vertex in root.iter("Vertex"):
+        for inner in vertex.iter():
+            if inner is not vertex:
+                inner.text = None
+                inner.tail = None
+        vertex.text = None
 
 
 def _note(text: str) -> ET.Element:
