@@ -215,3 +215,25 @@ def test_a_requester_refuses_a_peer_of_the_wrong_socket_type(tmp_path):
             zmtp.Requester(address).connect(time.monotonic() + 2)
     finally:
         pub.close(linger=0)
+
+
+def test_a_stack_that_hangs_up_on_a_request_is_an_error_at_once_not_a_timeout(tmp_path):
+    from pytest_avscenario.sim import SimError, World
+    from pytest_avscenario.stack import OSIStack, client
+
+    address = f"ipc://{tmp_path}/rude.sock"
+    rep = zmtp.Replier(address)
+
+    def hang_up() -> None:
+        rep.receive(10.0)  # the Reset arrives; no answer, the connection closed
+        rep.close()
+
+    threading.Thread(target=hang_up, daemon=True).start()
+    w = World(seed=1, driver=OSIStack(address, timeout_s=30), name="t::rude")
+    road = w.straight_road(lanes=1, length=200)
+    w.ego(road.lane(0), s=10.0, speed=10.0)
+    try:  # said at once, not as "no answer within 30 s"
+        with pytest.raises(SimError, match="closed the connection while it was answering the Reset"):
+            w.run(seconds=1)
+    finally:
+        client.stop_all()
