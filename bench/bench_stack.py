@@ -382,8 +382,8 @@ def bench_step(steps: int) -> dict:
                          "channel": client._CHANNELS[address], "wall": 0.0, "cpu": 0.0,
                          "sleeps": 0, "build": 0.0, "round trip": 0.0, "decode": 0.0})
         chunks = 8  # the variants take turns, so a change of the machine's load hits them all
-        for _ in range(chunks):
-            for r in runs:
+        for k in range(chunks):
+            for r in runs[k % len(runs):] + runs[:k % len(runs)]:  # rotated: none always follows the pinned one
                 if r["pinned"]:
                     pin(os.getpid(), {0})
                 views, channel, stack = r["stack"]._views, r["channel"], r["stack"]
@@ -436,7 +436,7 @@ def bench_case(repeats: int) -> dict:
             runs.append({"kind": kind, "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
                          "pid": proc.pid, "pinned": pinned, "walls": [], "cpus": []})
         for i in range(repeats + 2):
-            for r in runs:
+            for r in runs[i % len(runs):] + runs[:i % len(runs)]:  # rotated, as in bench_step
                 if r["pinned"]:
                     pin(os.getpid(), {0})
                 w = following(r["driver"]())

@@ -141,7 +141,9 @@ class _Connection:
     # -- raw bytes ------------------------------------------------------------------------------
     def _fill(self, deadline: float | None) -> None:
         """Append what the peer sent to the buffer, waiting until ``deadline`` (monotonic [s];
-        None: no wait at all). ``TimeoutError`` when nothing came, :class:`Closed` on EOF."""
+        None: a plain read, for a caller that polled already or may block until the rest of a
+        message it has begun arrives). ``TimeoutError`` when nothing came, :class:`Closed` on
+        EOF."""
         if deadline is not None:
             while True:
                 left = deadline - time.monotonic()
