@@ -93,9 +93,10 @@ def _ipc_path(address: str) -> str:
     return "\0" + path[1:] if path.startswith("@") else path  # "@name": Linux's abstract namespace
 
 
-def open_address(address: str) -> socket.socket:
-    """A connected stream socket to ``tcp://HOST:PORT`` or ``ipc://PATH`` (not yet greeted);
-    ``OSError`` when nobody listens there (yet)."""
+def open_address(address: str, timeout_s: float | None = None) -> socket.socket:
+    """A connected stream socket to ``tcp://HOST:PORT`` or ``ipc://PATH`` (not yet greeted),
+    blocking; ``OSError`` when nobody listens there (yet), ``TimeoutError`` when a tcp
+    connection is not made within ``timeout_s`` [s]."""
     if address.startswith("ipc://"):
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
@@ -105,7 +106,8 @@ def open_address(address: str) -> socket.socket:
             raise
         return s
     host, port = _host_port(address)
-    s = socket.create_connection((host, port))
+    s = socket.create_connection((host, port), timeout=timeout_s)
+    s.settimeout(None)
     s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # lockstep: never wait for more
     return s
 
@@ -259,8 +261,8 @@ class Requester:
     def connect(self, deadline: float) -> bool:
         """Connect and greet; False while nobody listens at the address yet (try again)."""
         try:
-            sock = open_address(self.address)
-        except (FileNotFoundError, ConnectionRefusedError):
+            sock = open_address(self.address, max(0.01, deadline - time.monotonic()))
+        except (FileNotFoundError, ConnectionRefusedError, TimeoutError):
             return False
         except OSError as exc:
             if exc.errno in (errno.ENOENT, errno.ECONNREFUSED, errno.EAGAIN):
