@@ -120,6 +120,22 @@ def test_heartbeats_of_a_libzmq_peer_are_answered_while_the_answer_is_awaited(tm
         stop.set()
 
 
+def test_a_connection_the_rep_dropped_between_requests_is_noticed_before_the_next_one(address):
+    # idle between cases, the requester answers no PING: the REP drops it after 100 ms
+    from pytest_avscenario.stack import client
+
+    stop = threading.Event()
+    _echo_rep(address, stop, HEARTBEAT_IVL=20, HEARTBEAT_TIMEOUT=100, HEARTBEAT_TTL=200)
+    channel = client._Channel(address)
+    try:
+        assert channel.request([b"a", b"b"], 5.0) == [b"b", b"a"]
+        time.sleep(0.5)
+        assert channel.request([b"c", b"d"], 5.0) == [b"d", b"c"]
+    finally:
+        channel.drop()
+        stop.set()
+
+
 def test_a_replier_answers_libzmq_reqs_each_its_own(address):
     rep = zmtp.Replier(address)
     ctx = zmq.Context.instance()

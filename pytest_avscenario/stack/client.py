@@ -111,6 +111,8 @@ class _Channel:
         """The answer's frames; :class:`_Timeout` at ``timeout_s`` [s], :class:`_Gone` when
         ``alive()`` says why the stack is gone or the stack closed the connection."""
         deadline = time.monotonic() + timeout_s
+        if self.req is not None and not self.req.usable():
+            self.drop()  # closed by the stack since the last answer: connect afresh
         if self.req is not None:
             try:
                 self.req.send(frames)

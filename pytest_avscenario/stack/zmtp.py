@@ -281,6 +281,25 @@ class Requester:
         self.conn = conn
         return True
 
+    def usable(self) -> bool:
+        """False when the peer closed the connection while no answer was owed (a stack
+        restarted, or one that drops peers silent past its heartbeat timeout: its PINGs are
+        answered only while an answer is awaited); what it sent meanwhile is handled."""
+        conn = self.conn
+        if conn is None:
+            return False
+        try:
+            while conn._poll.poll(0):
+                conn._fill(None)
+                while len(conn.buf) > conn.pos:
+                    flags, body = conn._frame(None)
+                    if not flags & _COMMAND:
+                        raise ZMTPError("a message that no request asked for")
+                    conn._on_command(body)
+        except (Closed, OSError):
+            return False
+        return True
+
     def send(self, frames: list[bytes]) -> None:
         self.conn.send(b"\x01\x00" + frames_bytes(frames))  # the empty delimiter, then the message
 
