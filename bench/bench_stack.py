@@ -6,18 +6,25 @@ per transport, default 2000). All in one run, each against a process of its own:
 0. Floors and anchor: a raw ``os.pipe`` ping-pong of 1 kB between two processes (the least
    any lockstep between processes costs here); a bare pyzmq REQ/REP round trip of the
    protocol's three frames (~1 kB body) to a pyzmq echo process, over ``ipc://`` and
-   ``tcp://`` (the anchor: what ZeroMQ costs before the protocol does anything); and the
-   same over ``ipc://`` with both processes pinned to one CPU and to one CPU each (set
-   before their contexts exist, so their ZeroMQ I/O threads too): where the threads run
-   decides what a wake-up costs.
+   ``tcp://`` (the anchor: what libzmq costs before the protocol does anything); the same
+   over ``ipc://`` with both processes pinned to one CPU and to one CPU each (set before
+   their contexts exist, so their ZeroMQ I/O threads too), and with both sides polling a
+   non-blocking receive for up to 200 µs before they block (a bounded spin); then the same
+   round trip with ZMTP spoken on the socket (``stack/zmtp.py``, what the plugin and the
+   kit use) to a ``zmtp.Replier`` echo and to the pyzmq echo (a libzmq stack).
 1. Protocol step: one full step without the simulation — the plugin writes the following
    scene into its SensorView (``frame.SensorViews``), the kit (``python -m
    pytest_avscenario.stack``, run as a spawned stack is) turns it into the Observation,
    asks the autopilot and answers a MotionRequest, the plugin decodes it into (acceleration,
-   steering). Against the same observe + autopilot in process.
+   steering). Against the same observe + autopilot in process. Variants, interleaved in
+   chunks: ipc and tcp as the plugin runs them (ZMTP on the socket both sides), ipc with
+   libzmq on both sides (the plugin's and the kit's sockets before ``zmtp``: the A/B anchor),
+   ipc to a kit on a libzmq REP (what a stack written with libzmq costs), and ipc with every
+   thread of both processes on CPU 0.
 2. Per case: the vehicle-following case of example_tests/test_02 (nominal parameters, 12 s
    at 0.1 s = 120 steps, the lead's wobble included) with the autopilot in process and
-   served through the kit; median wall time per case over repeats after a warm-up.
+   served through the kit (the same variants as 1, cases interleaved across variants);
+   median per case over repeats after a warm-up.
 3. The protocol's own work in this process, CPU per call in a hot loop: the SensorView built
    afresh and kept (``frame.SensorViews``), the kit's answer, the decode, against observe +
    autopilot in process.
@@ -50,7 +57,7 @@ sys.path.insert(0, f"{ROOT}/example_tests")
 import zmq  # noqa: E402
 
 from pytest_avscenario.sim import World  # noqa: E402
-from pytest_avscenario.stack import OSIStack, client, frame, wire  # noqa: E402
+from pytest_avscenario.stack import OSIStack, client, frame, wire, zmtp  # noqa: E402
 
 ECHO = """
 import os, sys, zmq
@@ -60,6 +67,59 @@ s = zmq.Context.instance().socket(zmq.REP); s.bind(sys.argv[1])
 while True:
     s.send_multipart(s.recv_multipart())
 """
+SPIN_ECHO = """
+import sys, time, zmq
+s = zmq.Context.instance().socket(zmq.REP); s.bind(sys.argv[1])
+spin = float(sys.argv[2])
+while True:
+    end = time.perf_counter() + spin
+    while True:
+        try:
+            frames = s.recv_multipart(zmq.NOBLOCK); break
+        except zmq.Again:
+            if time.perf_counter() > end:
+                frames = s.recv_multipart(); break
+    s.send_multipart(frames)
+"""
+ZMTP_ECHO = """
+import sys
+from pytest_avscenario.stack import zmtp
+r = zmtp.Replier(sys.argv[1])
+while True:
+    r.send(r.receive())
+"""
+# the kit's loop on a libzmq REP socket: the kit before stack/zmtp.py, and what a stack
+# written with libzmq costs
+LIBZMQ_KIT = """
+import sys, zmq
+from pytest_avscenario.stack import kit
+s = zmq.Context.instance().socket(zmq.REP); s.setsockopt(zmq.LINGER, 0); s.bind(sys.argv[1])
+session = None
+while True:
+    reply, session = kit.handle(s.recv_multipart(), session, "autopilot")
+    s.send_multipart(reply)
+"""
+SPIN_S = 200e-6  # [s] the bounded spin of section 0
+
+
+class LibzmqChannel:
+    """The plugin's channel on a libzmq REQ socket (as before stack/zmtp.py): the A/B
+    anchor, put in ``client._CHANNELS`` in place of the plugin's own."""
+
+    def __init__(self, address: str) -> None:
+        self.sock = zmq.Context.instance().socket(zmq.REQ)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.setsockopt(zmq.RCVTIMEO, 60_000)
+        self.sock.connect(address)
+
+    def request(self, frames: list[bytes], timeout_s: float, alive=None) -> list[bytes]:
+        self.sock.send_multipart(frames)
+        return self.sock.recv_multipart()
+
+    def drop(self) -> None:
+        self.sock.close(linger=0)
+
+
 GOAL_STEP_US = 100.0  # [µs] a protocol step over ipc, issue #27
 GOAL_CASE_RATIO = 1.6  # the following case served over ipc / in process
 
@@ -139,11 +199,29 @@ def pin(pid: int, cpus: set[int]) -> None:
             pass  # a thread that ended
 
 
-def variants(tag: str) -> list[tuple[str, str, bool]]:
-    """(label, address, pinned): ipc, tcp, and ipc with every thread of both processes on CPU 0."""
+def variants(tag: str) -> list[tuple[str, str, str, bool]]:
+    """(label, address, sides, pinned) of sections 1 and 2: ``sides`` is "zmtp" (the plugin
+    and the kit as they run), "libzmq" (both on libzmq REQ/REP: before stack/zmtp.py) or
+    "libzmq stack" (the plugin's ZMTP to the kit's loop on a libzmq REP)."""
     a = _addresses(tag)
-    return [("ipc", a["ipc"], False), ("tcp", a["tcp"], False),
-            ("ipc, one CPU", _addresses(tag + "-pinned")["ipc"], True)]
+    return [("ipc", a["ipc"], "zmtp", False), ("tcp", a["tcp"], "zmtp", False),
+            ("ipc, libzmq both sides (before)", _addresses(tag + "-libzmq")["ipc"], "libzmq", False),
+            ("ipc, libzmq stack", _addresses(tag + "-mixed")["ipc"], "libzmq stack", False),
+            ("ipc, one CPU", _addresses(tag + "-pinned")["ipc"], "zmtp", True)]
+
+
+def start_kit(address: str, sides: str, module: str = "pytest_avscenario.stack") -> subprocess.Popen:
+    """The kit serving the autopilot at ``address``, run as a spawned stack is."""
+    if sides == "zmtp":
+        return _start(["-m", module, address], {"AVS_OSI_ADDRESS": address})
+    return _start(["-c", LIBZMQ_KIT, address])
+
+
+def channel_for(address: str, sides: str) -> None:
+    """The plugin's channel to ``address``: its own, or the libzmq anchor's."""
+    client._CHANNELS.pop(address, None)
+    if sides == "libzmq":
+        client._CHANNELS[address] = LibzmqChannel(address)
 
 
 def load() -> str:
@@ -185,29 +263,61 @@ def bench_pipe(steps: int) -> None:
           f"{m.cpu / steps * 1e6:5.1f} µs CPU, {m.sleeps / steps:.1f} sleeps per round trip")
 
 
-def echo_round_trip(address: str, steps: int, pin: int | None = None) -> tuple[float, float]:
+def echo_round_trip(address: str, steps: int, pin: int | None = None, spin: bool = False,
+                    zmtp_client: bool = False, zmtp_echo: bool = False) -> tuple[float, float]:
     """[µs] wall and CPU (both processes) of a bare REQ/REP round trip of the protocol's
-    three frames to a pyzmq echo; ``pin``: both processes on that CPU (-1: one CPU each)."""
+    three frames to an echo; ``pin``: both processes on that CPU (-1: one CPU each);
+    ``spin``: both sides poll a non-blocking receive for up to ``SPIN_S`` before blocking;
+    ``zmtp_client``/``zmtp_echo``: that side speaks ZMTP on the socket (stack/zmtp.py)."""
     mine = theirs = None
     if pin is not None:
         mine, theirs = ({pin}, pin) if pin >= 0 else ({0}, 1)
-    proc = _start(["-c", ECHO, address, "-" if theirs is None else str(theirs)])
+    if zmtp_echo:
+        proc = _start(["-c", ZMTP_ECHO, address])
+    elif spin:
+        proc = _start(["-c", SPIN_ECHO, address, str(SPIN_S)])
+    else:
+        proc = _start(["-c", ECHO, address, "-" if theirs is None else str(theirs)])
     keep = os.sched_getaffinity(0)
-    ctx = None
+    ctx = req = None
+    frames = [wire.PROTOCOL, wire.SENSOR_VIEW, b"x" * 1000]
     try:
         if mine is not None:
             os.sched_setaffinity(0, mine)
-        ctx = zmq.Context()  # its own: the I/O thread starts with this thread's affinity
-        sock = ctx.socket(zmq.REQ)
-        sock.setsockopt(zmq.LINGER, 0)
-        sock.connect(address)
-        frames = [wire.PROTOCOL, wire.SENSOR_VIEW, b"x" * 1000]
+        if zmtp_client:
+            req = zmtp.Requester(address)
+            while not req.connect(time.monotonic() + 60):
+                time.sleep(0.01)
+
+            def once() -> None:
+                req.send(frames); req.receive(time.monotonic() + 60)
+        else:
+            ctx = zmq.Context()  # its own: the I/O thread starts with this thread's affinity
+            sock = ctx.socket(zmq.REQ)
+            sock.setsockopt(zmq.LINGER, 0)
+            sock.connect(address)
+
+            def once() -> None:
+                sock.send_multipart(frames)
+                if spin:
+                    end = time.perf_counter() + SPIN_S
+                    while True:
+                        try:
+                            sock.recv_multipart(zmq.NOBLOCK)
+                            return
+                        except zmq.Again:
+                            if time.perf_counter() > end:
+                                break
+                sock.recv_multipart()
         for _ in range(200):
-            sock.send_multipart(frames); sock.recv_multipart()
+            once()
         with Meter(proc.pid) as m:
             for _ in range(steps):
-                sock.send_multipart(frames); sock.recv_multipart()
-        sock.close(linger=0)
+                once()
+        if req is not None:
+            req.close()
+        else:
+            sock.close(linger=0)
     finally:
         os.sched_setaffinity(0, keep)
         if ctx is not None:
@@ -228,6 +338,17 @@ def bench_wire(steps: int) -> dict:
     for pin, what in ((0, "both processes on CPU 0"), (-1, "one CPU each")):
         wall, cpu, sleeps = echo_round_trip(_addresses("pinned")["ipc"], steps, pin)
         print(f"   the same over ipc, {what}: {wall:6.1f} µs wall, {cpu:5.1f} µs CPU, {sleeps:.1f} sleeps")
+    wall, cpu, sleeps = echo_round_trip(_addresses("spin")["ipc"], steps, spin=True)
+    print(f"   the same over ipc, both sides spinning up to {SPIN_S * 1e6:.0f} µs before they block: "
+          f"{wall:6.1f} µs wall, {cpu:5.1f} µs CPU, {sleeps:.1f} sleeps")
+    for kind, address in _addresses("zmtp").items():
+        wall, cpu, sleeps = echo_round_trip(address, steps, zmtp_client=True, zmtp_echo=True)
+        out["zmtp " + kind] = wall
+        print(f"   ZMTP on the socket both sides (stack/zmtp.py), {kind}: {wall:6.1f} µs wall, "
+              f"{cpu:5.1f} µs CPU, {sleeps:.1f} sleeps")
+    wall, cpu, sleeps = echo_round_trip(_addresses("mixed")["ipc"], steps, zmtp_client=True)
+    print(f"   ZMTP on the socket to the pyzmq echo (a libzmq stack), ipc: {wall:6.1f} µs wall, "
+          f"{cpu:5.1f} µs CPU, {sleeps:.1f} sleeps")
     return out
 
 
@@ -246,71 +367,96 @@ def bench_step(steps: int) -> dict:
     print(f"   in process: observe + autopilot: {here:6.1f} µs wall, {m.cpu / steps * 1e6:5.1f} µs CPU")
     out = {"in process": (here, m.cpu / steps * 1e6)}
     everywhere = os.sched_getaffinity(0)
-    for kind, address, pinned in variants("kit"):
-        # run as a spawned stack runs (AVS_OSI_ADDRESS: it watches its parent while it waits)
-        proc = _start(["-m", "pytest_avscenario.stack", address], {"AVS_OSI_ADDRESS": address})
-        if pinned:
-            pin(proc.pid, {0}); pin(os.getpid(), {0})
-        try:
+    runs = []
+    try:
+        for kind, address, sides, pinned in variants("kit"):
+            proc = start_kit(address, sides)
+            if pinned:
+                pin(proc.pid, {0})
+            channel_for(address, sides)
             stack = OSIStack(address, timeout_s=60)
             stack.reset(w)
-            views, channel = stack._views, client._CHANNELS[address]
-            times = {"build": 0.0, "round trip": 0.0, "decode": 0.0}
             for i in range(100):
                 stack.exchange(ego)
-            with Meter(proc.pid) as m:
-                for i in range(steps):
-                    a = time.perf_counter()
-                    t_ns = wire.ns(w.t)
-                    msg = views.build(w, t_ns)
-                    b = time.perf_counter()
-                    answer = channel.request(wire.pack(wire.SENSOR_VIEW, msg), 60.0)
-                    c = time.perf_counter()
-                    kind_, body = wire.unpack(answer, wire.ANSWERS)
-                    mr = wire.parse(frame._osi()["motionrequest"].MotionRequest, body, "MotionRequest")
-                    stack._check_timestamp(mr, t_ns, "MotionRequest", ego)
-                    frame.motion_to_action(mr.desired_state, t_ns, float(ego.heading),
-                                           float(ego.speed), float(ego.LENGTH), w.dt)
-                    d = time.perf_counter()
-                    times["build"] += b - a; times["round trip"] += c - b; times["decode"] += d - c
-        finally:
-            proc.kill(); proc.wait(); client.stop_all(); pin(os.getpid(), everywhere)
-        total = m.wall / steps * 1e6
-        parts = ", ".join(f"{k} {v / steps * 1e6:.1f}" for k, v in times.items())
-        out[kind] = (total, m.cpu / steps * 1e6)
-        print(f"   {kind}: {total:6.1f} µs wall ({parts}; the round trip includes the kit's "
-              f"Observation and the autopilot), {m.cpu / steps * 1e6:5.1f} µs CPU, "
-              f"{m.sleeps / steps:.1f} sleeps")
+            runs.append({"kind": kind, "proc": proc, "stack": stack, "pinned": pinned,
+                         "channel": client._CHANNELS[address], "wall": 0.0, "cpu": 0.0,
+                         "sleeps": 0, "build": 0.0, "round trip": 0.0, "decode": 0.0})
+        chunks = 8  # the variants take turns, so a change of the machine's load hits them all
+        for k in range(chunks):
+            for r in runs[k % len(runs):] + runs[:k % len(runs)]:  # rotated: none always follows the pinned one
+                if r["pinned"]:
+                    pin(os.getpid(), {0})
+                views, channel, stack = r["stack"]._views, r["channel"], r["stack"]
+                with Meter(r["proc"].pid) as m:
+                    for i in range(steps // chunks):
+                        a = time.perf_counter()
+                        t_ns = wire.ns(w.t)
+                        msg = views.build(w, t_ns)
+                        b = time.perf_counter()
+                        answer = channel.request(wire.pack(wire.SENSOR_VIEW, msg), 60.0)
+                        c = time.perf_counter()
+                        kind_, body = wire.unpack(answer, wire.ANSWERS)
+                        mr = wire.parse(frame._osi()["motionrequest"].MotionRequest, body, "MotionRequest")
+                        stack._check_timestamp(mr, t_ns, "MotionRequest", ego)
+                        frame.motion_to_action(mr.desired_state, t_ns, float(ego.heading),
+                                               float(ego.speed), float(ego.LENGTH), w.dt)
+                        d = time.perf_counter()
+                        r["build"] += b - a; r["round trip"] += c - b; r["decode"] += d - c
+                if r["pinned"]:
+                    pin(os.getpid(), everywhere)
+                r["wall"] += m.wall; r["cpu"] += m.cpu; r["sleeps"] += m.sleeps
+    finally:
+        for r in runs:
+            r["proc"].kill(); r["proc"].wait()
+        client.stop_all(); pin(os.getpid(), everywhere)
+    n = (steps // chunks) * chunks
+    for r in runs:
+        total = r["wall"] / n * 1e6
+        parts = ", ".join(f"{k} {r[k] / n * 1e6:.1f}" for k in ("build", "round trip", "decode"))
+        out[r["kind"]] = (total, r["cpu"] / n * 1e6)
+        print(f"   {r['kind']}: {total:6.1f} µs wall ({parts}; the round trip includes the kit's "
+              f"Observation and the autopilot), {r['cpu'] / n * 1e6:5.1f} µs CPU, "
+              f"{r['sleeps'] / n:.1f} sleeps")
     return out
 
 
 def bench_case(repeats: int) -> dict:
-    print(f"2. per case: the following case, 120 steps, median of {repeats}")
-
-    def timed(make_driver, pid: int | None = None) -> tuple[float, float]:
-        walls, cpus = [], []
-        for i in range(repeats + 2):
-            w = following(make_driver())
-            with Meter(pid) as m:
-                w.run(seconds=12)
-            if i >= 2:
-                walls.append(m.wall)
-                cpus.append(m.cpu)
-        return statistics.median(walls), statistics.median(cpus)
-
-    here, here_cpu = timed(lambda: "autopilot")
-    print(f"   in process: {here * 1e3:6.1f} ms wall, {here_cpu * 1e3:.1f} ms CPU per case")
-    out = {"in process": (here, here_cpu)}
+    print(f"2. per case: the following case, 120 steps, median of {repeats} (variants interleaved)")
     everywhere = os.sched_getaffinity(0)
-    for kind, address, pinned in variants("case"):
-        proc = _start(["-m", "pytest_avscenario.stack.autopilot", address], {"AVS_OSI_ADDRESS": address})
-        if pinned:
-            pin(proc.pid, {0}); pin(os.getpid(), {0})
-        try:
-            there, there_cpu = timed(lambda: OSIStack(address, timeout_s=60), proc.pid)
-        finally:
-            proc.kill(); proc.wait(); client.stop_all(); pin(os.getpid(), everywhere)
-        out[kind] = (there, there_cpu)
+    runs = [{"kind": "in process", "driver": lambda: "autopilot", "pid": None, "pinned": False,
+             "walls": [], "cpus": []}]
+    procs = []
+    try:
+        for kind, address, sides, pinned in variants("case"):
+            proc = start_kit(address, sides, "pytest_avscenario.stack.autopilot")
+            procs.append(proc)
+            if pinned:
+                pin(proc.pid, {0})
+            channel_for(address, sides)
+            runs.append({"kind": kind, "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
+                         "pid": proc.pid, "pinned": pinned, "walls": [], "cpus": []})
+        for i in range(repeats + 2):
+            for r in runs[i % len(runs):] + runs[:i % len(runs)]:  # rotated, as in bench_step
+                if r["pinned"]:
+                    pin(os.getpid(), {0})
+                w = following(r["driver"]())
+                with Meter(r["pid"]) as m:
+                    w.run(seconds=12)
+                if r["pinned"]:
+                    pin(os.getpid(), everywhere)
+                if i >= 2:
+                    r["walls"].append(m.wall)
+                    r["cpus"].append(m.cpu)
+    finally:
+        for proc in procs:
+            proc.kill(); proc.wait()
+        client.stop_all(); pin(os.getpid(), everywhere)
+    out = {r["kind"]: (statistics.median(r["walls"]), statistics.median(r["cpus"])) for r in runs}
+    here, here_cpu = out["in process"]
+    print(f"   in process: {here * 1e3:6.1f} ms wall, {here_cpu * 1e3:.1f} ms CPU per case")
+    for kind, (there, there_cpu) in out.items():
+        if kind == "in process":
+            continue
         print(f"   served over {kind}: {there * 1e3:6.1f} ms wall = {there / here:.2f}x in process "
               f"(+{(there - here) / 120 * 1e6:.0f} µs a step); CPU of both processes "
               f"{there_cpu * 1e3:.1f} ms = {there_cpu / here_cpu:.2f}x "
@@ -385,6 +531,10 @@ def main() -> None:
     print(f"GOAL the following case over ipc <= {GOAL_CASE_RATIO:g}x in process: "
           f"{there / here:.2f}x wall {verdict(there / here <= GOAL_CASE_RATIO)}; "
           f"{there_cpu / here_cpu:.2f}x CPU {verdict(there_cpu / here_cpu <= GOAL_CASE_RATIO)}")
+    wall, cpu = step["ipc, libzmq both sides (before)"]
+    there, there_cpu = case["ipc, libzmq both sides (before)"]
+    print(f"     (libzmq on both sides, as before stack/zmtp.py: a step {wall:.1f} µs wall, "
+          f"{cpu:.1f} µs CPU; the case {there / here:.2f}x wall, {there_cpu / here_cpu:.2f}x CPU)")
     wall, cpu = step["ipc, one CPU"]
     there, there_cpu = case["ipc, one CPU"]
     print(f"     (with every thread of both processes on one CPU: a step {wall:.1f} µs wall "

@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from . import frame, wire
+from . import frame, wire, zmtp
 from ..sim.errors import SimError
 
 __all__ = ["OSIStack", "Limits", "configure", "parse_spec", "DEFAULT_TIMEOUT_S", "stop_all"]
@@ -92,57 +92,88 @@ class _Gone(Exception):
     pass
 
 
-class _Channel:
-    """One REQ socket to a stack, replaced after every timeout (lazy pirate).
+_RETRY_S = 0.01  # [s] between attempts to connect to a stack that does not listen yet
 
-    The answer is awaited in a blocking receive bounded by the socket's ``RCVTIMEO`` (set
-    only when it changes), not with ``poll`` before the receive: pyzmq's ``poll`` builds a
-    poller each call, and libzmq polls again inside the receive."""
+
+class _Channel:
+    """One REQ connection to a stack, replaced after every timeout (lazy pirate).
+
+    ZeroMQ's REQ is spoken directly on the socket (:mod:`.zmtp`): libzmq would hand each
+    message to an I/O thread and back on both sides, ~6 thread wake-ups a step instead of 2
+    (bench/README.md). Like a libzmq REQ, it connects to a stack that does not listen yet by
+    trying again until the request's deadline."""
 
     def __init__(self, address: str) -> None:
         self.address = address
-        self.sock: Any = None
-        self._rcvtimeo = -1  # [ms] the socket's receive timeout now
+        self.req: zmtp.Requester | None = None
 
     def request(self, frames: list[bytes], timeout_s: float, alive: Any = None) -> list[bytes]:
-        import zmq
-
-        if self.sock is not None:
-            try:
-                self.sock.send_multipart(frames)  # copied: zero-copy costs more than it saves below ~64 kB
-            except zmq.ZMQError:  # a REQ left waiting (an interrupted wait): start afresh
-                self.drop()
-        if self.sock is None:
-            self.sock = zmq.Context.instance().socket(zmq.REQ)
-            self.sock.setsockopt(zmq.LINGER, 0)
-            self._rcvtimeo = -1
-            self.sock.connect(self.address)
-            self.sock.send_multipart(frames)
+        """The answer's frames; :class:`_Timeout` at ``timeout_s`` [s], :class:`_Gone` when
+        ``alive()`` says why the stack is gone or the stack closed the connection."""
         deadline = time.monotonic() + timeout_s
+        if self.req is not None and not self.req.usable():
+            self.drop()  # closed by the stack since the last answer: connect afresh
+        if self.req is not None:
+            try:
+                self.req.send(frames)
+            except (zmtp.Closed, OSError):  # the stack went away since: start afresh
+                self.drop()
+        if self.req is None:
+            self._connect(deadline, alive)
+            self.req.send(frames)
         while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
+            now = time.monotonic()
+            if now >= deadline:
                 self.drop()
                 raise _Timeout()
-            wait = min(left, _POLL_S) if alive is not None else left
-            ms = max(1, int(math.ceil(wait * 1000)))
-            if ms != self._rcvtimeo:
-                self.sock.setsockopt(zmq.RCVTIMEO, ms)
-                self._rcvtimeo = ms
             try:
-                return self.sock.recv_multipart()
-            except zmq.Again:
+                return self.req.receive(min(deadline, now + _POLL_S) if alive is not None else deadline)
+            except TimeoutError:
                 pass
+            except zmtp.ZMTPError:
+                self.drop()
+                raise
+            except (zmtp.Closed, OSError):
+                self.drop()
+                self._gone(deadline, alive, "the stack closed the connection")
             if alive is not None:
                 why = alive()
                 if why:
                     self.drop()
                     raise _Gone(why)
 
+    def _connect(self, deadline: float, alive: Any) -> None:
+        req = zmtp.Requester(self.address)
+        next_check = time.monotonic() + _POLL_S
+        while not req.connect(deadline):
+            now = time.monotonic()
+            if now >= deadline:
+                raise _Timeout()
+            if alive is not None and now >= next_check:
+                why = alive()
+                if why:
+                    raise _Gone(why)
+                next_check = now + _POLL_S
+            time.sleep(min(_RETRY_S, max(0.0, deadline - now)))
+        self.req = req
+
+    @staticmethod
+    def _gone(deadline: float, alive: Any, what: str) -> None:
+        """The peer closed the connection: a spawned stack's exit is awaited (briefly) so
+        that the error names its exit code and output."""
+        if alive is not None:
+            until = min(deadline, time.monotonic() + 1.0)
+            while time.monotonic() < until:
+                why = alive()
+                if why:
+                    raise _Gone(why)
+                time.sleep(0.005)
+        raise _Gone(what)
+
     def drop(self) -> None:
-        if self.sock is not None:
-            self.sock.close(linger=0)
-            self.sock = None
+        if self.req is not None:
+            self.req.close()
+            self.req = None
 
 
 class _Spawned:
@@ -452,8 +483,14 @@ class OSIStack:
                 again = "the stack process was stopped and is started again for the next case"
             self._fail(f"no answer to {what} within {timeout:g} s (--avs-stack-timeout); {again}", ego)
         except _Gone as exc:
-            self._fail(f"{exc} while it was answering {what}; it is started again for the "
-                       "next case", ego)
+            again = "a new connection is opened for the next request"
+            if self.spawn is not None:
+                _SPAWNED[self.spawn].stop()  # alive but no longer answering: presumed broken
+                again = "it is started again for the next case"
+            self._fail(f"{exc} while it was answering {what}; {again}", ego)
+        except zmtp.ZMTPError as exc:
+            self._fail(f"while sending {what}: the peer at {self.address} breaks ZeroMQ's "
+                       f"REQ/REP: {exc}", ego)
         try:
             return wire.unpack(answer, expected)
         except wire.ProtocolError as exc:

@@ -316,31 +316,28 @@ def serve(policy: Any, address: str, *, answer: str = "desired_state",
     command exactly) or ``"trajectory"`` (where the command held for ten steps takes the ego:
     the plugin's trajectory controller follows it). Runs until the process is stopped (or
     after ``requests`` requests, for tests)."""
-    import zmq
+    from .zmtp import Replier
 
     if answer not in ANSWERS:
         raise ValueError(f"serve(answer={answer!r}): use one of {', '.join(ANSWERS)}")
 
-    sock = zmq.Context.instance().socket(zmq.REP)
-    sock.setsockopt(zmq.LINGER, 0)
-    sock.bind(address)
+    # ZeroMQ's REP spoken on the socket itself (.zmtp): no I/O thread to wake each way
+    sock = Replier(address)
     session = None
     n = 0
     # a stack the plugin spawned (it hands the address in AVS_OSI_ADDRESS) ends with the
     # process that started it, even when that one was killed and could not stop it
     parent = os.getppid() if os.environ.get("AVS_OSI_ADDRESS") == address else None
-    if parent is not None:
-        sock.setsockopt(zmq.RCVTIMEO, 1000)  # [ms] a blocking receive, not a poll before each
+    wait_s = 1.0 if parent is not None else None  # [s] between looks at the parent
     try:
         while requests is None or n < requests:
-            try:
-                frames = sock.recv_multipart()
-            except zmq.Again:
+            frames = sock.receive(wait_s)
+            if frames is None:
                 if os.getppid() != parent:
                     return
                 continue
             reply, session = handle(frames, session, policy, answer)
-            sock.send_multipart(reply)
+            sock.send(reply)
             n += 1
     finally:
-        sock.close(linger=0)
+        sock.close()
