@@ -46,6 +46,7 @@ def _stop_stacks():
     ("timestamp", "motion", "*step 3 (t=0.30 s): MotionRequest carries the wrong timestamp: 400000000 ns (0.400 s), the request's is 300000000 ns*"),
     ("error", "motion", "*step 3 (t=0.30 s): the stack answered Error: planner failed: no trajectory found*"),
     ("garbage", "motion", "*step 3 (t=0.30 s): its answer: MotionRequest: unparseable bytes*"),
+    ("huge", "motion", "*step 3 (t=0.30 s): while sending the SensorView: the peer at * breaks ZeroMQ's REQ/REP: a frame of 68,157,440 bytes, more than the 67,108,864 bytes a message may have*"),
     ("type", "traffic", "*step 3 (t=0.30 s): answer to the SensorView: wrong message type b'SensorView'*"),
     ("teleport", "traffic", "*step 3 (t=0.30 s): TrafficUpdate is physically impossible: it moved 2*a teleport*"),
     ("handshake", "motion", "*step 0 (t=0.00 s): handshake failed: it speaks 'avs-osi/1' revision 1, the plugin 'avs-osi/1' revision 2; it runs at dt=0.05 s, the world steps at 0.1 s*"),

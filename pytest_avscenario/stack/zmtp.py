@@ -34,6 +34,9 @@ _MORE, _LONG, _COMMAND = 1, 2, 4
 _LONG_SIZE = struct.Struct(">Q")
 _PEERS = {b"REQ": (b"REP", b"ROUTER"), b"REP": (b"REQ", b"DEALER")}  # who may talk to whom
 _CHUNK = 1 << 16
+#: the largest message read [bytes]: a SensorView of a whole town map is a few MB; a length
+#: beyond this is refused before any of it is buffered (a stack's bug, or no ZeroMQ peer)
+MAX_MESSAGE_BYTES = 64 << 20
 
 
 class ZMTPError(Exception):
@@ -218,6 +221,9 @@ class _Connection:
             raise ZMTPError(f"a frame with flags {flags:#04x}: not ZMTP 3")
         if flags & _LONG:
             (n,) = _LONG_SIZE.unpack(self._take(8, deadline))
+            if n > MAX_MESSAGE_BYTES:
+                raise ZMTPError(f"a frame of {n:,} bytes, more than the {MAX_MESSAGE_BYTES:,} "
+                                "bytes a message may have")
         else:
             n = self._take(1, deadline)[0]
         return flags, self._take(n, deadline)
@@ -226,6 +232,7 @@ class _Connection:
         """The next whole multipart message; commands in between are handled here."""
         frames: list[bytes] = []
         start = self.pos
+        size = 0
         try:
             while True:
                 flags, body = self._frame(deadline)
@@ -234,6 +241,9 @@ class _Connection:
                     start = self.pos
                     continue
                 frames.append(body)
+                size += len(body)
+                if size > MAX_MESSAGE_BYTES:
+                    raise ZMTPError(f"a message of more than {MAX_MESSAGE_BYTES:,} bytes")
                 if not flags & _MORE:
                     return frames
         except TimeoutError:

@@ -69,6 +69,9 @@ def main() -> None:
         if faulty and args.fault == "error":
             sock.send_multipart([PROTOCOL, b"Error", b"planner failed: no trajectory found"])
             continue
+        if faulty and args.fault == "huge":  # 65 MiB, past the plugin's 64 MiB a message
+            sock.send_multipart([PROTOCOL, b"MotionRequest", bytes(65 << 20)])
+            continue
         if faulty and args.fault == "garbage":
             sock.send_multipart([PROTOCOL, b"MotionRequest" if args.answer == "motion"
                                  else b"TrafficUpdate", b"\xff\xff\xff\xff"])
