@@ -32,7 +32,15 @@ from .base import (
     fmt_t,
     memo,
 )
-from .road import LanePolyline, lane_frame, lanes_of, route_of
+from .road import (
+    LanePolyline,
+    ego_ok,
+    frame_projection,
+    lane_frame,
+    lanes_of,
+    route_line,
+    route_of,
+)
 
 __all__ = [
     "on_sidewalk", "wrong_way", "outside_route_lanes", "ran_stop", "route_completion",
@@ -366,35 +374,39 @@ def route_fraction(traj: Trajectory, name: str = "route_completion") -> tuple[fl
 
 
 def _route_fraction(traj: Trajectory, name: str) -> tuple[float, int, float]:
-    route = route_of(traj, name)
+    route, xy, cum = route_line(traj, name)
     if len(route) == 1:  # the lane's own polyline (its points are already apart)
         path = route[0]
     else:
-        xy = np.concatenate([l.xy if i == 0 else l.xy[1:] for i, l in enumerate(route)])
-        ok = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
-        xy = xy[ok]
-        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
         path = LanePolyline("route", xy, cum, 0.0)
-    present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
-    idx = np.flatnonzero(present)
-    if path is route[0] and (traj.lane[0, idx] == path.id).all():
-        # the ego stayed on its one route lane: its lane frame is this projection already
-        f = lane_frame(traj, name)
-        s, r = f.s[idx], f.r[idx]
+    present = ego_ok(traj)
+    frame = frame_projection(traj, path) if path is route[0] else None
+    if frame is not None:
+        # the ego kept its one route lane all along: its lane frame is this projection
+        idx = np.arange(traj.n_steps)
+        s, r = frame.s, frame.r
     else:
-        s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx])
-    s = np.clip(s, 0.0, path.length)
+        idx = np.flatnonzero(present)
+        if path is route[0] and (traj.lane[0, idx] == path.id).all():
+            # the ego stayed on its one route lane: its lane frame is this projection already
+            f = lane_frame(traj, name)
+            s, r = f.s[idx], f.r[idx]
+        else:
+            s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx], heading=False)
+    length = path.length
+    s = np.minimum(np.maximum(s, 0.0), length)  # np.clip's arithmetic
     s0 = float(s[0])
     near = np.abs(r) <= ROUTE_DEVIATION_M
     reach = np.where(near, s, -np.inf)
     j = int(np.argmax(reach))
     best = max(float(reach[j]), s0)
-    todo = path.length - s0
+    todo = length - s0
     if traj.meta.get("ego_reached_route_end") is True:
         return 1.0, int(idx[j]), 0.0
     if todo <= 1e-9:
         return 1.0, int(idx[0]), 0.0
-    return float(np.clip((best - s0) / todo, 0.0, 1.0)), int(idx[j]), float(path.length - best)
+    frac = (best - s0) / todo
+    return min(max(frac, 0.0), 1.0), int(idx[j]), float(length - best)
 
 
 class RouteCompletionMonitor(Monitor):
