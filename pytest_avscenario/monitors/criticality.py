@@ -247,50 +247,50 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
         return _time_to_brake(k, float(max_decel), horizon, grid_s, fine, smallest_only)
 
 
-def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
+def _too_hard(tau: np.ndarray, p: np.ndarray, max_decel: float) -> np.ndarray:
     """Whether braking at ``max_decel`` is no longer enough after keeping the accelerations
     for ``tau`` [s]: ``required_deceleration_values(state after tau) > max_decel``, the same
     arithmetic as :func:`_advance` and :func:`required_deceleration_values` (bit for bit,
-    so the grid finds the same moments) with the per-pair parts ``p`` computed once and the
-    comparison taken case by case instead of building the value. A pair with a NaN input
-    is never too hard (its gap is NaN at every ``tau``)."""
-    g0, v, a, ha, ts, a_l, nal, brakes = p
+    so the grid finds the same moments) with the per-pair parts ``p`` (:func:`_pair_columns`)
+    computed once and the comparison taken case by case instead of building the value. A
+    pair with a NaN input is never too hard (its gap is NaN at every ``tau``)."""
+    g0, v, a, ha, ts, nal = p[0], p[1:3], p[3:5], p[5:7], p[7:9], p[9]
+    a_l = a[1]
     # ego (row 0) and lead (row 1) advanced at once: _advance's arithmetic on both
     t = np.minimum(tau, ts)
     d = v * t + ha * t * t
     vv = np.maximum(v + a * t, 0.0)
     de, dl, ve, vl = d[0], d[1], vv[0], vv[1]
     g = g0 + dl - de
-    moving = vl > 0
     u = ve - vl
     # required_deceleration_values takes a standing lead's acceleration as 0; a_l serves
     # here because there t_lead = 0 makes match_first False whatever b1 is, and b1 decides
     # nothing else
     b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
-    # when a braking lead stands (0 standing, inf when it never does); where it is moving
-    # its acceleration is a_l's, so the per-pair sign and magnitude serve
-    t_lead = np.where(moving, np.where(brakes, vl / nal, np.inf), 0.0)
+    # when a braking lead stands (0 standing, inf when it never does: nal is 0 for a lead
+    # that does not brake, and vl / 0 is inf for a moving one); where it is moving its
+    # acceleration is a_l's, so the per-pair sign and magnitude serve
+    t_lead = np.where(vl > 0, vl / nal, 0.0)
     d_lead = vl * t_lead / 2.0  # 0 for a standing lead (vl = 0, t_lead = 0)
     b2 = ve * ve / (2.0 * (g + d_lead))
     match_first = (u > 0) & (u <= (a_l + b1) * t_lead)
     # out = b1 where the speeds match first, else b2 where the lead stops, else 0 (never
     # above max_decel > 0: and b2 is 0 where the lead never stops, d_lead being inf there);
     # inf (too hard) where the gap is closed
-    return (g <= 0) | np.where(match_first, b1 > max_decel, b2 > max_decel)
+    return (g <= 0) | (np.where(match_first, b1, b2) > max_decel)
 
 
-def _pair_columns(k: LeadKinematics) -> tuple:
-    """What :func:`_too_hard` needs of every pair, as columns against a grid of moments: the
-    gap, and the ego (row 0) and lead (row 1) stacked: speed (no reversing), acceleration,
-    half of it, :func:`_advance`'s stop time; the lead's acceleration, its negative and
-    whether it brakes."""
+def _pair_columns(k: LeadKinematics) -> np.ndarray:
+    """What :func:`_too_hard` needs of every pair, stacked as rows of one ``(10, pairs, 1)``
+    array (so the pairs still to refine are one selection) against a grid of moments: the
+    gap; the ego's and the lead's speed (no reversing), acceleration, half of it and
+    :func:`_advance`'s stop time; the lead's deceleration (-a_l where it brakes, else 0)."""
     v = np.maximum(np.array([k.v_e, k.v_l]), 0.0)
     a = np.array([k.a_e, k.a_l])
     brakes = a < 0
     ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)
-    a_l = k.a_l
-    return (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
-            a_l[:, None], (-a_l)[:, None], brakes[1, :, None])
+    nal = np.where(brakes[1], -k.a_l, 0.0)
+    return np.concatenate([k.gap[None], v, a, 0.5 * a, ts, nal[None]])[..., None]
 
 
 _FRACTIONS: dict[int, np.ndarray] = {}
@@ -325,7 +325,7 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
         todo = todo[lower <= upper]
     if todo.size:
         if todo.size < first.size:
-            p = tuple(c[:, todo] if c.ndim == 3 else c[todo] for c in p)
+            p = p[:, todo]
         lo, step = grid[first[todo] - 1], grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
