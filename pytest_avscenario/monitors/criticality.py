@@ -145,8 +145,11 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
         route = traj.meta.get("ego_route") or ()
         if len(route) > 1:  # a lane change of id along the way (a map's next road or section)
             same_lane |= _further_on_route(traj, [str(r) for r in route])
-        corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
-        ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
+        if lanes_known.all():  # every lane known: the lanes decide, no corridor needed
+            ahead = (lon > 0) & same_lane & _pair_mask(traj)
+        else:
+            corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
+            ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
         idx = np.flatnonzero(ahead)
         rows, cols = np.divmod(idx, traj.n_steps)
         o = rows + 1  # the other agent's row in the trajectory
@@ -573,14 +576,16 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
     collision), counting only pairs whose headings differ by at least ``min_angle_deg`` (a
     crossing, not following or oncoming traffic). Exact to the sampling step."""
     A1 = traj.n_agents - 1
-    pet = np.full(A1, np.inf)
-    t1 = np.full(A1, np.nan)
-    t2 = np.full(A1, np.nan)
+    pet, t1, t2 = [math.inf] * A1, [math.nan] * A1, [math.nan] * A1
+
+    def out():
+        return np.array(pet, dtype=float), np.array(t1, dtype=float), np.array(t2, dtype=float)
+
     ok = traj.present & np.isfinite(traj.x) & np.isfinite(traj.y)
     ie = np.flatnonzero(ok[0])
     if A1 < 1 or ie.size == 0:
-        return pet, t1, t2
-    R = np.hypot(traj.length / 2, traj.width / 2)
+        return out()
+    R = np.hypot(traj.length / 2, traj.width / 2).tolist()
     sin_min = math.sin(math.radians(min_angle_deg))
     can = _CAN_CROSS.get(min_angle_deg)
     if can is None:
@@ -592,53 +597,53 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
     o_ok_all = ok[1:] & can[:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)[obins]
     rows, cols = np.nonzero(o_ok_all)
     if rows.size == 0:
-        return pet, t1, t2
+        return out()
     seen = np.zeros((A1, _NBINS), dtype=np.uint8)  # the heading bins each agent's kept samples use
     seen[rows, obins[rows, cols]] = 1
     # (A-1, ego samples): the ego's heading there can cross one of the agent's kept headings
     e_ok_all = (seen @ can.view(np.uint8))[:, ebins] > 0
-    for a in np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1:
+    x, y, heading, t = traj.x, traj.y, traj.heading, traj.t
+    lo, hi = np.minimum.reduce, np.maximum.reduce
+    for a in (np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1).tolist():
         io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[e_ok_all[a - 1]]
-        xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
+        xe, ye = x[0, ie_a], y[0, ie_a]
         reach = R[0] + R[a]
-        xo, yo = traj.x[a, io], traj.y[a, io]
+        xo, yo = x[a, io], y[a, io]
         # samples of each path within reach of the other path's bounding box
-        lo, hi = np.minimum.reduce, np.maximum.reduce
-        ne = ((xe >= lo(xo) - reach) & (xe <= hi(xo) + reach)
-              & (ye >= lo(yo) - reach) & (ye <= hi(yo) + reach))
+        ne = ((xe >= float(lo(xo)) - reach) & (xe <= float(hi(xo)) + reach)
+              & (ye >= float(lo(yo)) - reach) & (ye <= float(hi(yo)) + reach))
         i = ie_a[ne]
         if i.size == 0:
             continue
         if i.size * io.size > 4096:  # the other's samples near the ego's path, when many
             xe, ye = xe[ne], ye[ne]
-            no = ((xo >= lo(xe) - reach) & (xo <= hi(xe) + reach)
-                  & (yo >= lo(ye) - reach) & (yo <= hi(ye) + reach))
+            no = ((xo >= float(lo(xe)) - reach) & (xo <= float(hi(xe)) + reach)
+                  & (yo >= float(lo(ye)) - reach) & (yo <= float(hi(ye)) + reach))
             if not no.any():
                 continue
             j = io[no]
         else:  # few pairs: the exact test below looks at them all
             j = io
-        dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
-        dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
+        xi, yi, hi_ = x[0, i], y[0, i], heading[0, i]
+        xj, yj, hj = x[a, j], y[a, j], heading[a, j]
+        dx = xj[None, :] - xi[:, None]
+        dy = yj[None, :] - yi[:, None]
         near = dx * dx + dy * dy <= reach * reach
-        cross = np.abs(np.sin(traj.heading[a, j][None, :] - traj.heading[0, i][:, None])) >= sin_min
+        cross = np.abs(np.sin(hj[None, :] - hi_[:, None])) >= sin_min
         ii, jj = np.nonzero(near & cross)
         if ii.size == 0:
             continue
-        si, sj = i[ii], j[jj]
-        sep = _sat_separation(traj.x[0, si], traj.y[0, si], traj.heading[0, si],
-                              traj.length[0] / 2, traj.width[0] / 2,
-                              traj.x[a, sj], traj.y[a, sj], traj.heading[a, sj],
-                              traj.length[a] / 2, traj.width[a] / 2)
+        sep = _sat_separation(xi[ii], yi[ii], hi_[ii], traj.length[0] / 2, traj.width[0] / 2,
+                              xj[jj], yj[jj], hj[jj], traj.length[a] / 2, traj.width[a] / 2)
         hit = sep <= 1e-9
         if not hit.any():
             continue
-        ti, tj = traj.t[si[hit]], traj.t[sj[hit]]
+        ti, tj = t[i[ii[hit]]], t[j[jj[hit]]]
         gap = np.abs(ti - tj)
         b = int(np.argmin(gap))
         pet[a - 1] = float(gap[b])
         t1[a - 1], t2[a - 1] = float(min(ti[b], tj[b])), float(max(ti[b], tj[b]))
-    return pet, t1, t2
+    return out()
 
 
 class PETMonitor(Monitor):

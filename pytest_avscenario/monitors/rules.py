@@ -68,9 +68,11 @@ def _step_lengths(traj: Trajectory) -> np.ndarray:
     cache = memo(traj)
     got = cache.get("rules.step_lengths")
     if got is None:
-        d = np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0]))
-        d = np.where(traj.present[0, 1:] & traj.present[0, :-1] & np.isfinite(d), d, 0.0)
-        got = cache["rules.step_lengths"] = np.concatenate([[0.0], d])
+        x, y, present = traj.x[0], traj.y[0], traj.present[0]
+        got = np.zeros(x.shape)
+        d = np.hypot(x[1:] - x[:-1], y[1:] - y[:-1])  # np.diff's arithmetic
+        np.copyto(got[1:], d, where=present[1:] & present[:-1] & np.isfinite(d))
+        cache["rules.step_lengths"] = got
     return got
 
 
@@ -507,17 +509,22 @@ def traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
 
 
 def _traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
-    others = np.array([k in TRAFFIC_KINDS for k in traj.kinds[1:]], dtype=bool)
-    if not others.any():
+    rows = [i for i, k in enumerate(traj.kinds) if i and k in TRAFFIC_KINDS]
+    if not rows:
         return math.nan, math.nan, math.nan
-    sp = np.hypot(traj.vx[1:][others], traj.vy[1:][others])
-    pres = traj.present[1:][others] & np.isfinite(sp)
+    if rows[-1] - rows[0] == len(rows) - 1:  # side by side: a view, no copy
+        rows = slice(rows[0], rows[-1] + 1)
+    sp = np.hypot(traj.vx[rows], traj.vy[rows])
+    pres = traj.present[rows] & np.isfinite(sp)
     n = pres.sum(axis=0)
     use = traj.present[0] & (n > 0)
     if not use.any():
         return math.nan, math.nan, math.nan
-    traffic = float((np.where(pres, sp, 0.0).sum(axis=0)[use] / n[use]).mean())
-    ego = float(_ego_speed(traj)[use].mean())
+    # np.mean's arithmetic: the (pairwise) sum over the samples, divided by their number
+    per_step = np.where(pres, sp, 0.0).sum(axis=0)[use] / n[use]
+    traffic = float(np.add.reduce(per_step) / per_step.size)
+    ego_used = _ego_speed(traj)[use]
+    ego = float(np.add.reduce(ego_used) / ego_used.size)
     ratio = ego / traffic if traffic > 0 else math.inf
     return ratio, ego, traffic
 
