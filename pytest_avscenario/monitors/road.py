@@ -89,7 +89,7 @@ class LanePolyline:
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """:meth:`project` on a lane of one segment, with the same arithmetic (no closest
         segment to look for, no clipping: the segment extends both ways)."""
-        (ax, ay), (bx, by) = self.xy[0], self.xy[1]
+        ax, ay, bx, by = self.xy[:2].ravel().tolist()  # float64 arithmetic, as Python floats
         dx, dy = bx - ax, by - ay
         px = x - ax
         py = y - ay
@@ -113,14 +113,17 @@ def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
             f"[m]) and 'width' [m]: {exc}") from None
     if xy.shape[0] < 2 or not np.isfinite(xy).all():
         raise MonitorError(f"lane {lane_id!r} in meta['lanes'] needs >= 2 finite points")
-    seg = np.hypot(*np.diff(xy, axis=0).T)
+    d = xy[1:] - xy[:-1]  # np.diff's arithmetic
+    seg = np.hypot(d[:, 0], d[:, 1])
     apart = seg > 1e-9  # repeated points have no direction
     if not apart.all():
         xy = xy[np.concatenate([[True], apart])]
         if xy.shape[0] < 2:
             raise MonitorError(f"lane {lane_id!r} in meta['lanes'] has zero length")
-        seg = np.hypot(*np.diff(xy, axis=0).T)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
+        d = xy[1:] - xy[:-1]
+        seg = np.hypot(d[:, 0], d[:, 1])
+    cum = np.zeros(xy.shape[0])
+    np.cumsum(seg, out=cum[1:])
     return LanePolyline(lane_id, xy, cum, width, str(data.get("kind", "travel")),
                         str(data.get("group", "")), seg)
 
