@@ -562,7 +562,9 @@ def _can_cross(min_angle_deg: float) -> np.ndarray:
     return (d + 1) * (180.0 / _NBINS) >= min_angle_deg
 
 
+#: the default angle's table, and as 0.0 / 1.0 (for a product with the bins an agent uses)
 _CAN_CROSS = {float(CROSSING_MIN_ANGLE_DEG): _can_cross(CROSSING_MIN_ANGLE_DEG)}
+_CAN_CROSS_F = {a: c.astype(float) for a, c in _CAN_CROSS.items()}
 
 
 def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
@@ -587,25 +589,28 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
         return out()
     R = np.hypot(traj.length / 2, traj.width / 2).tolist()
     sin_min = math.sin(math.radians(min_angle_deg))
-    can = _CAN_CROSS.get(min_angle_deg)
+    can, can_f = _CAN_CROSS.get(min_angle_deg), _CAN_CROSS_F.get(min_angle_deg)
     if can is None:
         can = _can_cross(min_angle_deg)
+        can_f = can.astype(float)
     bins = _heading_bins(np.where(ok, traj.heading, 0.0))
     ebins, obins = bins[0, ie], bins[1:]
     # keep only samples whose heading can cross one of the other path's (traffic along the
     # ego's lane never can, and is dropped here for every agent at once)
-    o_ok_all = ok[1:] & can[:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)[obins]
+    e_bins = np.bincount(ebins, minlength=_NBINS) > 0  # the heading bins the ego uses
+    o_ok_all = ok[1:] & can[:, e_bins].any(axis=1)[obins]
     rows, cols = np.nonzero(o_ok_all)
     if rows.size == 0:
         return out()
-    seen = np.zeros((A1, _NBINS), dtype=np.uint8)  # the heading bins each agent's kept samples use
-    seen[rows, obins[rows, cols]] = 1
-    # (A-1, ego samples): the ego's heading there can cross one of the agent's kept headings
-    e_ok_all = (seen @ can.view(np.uint8))[:, ebins] > 0
+    seen = np.zeros((A1, _NBINS))  # the heading bins each agent's kept samples use (0 / 1)
+    seen[rows, obins[rows, cols]] = 1.0
+    # (A-1, bins): a bin of the ego's heading that crosses one of the agent's kept headings
+    # (counts of small integers: exact in floating point)
+    crossing = (seen @ can_f) > 0
     x, y, heading, t = traj.x, traj.y, traj.heading, traj.t
     lo, hi = np.minimum.reduce, np.maximum.reduce
-    for a in (np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1).tolist():
-        io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[e_ok_all[a - 1]]
+    for a in (np.flatnonzero((crossing & e_bins).any(axis=1)) + 1).tolist():
+        io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[crossing[a - 1][ebins]]
         xe, ye = x[0, ie_a], y[0, ie_a]
         reach = R[0] + R[a]
         xo, yo = x[a, io], y[a, io]
@@ -640,7 +645,7 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
             continue
         ti, tj = t[i[ii[hit]]], t[j[jj[hit]]]
         gap = np.abs(ti - tj)
-        b = int(np.argmin(gap))
+        b = int(gap.argmin())
         pet[a - 1] = float(gap[b])
         t1[a - 1], t2[a - 1] = float(min(ti[b], tj[b])), float(max(ti[b], tj[b]))
     return out()

@@ -211,8 +211,8 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
     lane = traj.lane[0]
     ok = ego_ok(traj)
     # the ego changes lanes a few times a run: runs of one lane id, not a sort of every sample
-    change = np.flatnonzero(lane[1:] != lane[:-1]) + 1
-    if T and not change.size and ok.all() and str(lane[0]) in lanes:
+    changed = lane[1:] != lane[:-1]
+    if T and not changed.any() and ok.all() and str(lane[0]) in lanes:
         # one known lane all along (a scenario on one lane): project every sample at once
         poly = lanes[str(lane[0])]
         s, r, h = poly.project(traj.x[0], traj.y[0])
@@ -220,6 +220,7 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
         cache["road.frame_lane"] = poly  # the frame is this lane's projection of every sample
         return got
     s, r, h, w = (np.full(T, np.nan) for _ in range(4))
+    change = np.flatnonzero(changed) + 1
     ids = set(lane[np.concatenate([[0], change])].tolist()) if T else set()
     for lid in ids:
         if lid not in lanes:
