@@ -257,6 +257,10 @@ def _too_hard(tau: np.ndarray, p: np.ndarray, max_decel: float) -> np.ndarray:
     so the grid finds the same moments) with the per-pair parts ``p`` (:func:`_pair_columns`)
     computed once and the comparison taken case by case instead of building the value. A
     pair with a NaN input is never too hard (its gap is NaN at every ``tau``)."""
+    if p.shape[-1] != tau.shape[-1]:
+        # the columns repeated along the moments: numpy's same-shape loops are much faster
+        # than broadcasting a column, and the arithmetic is the same
+        p = np.repeat(p, tau.shape[-1], axis=-1)
     g0, v, a, ha, ts, nal = p[0], p[1:3], p[3:5], p[5:7], p[7:9], p[9]
     a_l = a[1]
     # ego (row 0) and lead (row 1) advanced at once: _advance's arithmetic on both
