@@ -44,7 +44,7 @@ import numpy as np
 
 from ..trajectory import Trajectory
 from .base import Monitor, MonitorError, MonitorResult, check_name, check_present_finite, factory
-from .road import LanePolyline, ego_ok, frame_projection, route_line, route_of
+from .road import LanePolyline, ego_ok, frame_projection, route_line
 from .rules import _step_lengths
 
 __all__ = ["ran_red_light", "red_light_crossings", "LightPass", "RED_CODE", "TAIL_FRACTION"]
@@ -81,7 +81,7 @@ def _route_stops(traj: Trajectory, name: str) -> tuple[list[LanePolyline], list[
     lights = traj.meta.get("lights") or []
     if not lights:
         return [], []
-    route = route_of(traj, name)
+    route = route_line(traj, name)[0]
     at: dict[str, list[tuple[str, float]]] = {}
     for light in lights:
         for stop in light.get("stops", ()):
@@ -122,25 +122,31 @@ def red_light_crossings(traj: Trajectory, name: str = "ran_red_light",
         red = np.asarray(codes) == RED_CODE
         w = (cum >= S - APPROACH_M - 1.0) & (cum <= S + 1.0)
         lo, hi = max(int(np.argmax(w)) - 1, 0), min(len(cum) - 1, len(cum) - int(np.argmax(w[::-1])))
-        idx = np.flatnonzero(present)
-        if hi - lo < 1 or idx.size == 0:
+        if hi - lo < 1 or not present.any():
             continue
         whole = lo == 0 and hi == len(cum) - 1 and cum[0] == 0.0
         frame = frame_projection(traj, route[0]) if whole and len(route) == 1 else None
         if frame is not None and xy is route[0].xy and cum is route[0].cum:
             # the approach is the ego's one lane, which its lane frame projected already
+            # (of every sample: the ego is present all along)
             s, r = frame.s, frame.r
+            on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
+            at_on = on
         else:
+            idx = np.flatnonzero(present)
             poly = LanePolyline("approach", xy[lo:hi + 1], cum[lo:hi + 1] - cum[lo], 0.0)
             s, r, _ = poly.project(traj.x[0, idx], traj.y[0, idx], heading=False)
-        d = np.full(t.shape, np.nan)  # the point before the stop position [m]
-        on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
-        d[idx[on]] = (S - cum[lo]) - (s[on] + ahead)
-        before = np.isfinite(d) & (d > 0)
+            on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
+            at_on = idx[on]
+        # the point before the stop position [m]: finite where on the approach (finite
+        # positions, stop position and route), NaN elsewhere
+        d = np.full(t.shape, np.nan)
+        d[at_on] = (S - cum[lo]) - (s[on] + ahead)
+        before = d > 0
         if not before.any():
             continue  # never before this stop position on its approach (started past it)
         k0 = int(np.argmax(before))
-        past = np.isfinite(d) & (d <= 0)
+        past = d <= 0
         past[:k0] = False
         kc = int(np.argmax(past)) if past.any() else None
         if kc is not None:
