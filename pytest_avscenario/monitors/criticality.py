@@ -113,6 +113,10 @@ def _derivative_at(v: np.ndarray, t: np.ndarray, rows: np.ndarray, cols: np.ndar
     return (v[..., rows, hi] - v[..., rows, lo]) / (t[hi] - t[lo])
 
 
+#: rows selecting the ego (0) and the other agent (its row) of a pair
+_EGO_OTHER = np.array([[0], [1]])
+
+
 def _further_on_route(traj: Trajectory, route: list[str]) -> np.ndarray:
     """``(A-1, T)``: whether the other agent is on a lane of the ego's route beyond the
     route lane the ego is on (its lane ahead carries another id: the next lane section or
@@ -156,7 +160,7 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
         # velocities and their time derivatives (as _derivative takes them, at the pairs'
         # steps only) of the ego and the other, projected on the ego's heading at once
         vel = np.array([traj.vx, traj.vy])
-        who = np.array([np.zeros_like(o), o])  # (ego / other, pairs)
+        who = _EGO_OTHER * o  # (ego / other, pairs): row 0 the ego's, row 1 the other's
         kin = np.array([vel[:, who, cols], _derivative_at(vel, traj.t, who, cols)])
         along = kin[:, 0] * c[cols] + kin[:, 1] * s[cols]  # (v / a, ego / other, pairs)
     got = LeadKinematics(
@@ -300,6 +304,20 @@ def _pair_columns(k: LeadKinematics) -> np.ndarray:
     return np.concatenate([k.gap[None], v, a, 0.5 * a, ts, nal[None]])[..., None]
 
 
+_GRIDS: dict[tuple[float, float], np.ndarray] = {}
+
+
+def _grid(horizon: float, grid_s: float) -> np.ndarray:
+    """The moments ``0, grid_s, ...`` up to ``horizon`` [s], made once per pair of values."""
+    got = _GRIDS.get((horizon, grid_s))
+    if got is None:
+        got = np.arange(0.0, horizon + grid_s / 2, grid_s)
+        got.flags.writeable = False
+        if len(_GRIDS) < 16:  # a caller sweeping the horizon does not fill memory
+            _GRIDS[(horizon, grid_s)] = got
+    return got
+
+
 _FRACTIONS: dict[int, np.ndarray] = {}
 
 
@@ -315,25 +333,26 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
                    fine: int, smallest_only: bool = False) -> np.ndarray:
     p = _pair_columns(k)
 
-    grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
+    grid = _grid(horizon, grid_s)
     too_hard = _too_hard(grid, p, max_decel)
     first = np.argmax(too_hard, axis=1)
     # too late already (the first grid point, now) or still enough at the horizon (never)
     now = too_hard[:, 0]
     res = np.where(now, 0.0, np.inf)
     todo = np.flatnonzero(first > 0)  # too hard first at a later grid point: refine
+    lower = grid[first[todo] - 1]
     if smallest_only and todo.size:
         # a refined value lies in [grid[first - 1], grid[first]); pairs whose lower end is
         # above the smallest upper end (0 when some pair is too late already) cannot be
         # the smallest nor tie with it
         upper = 0.0 if now.any() else grid[first[todo]].min()
-        lower = grid[first[todo] - 1]
         res[todo] = lower
-        todo = todo[lower <= upper]
+        keep = lower <= upper
+        todo, lower = todo[keep], lower[keep]
     if todo.size:
         if todo.size < first.size:
             p = p[:, todo]
-        lo, step = grid[first[todo] - 1], grid_s
+        lo, step = lower, grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
         frac = _fractions(fine)
