@@ -31,7 +31,7 @@ from ..trajectory import Trajectory
 from .base import MonitorError, memo
 
 __all__ = ["LanePolyline", "LaneFrame", "RoadLanes", "lanes_of", "lane_frame", "route_of",
-           "route_line", "ego_ok", "frame_projection"]
+           "route_line", "ego_ok", "frame_projection", "ego_lane_all_along"]
 
 
 @dataclass(frozen=True)
@@ -253,6 +253,13 @@ def frame_projection(traj: Trajectory, poly: LanePolyline) -> LaneFrame | None:
     if "road.frame" not in cache:
         return None
     return cache["road.frame"] if cache.get("road.frame_lane") is poly else None
+
+
+def ego_lane_all_along(traj: Trajectory) -> str | None:
+    """The id of the one lane the ego was on at every sample, when its lane frame (already
+    computed) found one; None otherwise (not computed yet, or the ego changed lanes)."""
+    poly = memo(traj).get("road.frame_lane")
+    return None if poly is None else poly.id
 
 
 def route_line(traj: Trajectory, monitor: str = "") -> tuple[list[LanePolyline], np.ndarray,

@@ -34,6 +34,7 @@ from .base import (
 )
 from .road import (
     LanePolyline,
+    ego_lane_all_along,
     ego_ok,
     frame_projection,
     lane_frame,
@@ -214,7 +215,11 @@ def _outside_route(traj: Trajectory, name: str) -> np.ndarray:
     lanes = lanes_of(traj, name)
     groups = {lanes.group(i) for i in route_ids} - {""}
     ok_ids = [k for k in lanes if k in route_ids or lanes.group(k) in groups]
-    on_route = _among(traj.lane[0], ok_ids)
+    one = ego_lane_all_along(traj)
+    if one is not None:  # on one lane all along: that lane decides every sample
+        on_route = np.full(traj.n_steps, one in ok_ids)
+    else:
+        on_route = _among(traj.lane[0], ok_ids)
     got = cache["rules.outside_route"] = traj.present[0] & (~traj.on_road[0] | ~on_route)
     return got
 
@@ -298,8 +303,14 @@ def stop_crossings(traj: Trajectory, name: str = "ran_stop", *,
     front = f.s + traj.length[0] / 2
     speed = _ego_speed(traj)
     out = []
+    one = ego_lane_all_along(traj)
     for lane_id, s_line in lines:
-        on = traj.present[0] & (traj.lane[0] == lane_id) & np.isfinite(front)
+        if one is None:
+            on = traj.present[0] & (traj.lane[0] == lane_id) & np.isfinite(front)
+        elif one == lane_id:  # on this lane at every sample
+            on = traj.present[0] & np.isfinite(front)
+        else:
+            continue  # never on it
         if not on.any():
             continue
         passed = on & (front > s_line + past)
