@@ -189,9 +189,10 @@ def ettc_values(gap, v_e, v_l, a_e, a_l):
     alpha = np.where(np.abs(alpha) < 1e-9, 0.0, alpha)
     disc = u * u + 2.0 * alpha * g
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        root = np.sqrt(np.where(disc >= 0, disc, 0.0))
+        real = disc >= 0
+        root = np.sqrt(np.where(real, disc, 0.0))
         den = u + root
-        out = np.where((disc >= 0) & (den > 1e-9), 2.0 * g / den, np.inf)
+        out = np.where(real & (den > 1e-9), 2.0 * g / den, np.inf)
     out = np.where(g <= 0, 0.0, out)
     return np.where(np.isnan(g) | np.isnan(u) | np.isnan(alpha), np.nan, out)
 
@@ -399,7 +400,8 @@ class _LeadMeasure(Monitor):
 
     def _margins(self, v: np.ndarray) -> np.ndarray:
         m = (self.threshold - v) if self._upper else (v - self.threshold)
-        return np.where(np.isnan(v), np.inf, m)
+        # +inf where v is NaN (m is NaN exactly there: the threshold is finite)
+        return np.fmin(m, np.inf)
 
     def series(self, traj: Trajectory) -> np.ndarray:
         """ρ(t): the margin toward the most critical agent ahead at each step; +inf where
