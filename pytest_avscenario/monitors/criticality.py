@@ -351,8 +351,8 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
         keep = lower <= upper
         todo, lower = todo[keep], lower[keep]
     if todo.size:
-        if todo.size < first.size:
-            p = p[:, todo]
+        # the pairs' columns along `fine` moments, for both rounds
+        p = np.repeat(p[:, todo] if todo.size < first.size else p, fine, axis=-1)
         lo, step = lower, grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
