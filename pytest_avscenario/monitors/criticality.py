@@ -619,7 +619,8 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
         can = _can_cross(min_angle_deg)
         can_f = can.astype(float)
     bins = _heading_bins(np.where(ok, traj.heading, 0.0))
-    ebins, obins = bins[0, ie], bins[1:]
+    T = traj.n_steps
+    ebins, obins = (bins[0] if ie.size == T else bins[0, ie]), bins[1:]
     # keep only samples whose heading can cross one of the other path's (traffic along the
     # ego's lane never can, and is dropped here for every agent at once)
     e_bins = np.bincount(ebins, minlength=_NBINS) > 0  # the heading bins the ego uses
@@ -636,9 +637,10 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
     lo, hi = np.minimum.reduce, np.maximum.reduce
     for a in (np.flatnonzero((crossing & e_bins).any(axis=1)) + 1).tolist():
         io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[crossing[a - 1][ebins]]
-        xe, ye = x[0, ie_a], y[0, ie_a]
+        # (every sample of a row: the row itself, the same values)
+        xe, ye = (x[0], y[0]) if ie_a.size == T else (x[0, ie_a], y[0, ie_a])
         reach = R[0] + R[a]
-        xo, yo = x[a, io], y[a, io]
+        xo, yo = (x[a], y[a]) if io.size == T else (x[a, io], y[a, io])
         # samples of each path within reach of the other path's bounding box
         ne = ((xe >= float(lo(xo)) - reach) & (xe <= float(hi(xo)) + reach)
               & (ye >= float(lo(yo)) - reach) & (ye <= float(hi(yo)) + reach))
