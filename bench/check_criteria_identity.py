@@ -115,7 +115,8 @@ def _following(rng: np.random.Generator) -> Trajectory:
     agents = {
         "ego": {"x": xe, "y": wob, "vx": ve, "vy": np.gradient(wob, t), "lane": lane_e,
                 "on_road": np.abs(wob) < 0.7},
-        "lead": {"x": xl, "y": 0 * t, "vx": vl, "vy": 0 * t, "lane": "a" if rng.random() < 0.8 else ""},
+        "lead": {"x": xl, "y": 0 * t, "vx": vl, "vy": 0 * t,
+                 "lane": "a" if rng.random() < 0.8 else ""},
         "side": {"x": xe + rng.uniform(-10, 10), "y": -3.5 + 0 * t, "vx": ve, "vy": 0 * t,
                  "lane": "b"},
         "onc": {"x": 250 - 12 * t, "y": 3.5 + 0 * t, "vx": -12.0, "vy": 0.0, "lane": "w",

@@ -241,7 +241,8 @@ def ego_ok(traj: Trajectory) -> np.ndarray:
     cache = memo(traj)
     got = cache.get("road.ego_ok")
     if got is None:
-        got = cache["road.ego_ok"] = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+        got = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+        cache["road.ego_ok"] = got
     return got
 
 
