@@ -12,7 +12,6 @@ on the same trajectory in the same process.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import platform
 import sys
@@ -20,23 +19,9 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_criteria import PAPER, fresh, road_scene, time_ms  # noqa: E402
+from bench_criteria import PAPER, fresh, light_scene, time_ms  # noqa: E402
 
 from pytest_avscenario.monitors import driving_score, ran_red_light  # noqa: E402
-
-
-def light_scene(steps: int, agents: int):
-    traj = road_scene(steps, agents)
-    lane = traj.meta["ego_route"][0]
-    x0 = float(traj.x[0, 0])
-    # the stop position 200 m ahead of the ego's start; red from a fifth of the run on (run)
-    s = x0 + 100.0 + 100.0
-    codes = np.where(np.arange(steps) >= steps // 5, 2.0, 0.0)
-    meta = dict(traj.meta)
-    meta["lights"] = [{"id": "1", "controller": "c", "x": s, "y": -3.0, "heading": 0.0,
-                       "stops": [{"lane": lane, "s": s + 100.0, "x": s, "y": 0.0,
-                                  "heading": 0.0, "width": 4.0}]}]
-    return dataclasses.replace(traj, meta=meta, signals={**traj.signals, "light.1": codes})
 
 
 def main() -> None:

@@ -256,6 +256,9 @@ _CHECKED: "weakref.WeakKeyDictionary[Trajectory, set]" = weakref.WeakKeyDictiona
 
 #: the kinematic fields the monitors check first, all at once
 _KINEMATIC = ("x", "y", "vx", "vy", "heading")
+_KINEMATIC_SET = frozenset(_KINEMATIC)
+#: in a trajectory's checked set: all of them are finite wherever their agent is present
+_ALL_KINEMATIC = ("*kinematic", "all")
 
 
 def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...],
@@ -270,9 +273,16 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
         done = _CHECKED[traj] = set()
         # most monitors read these: one pass over all of them for every agent, and a
         # field-by-field search below only when something is not finite
-        stacked = np.array([getattr(traj, f) for f in _KINEMATIC])
-        if not (traj.present & ~np.isfinite(stacked)).any():
+        # (their sum is finite only where every one is; a sum that overflows only sends
+        # the check the long way)
+        total = traj.x + traj.y
+        for f in _KINEMATIC[2:]:
+            total += getattr(traj, f)
+        if not (traj.present & ~np.isfinite(total)).any():
             done.update((f, "all") for f in _KINEMATIC)
+            done.add(_ALL_KINEMATIC)
+    if _ALL_KINEMATIC in done and _KINEMATIC_SET.issuperset(fields):
+        return
     key = "all" if agents is None else repr(agents)
     todo = [f for f in fields if (f, "all") not in done and (f, key) not in done]
     if not todo:
@@ -297,12 +307,22 @@ def check_present_finite(traj: Trajectory, monitor: str, fields: tuple[str, ...]
 _MEMO: "weakref.WeakKeyDictionary[Trajectory, dict]" = weakref.WeakKeyDictionary()
 
 
+#: the trajectory :func:`memo` answered last (a weak reference) and its dict: a run's monitors
+#: ask for one trajectory's dict some forty times in a row
+_LAST: tuple = (lambda: None, None)
+
+
 def memo(traj: Trajectory) -> dict:
     """A dict that lives as long as ``traj``, for values the monitors derive from it once and
     share (a trajectory is immutable; a prefix or a copy is a new object, with a new dict)."""
+    global _LAST
+    last = _LAST
+    if last[0]() is traj:
+        return last[1]
     got = _MEMO.get(traj)
     if got is None:
         got = _MEMO[traj] = {}
+    _LAST = (weakref.ref(traj), got)
     return got
 
 

@@ -113,6 +113,10 @@ def _derivative_at(v: np.ndarray, t: np.ndarray, rows: np.ndarray, cols: np.ndar
     return (v[..., rows, hi] - v[..., rows, lo]) / (t[hi] - t[lo])
 
 
+#: rows selecting the ego (0) and the other agent (its row) of a pair
+_EGO_OTHER = np.array([[0], [1]])
+
+
 def _further_on_route(traj: Trajectory, route: list[str]) -> np.ndarray:
     """``(A-1, T)``: whether the other agent is on a lane of the ego's route beyond the
     route lane the ego is on (its lane ahead carries another id: the next lane section or
@@ -145,15 +149,18 @@ def lead_kinematics(traj: Trajectory) -> LeadKinematics:
         route = traj.meta.get("ego_route") or ()
         if len(route) > 1:  # a lane change of id along the way (a map's next road or section)
             same_lane |= _further_on_route(traj, [str(r) for r in route])
-        corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
-        ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
+        if lanes_known.all():  # every lane known: the lanes decide, no corridor needed
+            ahead = (lon > 0) & same_lane & _pair_mask(traj)
+        else:
+            corridor = np.abs(lat) < (traj.width[0] + traj.width[1:, None]) / 2
+            ahead = (lon > 0) & np.where(lanes_known, same_lane, corridor) & _pair_mask(traj)
         idx = np.flatnonzero(ahead)
         rows, cols = np.divmod(idx, traj.n_steps)
         o = rows + 1  # the other agent's row in the trajectory
         # velocities and their time derivatives (as _derivative takes them, at the pairs'
         # steps only) of the ego and the other, projected on the ego's heading at once
         vel = np.array([traj.vx, traj.vy])
-        who = np.array([np.zeros_like(o), o])  # (ego / other, pairs)
+        who = _EGO_OTHER * o  # (ego / other, pairs): row 0 the ego's, row 1 the other's
         kin = np.array([vel[:, who, cols], _derivative_at(vel, traj.t, who, cols)])
         along = kin[:, 0] * c[cols] + kin[:, 1] * s[cols]  # (v / a, ego / other, pairs)
     got = LeadKinematics(
@@ -182,9 +189,10 @@ def ettc_values(gap, v_e, v_l, a_e, a_l):
     alpha = np.where(np.abs(alpha) < 1e-9, 0.0, alpha)
     disc = u * u + 2.0 * alpha * g
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        root = np.sqrt(np.where(disc >= 0, disc, 0.0))
+        real = disc >= 0
+        root = np.sqrt(np.where(real, disc, 0.0))
         den = u + root
-        out = np.where((disc >= 0) & (den > 1e-9), 2.0 * g / den, np.inf)
+        out = np.where(real & (den > 1e-9), 2.0 * g / den, np.inf)
     out = np.where(g <= 0, 0.0, out)
     return np.where(np.isnan(g) | np.isnan(u) | np.isnan(alpha), np.nan, out)
 
@@ -247,50 +255,68 @@ def time_to_brake_values(k: LeadKinematics, max_decel: float,
         return _time_to_brake(k, float(max_decel), horizon, grid_s, fine, smallest_only)
 
 
-def _too_hard(tau: np.ndarray, p: tuple, max_decel: float) -> np.ndarray:
+def _too_hard(tau: np.ndarray, p: np.ndarray, max_decel: float) -> np.ndarray:
     """Whether braking at ``max_decel`` is no longer enough after keeping the accelerations
     for ``tau`` [s]: ``required_deceleration_values(state after tau) > max_decel``, the same
     arithmetic as :func:`_advance` and :func:`required_deceleration_values` (bit for bit,
-    so the grid finds the same moments) with the per-pair parts ``p`` computed once and the
-    comparison taken case by case instead of building the value. A pair with a NaN input
-    is never too hard (its gap is NaN at every ``tau``)."""
-    g0, v, a, ha, ts, a_l, nal, brakes = p
+    so the grid finds the same moments) with the per-pair parts ``p`` (:func:`_pair_columns`)
+    computed once and the comparison taken case by case instead of building the value. A
+    pair with a NaN input is never too hard (its gap is NaN at every ``tau``)."""
+    if p.shape[-1] != tau.shape[-1]:
+        # the columns repeated along the moments: numpy's same-shape loops are much faster
+        # than broadcasting a column, and the arithmetic is the same
+        p = np.repeat(p, tau.shape[-1], axis=-1)
+    g0, v, a, ha, ts, nal = p[0], p[1:3], p[3:5], p[5:7], p[7:9], p[9]
+    a_l = a[1]
     # ego (row 0) and lead (row 1) advanced at once: _advance's arithmetic on both
     t = np.minimum(tau, ts)
     d = v * t + ha * t * t
     vv = np.maximum(v + a * t, 0.0)
     de, dl, ve, vl = d[0], d[1], vv[0], vv[1]
     g = g0 + dl - de
-    moving = vl > 0
     u = ve - vl
     # required_deceleration_values takes a standing lead's acceleration as 0; a_l serves
     # here because there t_lead = 0 makes match_first False whatever b1 is, and b1 decides
     # nothing else
     b1 = np.maximum(u * u / (2.0 * g) - a_l, 0.0)
-    # when a braking lead stands (0 standing, inf when it never does); where it is moving
-    # its acceleration is a_l's, so the per-pair sign and magnitude serve
-    t_lead = np.where(moving, np.where(brakes, vl / nal, np.inf), 0.0)
+    # when a braking lead stands (0 standing, inf when it never does: nal is 0 for a lead
+    # that does not brake, and vl / 0 is inf for a moving one); where it is moving its
+    # acceleration is a_l's, so the per-pair sign and magnitude serve
+    t_lead = np.where(vl > 0, vl / nal, 0.0)
     d_lead = vl * t_lead / 2.0  # 0 for a standing lead (vl = 0, t_lead = 0)
     b2 = ve * ve / (2.0 * (g + d_lead))
     match_first = (u > 0) & (u <= (a_l + b1) * t_lead)
     # out = b1 where the speeds match first, else b2 where the lead stops, else 0 (never
     # above max_decel > 0: and b2 is 0 where the lead never stops, d_lead being inf there);
     # inf (too hard) where the gap is closed
-    return (g <= 0) | np.where(match_first, b1 > max_decel, b2 > max_decel)
+    return (g <= 0) | (np.where(match_first, b1, b2) > max_decel)
 
 
-def _pair_columns(k: LeadKinematics) -> tuple:
-    """What :func:`_too_hard` needs of every pair, as columns against a grid of moments: the
-    gap, and the ego (row 0) and lead (row 1) stacked: speed (no reversing), acceleration,
-    half of it, :func:`_advance`'s stop time; the lead's acceleration, its negative and
-    whether it brakes."""
+def _pair_columns(k: LeadKinematics) -> np.ndarray:
+    """What :func:`_too_hard` needs of every pair, stacked as rows of one ``(10, pairs, 1)``
+    array (so the pairs still to refine are one selection) against a grid of moments: the
+    gap; the ego's and the lead's speed (no reversing), acceleration, half of it and
+    :func:`_advance`'s stop time; the lead's deceleration (-a_l where it brakes, else 0)."""
     v = np.maximum(np.array([k.v_e, k.v_l]), 0.0)
     a = np.array([k.a_e, k.a_l])
     brakes = a < 0
     ts = np.where(brakes, v / np.where(brakes, -a, 1.0), np.inf)
-    a_l = k.a_l
-    return (k.gap[:, None], v[..., None], a[..., None], (0.5 * a)[..., None], ts[..., None],
-            a_l[:, None], (-a_l)[:, None], brakes[1, :, None])
+    nal = np.where(brakes[1], -k.a_l, 0.0)
+    return np.concatenate([k.gap[None], v, a, 0.5 * a, ts, nal[None]])[..., None]
+
+
+_GRIDS: dict[tuple[float, float], np.ndarray] = {}
+
+
+def _grid(horizon: float, grid_s: float) -> np.ndarray:
+    """The moments ``0, grid_s, ...`` up to ``horizon`` [s], made once per pair of values."""
+    got = _GRIDS.get((horizon, grid_s))
+    if got is None:
+        got = np.arange(0.0, horizon + grid_s / 2, grid_s)
+        got.flags.writeable = False
+        if len(_GRIDS) < 16:  # a caller sweeping the horizon does not fill memory
+            _GRIDS[(horizon, grid_s)] = got
+    return got
 
 
 _FRACTIONS: dict[int, np.ndarray] = {}
@@ -308,25 +334,26 @@ def _time_to_brake(k: LeadKinematics, max_decel: float, horizon: float, grid_s: 
                    fine: int, smallest_only: bool = False) -> np.ndarray:
     p = _pair_columns(k)
 
-    grid = np.arange(0.0, horizon + grid_s / 2, grid_s)
+    grid = _grid(horizon, grid_s)
     too_hard = _too_hard(grid, p, max_decel)
     first = np.argmax(too_hard, axis=1)
     # too late already (the first grid point, now) or still enough at the horizon (never)
     now = too_hard[:, 0]
     res = np.where(now, 0.0, np.inf)
     todo = np.flatnonzero(first > 0)  # too hard first at a later grid point: refine
+    lower = grid[first[todo] - 1]
     if smallest_only and todo.size:
         # a refined value lies in [grid[first - 1], grid[first]); pairs whose lower end is
         # above the smallest upper end (0 when some pair is too late already) cannot be
         # the smallest nor tie with it
         upper = 0.0 if now.any() else grid[first[todo]].min()
-        lower = grid[first[todo] - 1]
         res[todo] = lower
-        todo = todo[lower <= upper]
+        keep = lower <= upper
+        todo, lower = todo[keep], lower[keep]
     if todo.size:
-        if todo.size < first.size:
-            p = tuple(c[:, todo] if c.ndim == 3 else c[todo] for c in p)
-        lo, step = grid[first[todo] - 1], grid_s
+        # the pairs' columns along `fine` moments, for both rounds
+        p = np.repeat(p[:, todo] if todo.size < first.size else p, fine, axis=-1)
+        lo, step = lower, grid_s
         # refine on finer grids inside the bracket (two rounds of `fine` points: few numpy
         # calls, which is what costs on a handful of pairs)
         frac = _fractions(fine)
@@ -373,7 +400,8 @@ class _LeadMeasure(Monitor):
 
     def _margins(self, v: np.ndarray) -> np.ndarray:
         m = (self.threshold - v) if self._upper else (v - self.threshold)
-        return np.where(np.isnan(v), np.inf, m)
+        # +inf where v is NaN (m is NaN exactly there: the threshold is finite)
+        return np.fmin(m, np.inf)
 
     def series(self, traj: Trajectory) -> np.ndarray:
         """ρ(t): the margin toward the most critical agent ahead at each step; +inf where
@@ -559,7 +587,9 @@ def _can_cross(min_angle_deg: float) -> np.ndarray:
     return (d + 1) * (180.0 / _NBINS) >= min_angle_deg
 
 
+#: the default angle's table, and as 0.0 / 1.0 (for a product with the bins an agent uses)
 _CAN_CROSS = {float(CROSSING_MIN_ANGLE_DEG): _can_cross(CROSSING_MIN_ANGLE_DEG)}
+_CAN_CROSS_F = {a: c.astype(float) for a, c in _CAN_CROSS.items()}
 
 
 def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
@@ -573,72 +603,79 @@ def pet_values(traj: Trajectory, min_angle_deg: float = CROSSING_MIN_ANGLE_DEG
     collision), counting only pairs whose headings differ by at least ``min_angle_deg`` (a
     crossing, not following or oncoming traffic). Exact to the sampling step."""
     A1 = traj.n_agents - 1
-    pet = np.full(A1, np.inf)
-    t1 = np.full(A1, np.nan)
-    t2 = np.full(A1, np.nan)
+    pet, t1, t2 = [math.inf] * A1, [math.nan] * A1, [math.nan] * A1
+
+    def out():
+        return np.array(pet, dtype=float), np.array(t1, dtype=float), np.array(t2, dtype=float)
+
     ok = traj.present & np.isfinite(traj.x) & np.isfinite(traj.y)
     ie = np.flatnonzero(ok[0])
     if A1 < 1 or ie.size == 0:
-        return pet, t1, t2
-    R = np.hypot(traj.length / 2, traj.width / 2)
+        return out()
+    R = np.hypot(traj.length / 2, traj.width / 2).tolist()
     sin_min = math.sin(math.radians(min_angle_deg))
-    can = _CAN_CROSS.get(min_angle_deg)
+    can, can_f = _CAN_CROSS.get(min_angle_deg), _CAN_CROSS_F.get(min_angle_deg)
     if can is None:
         can = _can_cross(min_angle_deg)
+        can_f = can.astype(float)
     bins = _heading_bins(np.where(ok, traj.heading, 0.0))
-    ebins, obins = bins[0, ie], bins[1:]
+    T = traj.n_steps
+    ebins, obins = (bins[0] if ie.size == T else bins[0, ie]), bins[1:]
     # keep only samples whose heading can cross one of the other path's (traffic along the
     # ego's lane never can, and is dropped here for every agent at once)
-    o_ok_all = ok[1:] & can[:, np.bincount(ebins, minlength=_NBINS) > 0].any(axis=1)[obins]
+    e_bins = np.bincount(ebins, minlength=_NBINS) > 0  # the heading bins the ego uses
+    o_ok_all = ok[1:] & can[:, e_bins].any(axis=1)[obins]
     rows, cols = np.nonzero(o_ok_all)
     if rows.size == 0:
-        return pet, t1, t2
-    seen = np.zeros((A1, _NBINS), dtype=np.uint8)  # the heading bins each agent's kept samples use
-    seen[rows, obins[rows, cols]] = 1
-    # (A-1, ego samples): the ego's heading there can cross one of the agent's kept headings
-    e_ok_all = (seen @ can.view(np.uint8))[:, ebins] > 0
-    for a in np.flatnonzero(seen.any(axis=1) & e_ok_all.any(axis=1)) + 1:
-        io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[e_ok_all[a - 1]]
-        xe, ye = traj.x[0, ie_a], traj.y[0, ie_a]
+        return out()
+    seen = np.zeros((A1, _NBINS))  # the heading bins each agent's kept samples use (0 / 1)
+    seen[rows, obins[rows, cols]] = 1.0
+    # (A-1, bins): a bin of the ego's heading that crosses one of the agent's kept headings
+    # (counts of small integers: exact in floating point)
+    crossing = (seen @ can_f) > 0
+    x, y, heading, t = traj.x, traj.y, traj.heading, traj.t
+    lo, hi = np.minimum.reduce, np.maximum.reduce
+    for a in (np.flatnonzero((crossing & e_bins).any(axis=1)) + 1).tolist():
+        io, ie_a = np.flatnonzero(o_ok_all[a - 1]), ie[crossing[a - 1][ebins]]
+        # (every sample of a row: the row itself, the same values)
+        xe, ye = (x[0], y[0]) if ie_a.size == T else (x[0, ie_a], y[0, ie_a])
         reach = R[0] + R[a]
-        xo, yo = traj.x[a, io], traj.y[a, io]
+        xo, yo = (x[a], y[a]) if io.size == T else (x[a, io], y[a, io])
         # samples of each path within reach of the other path's bounding box
-        lo, hi = np.minimum.reduce, np.maximum.reduce
-        ne = ((xe >= lo(xo) - reach) & (xe <= hi(xo) + reach)
-              & (ye >= lo(yo) - reach) & (ye <= hi(yo) + reach))
+        ne = ((xe >= float(lo(xo)) - reach) & (xe <= float(hi(xo)) + reach)
+              & (ye >= float(lo(yo)) - reach) & (ye <= float(hi(yo)) + reach))
         i = ie_a[ne]
         if i.size == 0:
             continue
         if i.size * io.size > 4096:  # the other's samples near the ego's path, when many
             xe, ye = xe[ne], ye[ne]
-            no = ((xo >= lo(xe) - reach) & (xo <= hi(xe) + reach)
-                  & (yo >= lo(ye) - reach) & (yo <= hi(ye) + reach))
+            no = ((xo >= float(lo(xe)) - reach) & (xo <= float(hi(xe)) + reach)
+                  & (yo >= float(lo(ye)) - reach) & (yo <= float(hi(ye)) + reach))
             if not no.any():
                 continue
             j = io[no]
         else:  # few pairs: the exact test below looks at them all
             j = io
-        dx = traj.x[a, j][None, :] - traj.x[0, i][:, None]
-        dy = traj.y[a, j][None, :] - traj.y[0, i][:, None]
+        xi, yi, hi_ = x[0, i], y[0, i], heading[0, i]
+        xj, yj, hj = x[a, j], y[a, j], heading[a, j]
+        dx = xj[None, :] - xi[:, None]
+        dy = yj[None, :] - yi[:, None]
         near = dx * dx + dy * dy <= reach * reach
-        cross = np.abs(np.sin(traj.heading[a, j][None, :] - traj.heading[0, i][:, None])) >= sin_min
+        cross = np.abs(np.sin(hj[None, :] - hi_[:, None])) >= sin_min
         ii, jj = np.nonzero(near & cross)
         if ii.size == 0:
             continue
-        si, sj = i[ii], j[jj]
-        sep = _sat_separation(traj.x[0, si], traj.y[0, si], traj.heading[0, si],
-                              traj.length[0] / 2, traj.width[0] / 2,
-                              traj.x[a, sj], traj.y[a, sj], traj.heading[a, sj],
-                              traj.length[a] / 2, traj.width[a] / 2)
+        sep = _sat_separation(xi[ii], yi[ii], hi_[ii], traj.length[0] / 2, traj.width[0] / 2,
+                              xj[jj], yj[jj], hj[jj], traj.length[a] / 2, traj.width[a] / 2)
         hit = sep <= 1e-9
         if not hit.any():
             continue
-        ti, tj = traj.t[si[hit]], traj.t[sj[hit]]
+        ti, tj = t[i[ii[hit]]], t[j[jj[hit]]]
         gap = np.abs(ti - tj)
-        b = int(np.argmin(gap))
+        b = int(gap.argmin())
         pet[a - 1] = float(gap[b])
         t1[a - 1], t2[a - 1] = float(min(ti[b], tj[b])), float(max(ti[b], tj[b]))
-    return pet, t1, t2
+    return out()
 
 
 class PETMonitor(Monitor):

@@ -22,7 +22,7 @@ Projections are computed once per trajectory and shared by every monitor that ne
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
@@ -30,7 +30,8 @@ import numpy as np
 from ..trajectory import Trajectory
 from .base import MonitorError, memo
 
-__all__ = ["LanePolyline", "LaneFrame", "RoadLanes", "lanes_of", "lane_frame", "route_of"]
+__all__ = ["LanePolyline", "LaneFrame", "RoadLanes", "lanes_of", "lane_frame", "route_of",
+           "route_line", "ego_ok", "frame_projection", "ego_lane_all_along"]
 
 
 @dataclass(frozen=True)
@@ -44,21 +45,24 @@ class LanePolyline:
     width: float
     kind: str = "travel"
     group: str = ""
+    #: the segments' lengths [m] ``(N-1,)`` when known (a lane read from the recording)
+    seg: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def length(self) -> float:
         return float(self.cum[-1])
 
-    def project(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def project(self, x: np.ndarray, y: np.ndarray, heading: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Arc length ``s`` [m] (extended linearly before the start and past the end), signed
         offset ``r`` [m] (positive left of travel) and the lane heading [rad] at the closest
-        point of each of the points ``x``, ``y``."""
+        point of each of the points ``x``, ``y`` (None without ``heading``)."""
         if self.xy.shape[0] == 2:  # a straight lane: its one segment extends both ways
-            return self._project_line(x, y)
-        return self._project_segments(x, y)
+            return self._project_line(x, y, heading)
+        return self._project_segments(x, y, heading)
 
-    def _project_segments(self, x: np.ndarray, y: np.ndarray
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _project_segments(self, x: np.ndarray, y: np.ndarray, heading: bool = True
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """:meth:`project` by a search of every segment (any polyline)."""
         a = self.xy[:-1]
         d = self.xy[1:] - a
@@ -79,13 +83,13 @@ class LanePolyline:
         s = self.cum[k] + uk * seg
         dxk, dyk = d[k, 0] / seg, d[k, 1] / seg
         r = dxk * py[rows, k] - dyk * px[rows, k]
-        return s, r, np.arctan2(dyk, dxk)
+        return s, r, np.arctan2(dyk, dxk) if heading else None
 
-    def _project_line(self, x: np.ndarray, y: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _project_line(self, x: np.ndarray, y: np.ndarray, heading: bool = True
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """:meth:`project` on a lane of one segment, with the same arithmetic (no closest
         segment to look for, no clipping: the segment extends both ways)."""
-        (ax, ay), (bx, by) = self.xy[0], self.xy[1]
+        ax, ay, bx, by = self.xy[:2].ravel().tolist()  # float64 arithmetic, as Python floats
         dx, dy = bx - ax, by - ay
         px = x - ax
         py = y - ay
@@ -94,6 +98,8 @@ class LanePolyline:
         s = self.cum[0] + u * seg
         dxk, dyk = dx / seg, dy / seg
         r = dxk * py - dyk * px
+        if not heading:
+            return s, r, None
         return s, r, np.arctan2(np.full(x.shape, dyk), np.full(x.shape, dxk))
 
 
@@ -107,16 +113,19 @@ def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
             f"[m]) and 'width' [m]: {exc}") from None
     if xy.shape[0] < 2 or not np.isfinite(xy).all():
         raise MonitorError(f"lane {lane_id!r} in meta['lanes'] needs >= 2 finite points")
-    seg = np.hypot(*np.diff(xy, axis=0).T)
+    d = xy[1:] - xy[:-1]  # np.diff's arithmetic
+    seg = np.hypot(d[:, 0], d[:, 1])
     apart = seg > 1e-9  # repeated points have no direction
     if not apart.all():
         xy = xy[np.concatenate([[True], apart])]
         if xy.shape[0] < 2:
             raise MonitorError(f"lane {lane_id!r} in meta['lanes'] has zero length")
-        seg = np.hypot(*np.diff(xy, axis=0).T)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
+        d = xy[1:] - xy[:-1]
+        seg = np.hypot(d[:, 0], d[:, 1])
+    cum = np.zeros(xy.shape[0])
+    np.cumsum(seg, out=cum[1:])
     return LanePolyline(lane_id, xy, cum, width, str(data.get("kind", "travel")),
-                        str(data.get("group", "")))
+                        str(data.get("group", "")), seg)
 
 
 class RoadLanes(Mapping[str, LanePolyline]):
@@ -200,16 +209,18 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
     lanes = lanes_of(traj, monitor)
     T = traj.n_steps
     lane = traj.lane[0]
-    ok = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+    ok = ego_ok(traj)
     # the ego changes lanes a few times a run: runs of one lane id, not a sort of every sample
-    change = np.flatnonzero(lane[1:] != lane[:-1]) + 1
-    if T and not change.size and ok.all() and str(lane[0]) in lanes:
+    changed = lane[1:] != lane[:-1]
+    if T and not changed.any() and ok.all() and str(lane[0]) in lanes:
         # one known lane all along (a scenario on one lane): project every sample at once
         poly = lanes[str(lane[0])]
         s, r, h = poly.project(traj.x[0], traj.y[0])
         got = cache["road.frame"] = LaneFrame(s, r, h, np.full(T, poly.width))
+        cache["road.frame_lane"] = poly  # the frame is this lane's projection of every sample
         return got
     s, r, h, w = (np.full(T, np.nan) for _ in range(4))
+    change = np.flatnonzero(changed) + 1
     ids = set(lane[np.concatenate([[0], change])].tolist()) if T else set()
     for lid in ids:
         if lid not in lanes:
@@ -221,6 +232,57 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
         s[sel], r[sel], h[sel] = poly.project(traj.x[0, sel], traj.y[0, sel])
         w[sel] = poly.width
     got = cache["road.frame"] = LaneFrame(s, r, h, w)
+    return got
+
+
+def ego_ok(traj: Trajectory) -> np.ndarray:
+    """``(T,)`` the samples where the ego is present with a finite position (shared per
+    trajectory)."""
+    cache = memo(traj)
+    got = cache.get("road.ego_ok")
+    if got is None:
+        got = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
+        cache["road.ego_ok"] = got
+    return got
+
+
+def frame_projection(traj: Trajectory, poly: LanePolyline) -> LaneFrame | None:
+    """The ego's :class:`LaneFrame` when it is ``poly``'s projection of every sample (the ego
+    kept that one lane, present all along), else None: then ``poly.project`` of the ego's
+    positions gives the frame's values, bit for bit."""
+    cache = memo(traj)
+    if "road.frame" not in cache:
+        return None
+    return cache["road.frame"] if cache.get("road.frame_lane") is poly else None
+
+
+def ego_lane_all_along(traj: Trajectory) -> str | None:
+    """The id of the one lane the ego was on at every sample, when its lane frame (already
+    computed) found one; None otherwise (not computed yet, or the ego changed lanes)."""
+    poly = memo(traj).get("road.frame_lane")
+    return None if poly is None else poly.id
+
+
+def route_line(traj: Trajectory, monitor: str = "") -> tuple[list[LanePolyline], np.ndarray,
+                                                             np.ndarray]:
+    """The ego's route lanes and their centre lines joined: ``(lanes, xy (N, 2) [m], arc
+    length (N,) [m])``, repeated points dropped (shared per trajectory; a route of one lane
+    is that lane's own arrays)."""
+    cache = memo(traj)
+    got = cache.get("road.route_line")
+    if got is not None:
+        return got
+    route = route_of(traj, monitor)
+    one = route[0]
+    if len(route) == 1 and one.seg is not None and (one.seg > 1e-9).all():
+        # its points are apart already: the joined line is the lane (same arithmetic below)
+        xy, cum = one.xy, one.cum
+    else:
+        xy = np.concatenate([l.xy if i == 0 else l.xy[1:] for i, l in enumerate(route)])
+        keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
+        xy = xy[keep]
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    got = cache["road.route_line"] = (route, xy, cum)
     return got
 
 

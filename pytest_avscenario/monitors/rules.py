@@ -32,7 +32,16 @@ from .base import (
     fmt_t,
     memo,
 )
-from .road import LanePolyline, lane_frame, lanes_of, route_of
+from .road import (
+    LanePolyline,
+    ego_lane_all_along,
+    ego_ok,
+    frame_projection,
+    lane_frame,
+    lanes_of,
+    route_line,
+    route_of,
+)
 
 __all__ = [
     "on_sidewalk", "wrong_way", "outside_route_lanes", "ran_stop", "route_completion",
@@ -60,9 +69,11 @@ def _step_lengths(traj: Trajectory) -> np.ndarray:
     cache = memo(traj)
     got = cache.get("rules.step_lengths")
     if got is None:
-        d = np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0]))
-        d = np.where(traj.present[0, 1:] & traj.present[0, :-1] & np.isfinite(d), d, 0.0)
-        got = cache["rules.step_lengths"] = np.concatenate([[0.0], d])
+        x, y, present = traj.x[0], traj.y[0], traj.present[0]
+        got = np.zeros(x.shape)
+        d = np.hypot(x[1:] - x[:-1], y[1:] - y[:-1])  # np.diff's arithmetic
+        np.copyto(got[1:], d, where=present[1:] & present[:-1] & np.isfinite(d))
+        cache["rules.step_lengths"] = got
     return got
 
 
@@ -204,7 +215,11 @@ def _outside_route(traj: Trajectory, name: str) -> np.ndarray:
     lanes = lanes_of(traj, name)
     groups = {lanes.group(i) for i in route_ids} - {""}
     ok_ids = [k for k in lanes if k in route_ids or lanes.group(k) in groups]
-    on_route = _among(traj.lane[0], ok_ids)
+    one = ego_lane_all_along(traj)
+    if one is not None:  # on one lane all along: that lane decides every sample
+        on_route = np.full(traj.n_steps, one in ok_ids)
+    else:
+        on_route = _among(traj.lane[0], ok_ids)
     got = cache["rules.outside_route"] = traj.present[0] & (~traj.on_road[0] | ~on_route)
     return got
 
@@ -288,8 +303,14 @@ def stop_crossings(traj: Trajectory, name: str = "ran_stop", *,
     front = f.s + traj.length[0] / 2
     speed = _ego_speed(traj)
     out = []
+    one = ego_lane_all_along(traj)
     for lane_id, s_line in lines:
-        on = traj.present[0] & (traj.lane[0] == lane_id) & np.isfinite(front)
+        if one is None:
+            on = traj.present[0] & (traj.lane[0] == lane_id) & np.isfinite(front)
+        elif one == lane_id:  # on this lane at every sample
+            on = traj.present[0] & np.isfinite(front)
+        else:
+            continue  # never on it
         if not on.any():
             continue
         passed = on & (front > s_line + past)
@@ -366,35 +387,39 @@ def route_fraction(traj: Trajectory, name: str = "route_completion") -> tuple[fl
 
 
 def _route_fraction(traj: Trajectory, name: str) -> tuple[float, int, float]:
-    route = route_of(traj, name)
+    route, xy, cum = route_line(traj, name)
     if len(route) == 1:  # the lane's own polyline (its points are already apart)
         path = route[0]
     else:
-        xy = np.concatenate([l.xy if i == 0 else l.xy[1:] for i, l in enumerate(route)])
-        ok = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
-        xy = xy[ok]
-        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
         path = LanePolyline("route", xy, cum, 0.0)
-    present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
-    idx = np.flatnonzero(present)
-    if path is route[0] and (traj.lane[0, idx] == path.id).all():
-        # the ego stayed on its one route lane: its lane frame is this projection already
-        f = lane_frame(traj, name)
-        s, r = f.s[idx], f.r[idx]
+    present = ego_ok(traj)
+    frame = frame_projection(traj, path) if path is route[0] else None
+    if frame is not None:
+        # the ego kept its one route lane all along: its lane frame is this projection
+        idx = np.arange(traj.n_steps)
+        s, r = frame.s, frame.r
     else:
-        s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx])
-    s = np.clip(s, 0.0, path.length)
+        idx = np.flatnonzero(present)
+        if path is route[0] and (traj.lane[0, idx] == path.id).all():
+            # the ego stayed on its one route lane: its lane frame is this projection already
+            f = lane_frame(traj, name)
+            s, r = f.s[idx], f.r[idx]
+        else:
+            s, r, _ = path.project(traj.x[0, idx], traj.y[0, idx], heading=False)
+    length = path.length
+    s = np.minimum(np.maximum(s, 0.0), length)  # np.clip's arithmetic
     s0 = float(s[0])
     near = np.abs(r) <= ROUTE_DEVIATION_M
     reach = np.where(near, s, -np.inf)
     j = int(np.argmax(reach))
     best = max(float(reach[j]), s0)
-    todo = path.length - s0
+    todo = length - s0
     if traj.meta.get("ego_reached_route_end") is True:
         return 1.0, int(idx[j]), 0.0
     if todo <= 1e-9:
         return 1.0, int(idx[0]), 0.0
-    return float(np.clip((best - s0) / todo, 0.0, 1.0)), int(idx[j]), float(path.length - best)
+    frac = (best - s0) / todo
+    return min(max(frac, 0.0), 1.0), int(idx[j]), float(length - best)
 
 
 class RouteCompletionMonitor(Monitor):
@@ -495,17 +520,22 @@ def traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
 
 
 def _traffic_speed_ratio(traj: Trajectory) -> tuple[float, float, float]:
-    others = np.array([k in TRAFFIC_KINDS for k in traj.kinds[1:]], dtype=bool)
-    if not others.any():
+    rows = [i for i, k in enumerate(traj.kinds) if i and k in TRAFFIC_KINDS]
+    if not rows:
         return math.nan, math.nan, math.nan
-    sp = np.hypot(traj.vx[1:][others], traj.vy[1:][others])
-    pres = traj.present[1:][others] & np.isfinite(sp)
+    if rows[-1] - rows[0] == len(rows) - 1:  # side by side: a view, no copy
+        rows = slice(rows[0], rows[-1] + 1)
+    sp = np.hypot(traj.vx[rows], traj.vy[rows])
+    pres = traj.present[rows] & np.isfinite(sp)
     n = pres.sum(axis=0)
     use = traj.present[0] & (n > 0)
     if not use.any():
         return math.nan, math.nan, math.nan
-    traffic = float((np.where(pres, sp, 0.0).sum(axis=0)[use] / n[use]).mean())
-    ego = float(_ego_speed(traj)[use].mean())
+    # np.mean's arithmetic: the (pairwise) sum over the samples, divided by their number
+    per_step = np.where(pres, sp, 0.0).sum(axis=0)[use] / n[use]
+    traffic = float(np.add.reduce(per_step) / per_step.size)
+    ego_used = _ego_speed(traj)[use]
+    ego = float(np.add.reduce(ego_used) / ego_used.size)
     ratio = ego / traffic if traffic > 0 else math.inf
     return ratio, ego, traffic
 

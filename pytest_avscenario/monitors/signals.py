@@ -44,7 +44,8 @@ import numpy as np
 
 from ..trajectory import Trajectory
 from .base import Monitor, MonitorError, MonitorResult, check_name, check_present_finite, factory
-from .road import LanePolyline, route_of
+from .road import LanePolyline, ego_ok, frame_projection, route_line
+from .rules import _step_lengths
 
 __all__ = ["ran_red_light", "red_light_crossings", "LightPass", "RED_CODE", "TAIL_FRACTION"]
 
@@ -74,19 +75,13 @@ class LightPass:
     detail: str
 
 
-def _odometer(traj: Trajectory) -> np.ndarray:
-    d = np.hypot(np.diff(traj.x[0]), np.diff(traj.y[0]))
-    ok = traj.present[0, 1:] & traj.present[0, :-1] & np.isfinite(d)
-    return np.concatenate([[0.0], np.cumsum(np.where(ok, d, 0.0))])
-
-
 def _route_stops(traj: Trajectory, name: str) -> tuple[list[LanePolyline], list[tuple]]:
     """The route's lanes and ``(arc length along the route [m], light id, lane id)`` of every
     light's stop position on it (a lane the route runs twice counts twice)."""
     lights = traj.meta.get("lights") or []
     if not lights:
         return [], []
-    route = route_of(traj, name)
+    route = route_line(traj, name)[0]
     at: dict[str, list[tuple[str, float]]] = {}
     for light in lights:
         for stop in light.get("stops", ()):
@@ -108,17 +103,14 @@ def red_light_crossings(traj: Trajectory, name: str = "ran_red_light",
     route, stops = _route_stops(traj, name)
     if not stops:
         return []
-    xy = np.concatenate([l.xy if i == 0 else l.xy[1:] for i, l in enumerate(route)])
-    keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
-    xy = xy[keep]
-    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    _, xy, cum = route_line(traj, name)
     # the recorded centre lines are a hair shorter than the lanes (chords of curves): scale
-    # the polyline's arc length to the lanes'
+    # the polyline's arc length to the lanes' (a route of one lane is its own length)
     total = float(sum(l.length for l in route))
-    if cum[-1] > 0:
+    if cum[-1] > 0 and total != cum[-1]:
         cum = cum * (total / cum[-1])
-    present = traj.present[0] & np.isfinite(traj.x[0]) & np.isfinite(traj.y[0])
-    odo = _odometer(traj)
+    present = ego_ok(traj)
+    odo = np.cumsum(_step_lengths(traj))  # the ego's odometer [m]
     half = float(traj.length[0]) / 2
     ahead = half if point == "front" else -TAIL_FRACTION * half  # the point, from the centre
     t = traj.t
@@ -130,19 +122,31 @@ def red_light_crossings(traj: Trajectory, name: str = "ran_red_light",
         red = np.asarray(codes) == RED_CODE
         w = (cum >= S - APPROACH_M - 1.0) & (cum <= S + 1.0)
         lo, hi = max(int(np.argmax(w)) - 1, 0), min(len(cum) - 1, len(cum) - int(np.argmax(w[::-1])))
-        poly = LanePolyline("approach", xy[lo:hi + 1], cum[lo:hi + 1] - cum[lo], 0.0)
-        idx = np.flatnonzero(present)
-        if poly.xy.shape[0] < 2 or idx.size == 0:
+        if hi - lo < 1 or not present.any():
             continue
-        s, r, _ = poly.project(traj.x[0, idx], traj.y[0, idx])
-        d = np.full(t.shape, np.nan)  # the point before the stop position [m]
-        on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
-        d[idx[on]] = (S - cum[lo]) - (s[on] + ahead)
-        before = np.isfinite(d) & (d > 0)
+        whole = lo == 0 and hi == len(cum) - 1 and cum[0] == 0.0
+        frame = frame_projection(traj, route[0]) if whole and len(route) == 1 else None
+        if frame is not None and xy is route[0].xy and cum is route[0].cum:
+            # the approach is the ego's one lane, which its lane frame projected already
+            # (of every sample: the ego is present all along)
+            s, r = frame.s, frame.r
+            on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
+            at_on = on
+        else:
+            idx = np.flatnonzero(present)
+            poly = LanePolyline("approach", xy[lo:hi + 1], cum[lo:hi + 1] - cum[lo], 0.0)
+            s, r, _ = poly.project(traj.x[0, idx], traj.y[0, idx], heading=False)
+            on = (np.abs(r) <= ROUTE_DEVIATION_M) & (s >= 0.0)
+            at_on = idx[on]
+        # the point before the stop position [m]: finite where on the approach (finite
+        # positions, stop position and route), NaN elsewhere
+        d = np.full(t.shape, np.nan)
+        d[at_on] = (S - cum[lo]) - (s[on] + ahead)
+        before = d > 0
         if not before.any():
             continue  # never before this stop position on its approach (started past it)
         k0 = int(np.argmax(before))
-        past = np.isfinite(d) & (d <= 0)
+        past = d <= 0
         past[:k0] = False
         kc = int(np.argmax(past)) if past.any() else None
         if kc is not None:
@@ -164,9 +168,9 @@ def red_light_crossings(traj: Trajectory, name: str = "ran_red_light",
                                                  if math.isfinite(margin) else "")))
             continue
         if red[kc] and red[kb]:
-            kr = kb
-            while kr > 0 and red[kr - 1]:
-                kr -= 1
+            # the light turned red at the sample after the last one before kb that was not red
+            green = np.flatnonzero(~red[:kb])
+            kr = int(green[-1]) + 1 if green.size else 0
             rho = -float(dist[kr])
             if rho == 0.0:
                 rho = -1e-6  # crossed on red: never ρ = 0
