@@ -147,7 +147,7 @@ def _shape_class() -> type:
                         self._line = (float(self._xy[0, 0]), float(self._xy[0, 1]), float(ux), float(uy),
                                       clen / self.length)
                 self._memo: tuple | None = None
-                self._grid: dict | None = None  # see _local_near, made on first use
+                self._grid: dict | None = None  # see _local_near: cells filled on first use
                 # for what other modules compute from this lane alone (the autopilot's route
                 # samples): the lane never changes and is shared by every world on the map
                 self.memo: dict = {}
@@ -244,15 +244,16 @@ def _shape_class() -> type:
 
             def _local_near(self, px: float, py: float) -> tuple[float, float] | None:
                 # A point within _NEAR of the centre line (a vehicle on or beside the lane):
-                # every block that could hold its foot is listed in its cell of a grid made
-                # once, so the blocks are not all measured. Searched nearest first, stopping
-                # when no further block can hold a nearer foot: the same answer as a scan of
-                # every segment. None for a point further out (the caller scans).
+                # every block that could hold its foot is listed in its cell of a grid, so
+                # the blocks are not all measured. Searched nearest first, stopping when no
+                # further block can hold a nearer foot: the same answer as a scan of every
+                # segment. None for a point further out (the caller scans).
+                key = (math.floor(px / _CELL), math.floor(py / _CELL))
                 grid = self._grid
-                if grid is None:
-                    grid = self._grid = self._make_grid()
-                cell = grid.get((math.floor(px / _CELL), math.floor(py / _CELL)))
+                cell = grid.get(key) if grid is not None else None
                 if cell is None:
+                    cell = self._cell(key)
+                if not cell:
                     return None
                 bl = self._bl
                 order = sorted((math.hypot(bl[b][0] - px, bl[b][1] - py) - bl[b][2], b)
@@ -271,16 +272,23 @@ def _shape_class() -> type:
                     return None
                 return best[1], best[2]
 
-            def _make_grid(self) -> dict:
-                # cell -> the blocks whose bounding circle comes within _NEAR of the cell
-                grid: dict[tuple[int, int], list[int]] = {}
-                for b, (cx, cy, r) in enumerate(self._bl):
-                    e = r + _NEAR
-                    for ix in range(math.floor((cx - e) / _CELL), math.floor((cx + e) / _CELL) + 1):
-                        for iy in range(math.floor((cy - e) / _CELL),
-                                        math.floor((cy + e) / _CELL) + 1):
-                            grid.setdefault((ix, iy), []).append(b)
-                return grid
+            def _cell(self, key: tuple[int, int]) -> list[int]:
+                # The blocks whose bounding circle comes within _NEAR of the grid cell ``key``
+                # (its square of cells covers the cell), in block order. Cells are filled as
+                # agents reach them and kept with the lane: a long lane's whole grid (tens of
+                # thousands of cells) would cost more than the cases that use it.
+                grid = self._grid
+                if grid is None:
+                    e = self._br + _NEAR
+                    cx, cy = self._bc[:, 0], self._bc[:, 1]
+                    self._span = (np.floor((cx - e) / _CELL), np.floor((cx + e) / _CELL),
+                                  np.floor((cy - e) / _CELL), np.floor((cy + e) / _CELL))
+                    grid = self._grid = {}
+                x0, x1, y0, y1 = self._span
+                ix, iy = key
+                got = grid[key] = np.flatnonzero((x0 <= ix) & (ix <= x1)
+                                                 & (y0 <= iy) & (iy <= y1)).tolist()
+                return got
 
             def _foot(self, px: float, py: float, i: int, j: int) -> tuple[float, float, float]:
                 """(squared distance, s, r) of the foot on segments i..j-1, 1e9 added to the
@@ -364,6 +372,7 @@ class MapLaneIndex(LaneIndex):
         # what the recorder writes of each lane, shared by every world on the map (its lanes
         # never change): the lane ids by code, and road_meta's entry per lane once computed
         self.id_array = np.asarray([l.id for l in self.order] + [""])
+        self.id_code = {l.id: i for i, l in enumerate(self.order)}
         self.lane_records: dict[str, Any] = {}
         boxes = []
         for lane in self.order:

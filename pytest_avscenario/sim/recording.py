@@ -158,7 +158,11 @@ def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
     memo = getattr(index, "lane_records", None)
     if memo is not None and not memo:
         memo.update((lane.id, _lane_record(lane)) for lane in index.order)
-    for lane in index.order:
+    order = index.order
+    codes = getattr(index, "id_code", None)  # a map's: lane id -> place in order, made once
+    if codes is not None:  # the few lanes named, in the index's order, not a scan of all
+        order = [order[i] for i in sorted(codes[k] for k in ids if k in codes)]
+    for lane in order:
         if lane.id not in ids:
             continue
         for s, kind in index.stop_marks.get(lane.index, ()):

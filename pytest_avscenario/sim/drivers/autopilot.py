@@ -362,11 +362,14 @@ class Autopilot:
         """Stop targets for the traffic lights ahead: red, and amber when it can stop at its
         comfortable deceleration; once it went on at amber it keeps going through that
         light (:func:`~pytest_avscenario.sim.signals.must_stop`)."""
+        lights = getattr(obs, "traffic_lights", ())
+        if not lights:
+            return []
         from pytest_avscenario.sim.signals import GREEN, must_stop
 
         o = self.options
         out = []
-        for light in getattr(obs, "traffic_lights", ()):
+        for light in lights:
             if not 0 <= light.route_index < len(path.offsets):
                 continue
             front = path.offsets[light.route_index] + light.s - (s_ego + 0.5 * L)
