@@ -255,6 +255,9 @@ def _shape_class() -> type:
                     cell = self._cell(key)
                 if not cell:
                     return None
+                if len(cell) == 1:  # one block near: nothing to order or to stop early
+                    best = self._foot(px, py, *self._blocks[cell[0]])
+                    return None if best[0] > _NEAR * _NEAR else (best[1], best[2])
                 bl = self._bl
                 order = sorted((math.hypot(bl[b][0] - px, bl[b][1] - py) - bl[b][2], b)
                                for b in cell)

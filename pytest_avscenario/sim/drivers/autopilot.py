@@ -204,10 +204,7 @@ class Autopilot:
             # Every point's allowed speed is at least sqrt(lateral_accel / |k|max): when that
             # is no cap on v0, the points need not be looked at (the same v0 either way).
             if math.sqrt(o.lateral_accel / max(path.max_curvature_bound(w), 1e-6)) < v0:
-                k = np.abs(path.curvature[w])
-                d = np.maximum(path.S[w] - s_ego, 0.0)
-                v_allow = np.sqrt(o.lateral_accel / np.maximum(k, 1e-6) + 2 * b * d)
-                v0 = min(v0, float(v_allow.min()))
+                v0 = min(v0, path.curve_speed_min(w, s_ego, o.lateral_accel, b))
         accel = o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else -o.comfort_decel
         reason = "cruise"
 
