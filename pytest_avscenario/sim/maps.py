@@ -130,6 +130,9 @@ def _shape_class() -> type:
                 self.length = float(self._s[-1])
                 self.width = float(np.median(self._w))
                 self._wconst = float(self._w[0]) if np.ptp(self._w) == 0 else None
+                #: the width is one number all along (to a micrometre): what the recording
+                #: needs to know to write a width per point or not
+                self.width_constant = bool(np.ptp(np.round(self._w, 6)) == 0)
                 self.line_types = (LineType.STRIPED, LineType.STRIPED)
                 self.speed_limit = float(speed_limit)
                 self.forbidden = False
@@ -176,6 +179,17 @@ def _shape_class() -> type:
                 k, f = self._at(float(longitudinal))
                 f = min(max(f, 0.0), 1.0)
                 return self._wl[k] + f * (self._wl[k + 1] - self._wl[k])
+
+            def widths_at(self, ss: Any) -> np.ndarray:
+                """``width_at(s)`` [m] for every ``s`` of ``ss`` [m], vectorized with the
+                same arithmetic."""
+                ss = np.asarray(ss, dtype=float)
+                if self._wconst is not None:
+                    return np.full(ss.shape, self._wconst)
+                s0, w = self._s, self._w
+                k = np.clip(np.searchsorted(s0, ss, side="right") - 1, 0, len(s0) - 2)
+                f = np.clip((ss - s0[k]) / (s0[k + 1] - s0[k]), 0.0, 1.0)
+                return w[k] + f * (w[k + 1] - w[k])
 
             def positions(self, ss: Any, lateral: float = 0.0) -> np.ndarray:
                 """``position(s, lateral)`` for every ``s`` of ``ss`` [m] as an (N, 2) array
