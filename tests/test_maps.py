@@ -341,3 +341,21 @@ def test_off_road_and_on_sidewalk_follow_the_map_s_widths_along_the_road(tmp_pat
     walk = on_sidewalk().evaluate(tr)
     assert walk.rho == pytest.approx(-106.0, abs=1e-6), walk.detail
     assert walk.t == pytest.approx(4.5)
+
+
+def test_a_recorded_width_per_point_is_checked_and_interpolated():
+    """A hand-made meta['lanes'] entry may give 'widths' (one per point): between points the
+    width is their linear interpolation; a wrong count is an error naming the lane."""
+    from pytest_avscenario.monitors import MonitorError
+    from pytest_avscenario.monitors.road import lane_frame
+    from pytest_avscenario.trajectory import Trajectory
+
+    t = np.arange(0, 1.01, 0.1)
+    lane = {"xy": [[0, 0], [10, 0], [20, 0]], "width": 2.0, "widths": [2.0, 4.0, 3.0]}
+    tr = Trajectory.from_arrays(t, {"ego": {"x": 20 * t, "y": 0 * t, "lane": "a"}},
+                                meta={"lanes": {"a": lane}})
+    assert np.allclose(lane_frame(tr).width, np.interp(20 * t, [0, 10, 20], [2, 4, 3]))
+    bad = Trajectory.from_arrays(t, {"ego": {"x": 20 * t, "y": 0 * t, "lane": "a"}},
+                                 meta={"lanes": {"a": {**lane, "widths": [2.0, 4.0]}}})
+    with pytest.raises(MonitorError, match="lane 'a'.*one finite width >= 0 .* per point"):
+        lane_frame(bad)
