@@ -34,6 +34,7 @@ from pytest_avscenario.sim.drivers.parking import Parker
 from pytest_avscenario.sim.drivers.perception import EMPTY, Perceived
 from pytest_avscenario.sim.drivers.route_path import RoutePath, pursuit_steering
 from pytest_avscenario.sim.right_of_way import waiting_at_line
+from pytest_avscenario.sim.signals import GREEN, must_stop
 
 __all__ = ["Autopilot", "AutopilotOptions"]
 
@@ -362,8 +363,6 @@ class Autopilot:
         lights = getattr(obs, "traffic_lights", ())
         if not lights:
             return []
-        from pytest_avscenario.sim.signals import GREEN, must_stop
-
         o = self.options
         out = []
         for light in lights:
