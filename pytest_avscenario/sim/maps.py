@@ -318,9 +318,19 @@ def _shape_class() -> type:
                     ex, ey = px - xl[k], py - yl[k]
                     f = (ex * tx[k] + ey * ty[k]) / along[k]
                     if f < 0.0:
-                        fc = f if k == 0 else 0.0  # before the start: the first segment's line
+                        if k != 0:
+                            if best_d2 < 1e9:
+                                continue  # clipped: 1e9 or more, never nearer than a held foot
+                            fc = 0.0
+                        else:
+                            fc = f  # before the start: the first segment's line
                     elif f > 1.0:
-                        fc = f if k == last else 1.0  # past the end: the last segment's line
+                        if k != last:
+                            if best_d2 < 1e9:
+                                continue
+                            fc = 1.0
+                        else:
+                            fc = f  # past the end: the last segment's line
                     else:
                         fc = f
                     dx, dy = ex - fc * dcx[k], ey - fc * dcy[k]
