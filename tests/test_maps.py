@@ -286,3 +286,76 @@ def test_a_geometry_that_stands_still_gives_a_lane_of_increasing_arc_length(tmp_
     town = World(0, name="t").map(path)
     g = town.lane("1/0/-1").geometry
     assert np.isfinite(g.position(g.length, 0.0)).all() and math.isfinite(g.heading_at(g.length))
+
+
+def test_the_monitors_see_a_map_lane_s_width_where_the_ego_is():
+    """lane_width_and_offset.xodr: lane 4/0/-1 widens as w = s (0 at its start). The
+    recording keeps the width along the lane, so the ego's lane frame has the width at its
+    own s (the width at s = 0, zero, everywhere before)."""
+    from pytest_avscenario.monitors.road import lane_frame
+
+    w = World(0, name="t")
+    road = w.map(DATA / "lane_width_and_offset.xodr")
+    w.ego(road.lane("4/0/-1"), s=3.0, speed=1.0, driver="idm")
+    tr = w.run(4)
+    f = lane_frame(tr)
+    assert set(tr.lane[0]) == {"4/0/-1"} and np.isfinite(f.width).all()
+    # the lane's s runs along its centre line, 1/cos(atan(1/2)) times the reference line's
+    s_ref = f.s * math.cos(math.atan(0.5))
+    assert np.abs(f.width - s_ref).max() < 0.02
+    assert f.width[-1] > f.width[0] + 3.0
+
+
+def _narrowing_road(path):
+    """A straight 200-m road along +x: a driving lane right of the reference line, 3.5 m wide
+    narrowing by 2 cm a metre with its centre line kept on y = -1.75 m (a lane offset of
+    -0.01 x), and beyond it a sidewalk 0.5 m wide widening by 3 cm a metre."""
+    path.write_text(
+        "<OpenDRIVE><road id='1' length='200' junction='-1'><planView><geometry s='0' x='0' "
+        "y='0' hdg='0' length='200'><line/></geometry></planView><lanes>"
+        "<laneOffset s='0' a='0' b='-0.01' c='0' d='0'/><laneSection s='0'>"
+        "<right><lane id='-1' type='driving'><width sOffset='0' a='3.5' b='-0.02' c='0' d='0'/>"
+        "</lane><lane id='-2' type='sidewalk'><width sOffset='0' a='0.5' b='0.03' c='0' d='0'/>"
+        "</lane></right></laneSection></lanes></road></OpenDRIVE>")
+    return path
+
+
+def test_off_road_and_on_sidewalk_follow_the_map_s_widths_along_the_road(tmp_path):
+    """The ego drives straight along y = -3 m at 10 m/s from x = 5.5 m for 15 s (samples 1 m
+    apart). The driving lane's edge, at y = -3.5 + 0.01 x, passes it at x = 50 m: from the
+    sample at x = 50.5 m on (106 samples, 10.6 s) it is off the road, and on the sidewalk
+    (from the kerb to y = -4 - 0.02 x). Judged with the sidewalk's narrowest width (0.5 m)
+    at every point, the ego's centre (0.75 + 0.005 x m from the sidewalk's centre line) was
+    never on it."""
+    from pytest_avscenario.monitors import off_road, on_sidewalk
+    from pytest_avscenario.sim.places import Spot
+
+    w = World(0, name="t")
+    road = w.map(_narrowing_road(tmp_path / "walk.xodr"))
+    w.ego(Spot(road.lane("1/0/-1"), 5.5, -1.25), speed=10.0, driver=lambda obs: (0.0, 0.0))
+    tr = w.run(15)
+    assert np.allclose(tr.y[0], -3.0) and np.allclose(tr.x[0], 5.5 + 10.0 * tr.t)
+    assert tr.meta["lanes"]["1/0/-2"]["kind"] == "sidewalk"
+    off = off_road().evaluate(tr)
+    assert off.rho == pytest.approx(-10.6) and off.t == pytest.approx(4.5)
+    walk = on_sidewalk().evaluate(tr)
+    assert walk.rho == pytest.approx(-106.0, abs=1e-6), walk.detail
+    assert walk.t == pytest.approx(4.5)
+
+
+def test_a_recorded_width_per_point_is_checked_and_interpolated():
+    """A hand-made meta['lanes'] entry may give 'widths' (one per point): between points the
+    width is their linear interpolation; a wrong count is an error naming the lane."""
+    from pytest_avscenario.monitors import MonitorError
+    from pytest_avscenario.monitors.road import lane_frame
+    from pytest_avscenario.trajectory import Trajectory
+
+    t = np.arange(0, 1.01, 0.1)
+    lane = {"xy": [[0, 0], [10, 0], [20, 0]], "width": 2.0, "widths": [2.0, 4.0, 3.0]}
+    tr = Trajectory.from_arrays(t, {"ego": {"x": 20 * t, "y": 0 * t, "lane": "a"}},
+                                meta={"lanes": {"a": lane}})
+    assert np.allclose(lane_frame(tr).width, np.interp(20 * t, [0, 10, 20], [2, 4, 3]))
+    bad = Trajectory.from_arrays(t, {"ego": {"x": 20 * t, "y": 0 * t, "lane": "a"}},
+                                 meta={"lanes": {"a": {**lane, "widths": [2.0, 4.0]}}})
+    with pytest.raises(MonitorError, match="lane 'a'.*one finite width >= 0 .* per point"):
+        lane_frame(bad)

@@ -5,7 +5,8 @@ The simulator writes the lanes any agent was on and the ego's route into the tra
 ``meta`` (``sim/recording.py``, :func:`road_meta`): ``meta["lanes"]`` maps a lane id (the id
 in ``Trajectory.lane``) to ``{"kind": "travel" | "connector" | "parking" | ..., "group": the
 carriageway (lanes side by side with one direction share it), "width": [m], "xy": centre line
-points [m] in the direction of travel}``, ``meta["stops"]`` lists ``{"lane", "s" [m along
+points [m] in the direction of travel, and for a lane whose width varies along it (a map's)
+"widths": the width [m] at each point}``, ``meta["stops"]`` lists ``{"lane", "s" [m along
 it], "kind": "stop" | "crosswalk"}`` and ``meta["ego_route"]`` the ego's route lane ids. A
 lane of any origin (built roads, OpenDRIVE maps) is a polyline there, so the monitors need
 nothing but these four facts per lane: the closest lane (the recorded ``lane``), its heading
@@ -37,7 +38,8 @@ __all__ = ["LanePolyline", "LaneFrame", "RoadLanes", "lanes_of", "lane_frame", "
 @dataclass(frozen=True)
 class LanePolyline:
     """One lane's centre line ``xy`` ``(N, 2)`` [m], its arc length ``cum`` ``(N,)`` [m],
-    width [m], kind and carriageway group."""
+    width [m] (at its start), kind and carriageway group; ``widths`` ``(N,)`` [m] the width
+    at each point for a lane whose width varies along it (None: ``width`` all along)."""
 
     id: str
     xy: np.ndarray
@@ -45,12 +47,22 @@ class LanePolyline:
     width: float
     kind: str = "travel"
     group: str = ""
+    #: the width [m] at each point of ``xy`` where it varies along the lane (a map lane)
+    widths: np.ndarray | None = None
     #: the segments' lengths [m] ``(N-1,)`` when known (a lane read from the recording)
     seg: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def length(self) -> float:
         return float(self.cum[-1])
+
+    def width_at(self, s: np.ndarray) -> np.ndarray:
+        """The lane's width [m] at arc lengths ``s`` [m]: linear between its points, the end
+        points' width before the start and past the end."""
+        s = np.asarray(s, dtype=float)
+        if self.widths is None:
+            return np.full(s.shape, self.width)
+        return np.interp(s, self.cum, self.widths)
 
     def project(self, x: np.ndarray, y: np.ndarray, heading: bool = True
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -107,17 +119,29 @@ def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
     try:
         xy = np.asarray(data["xy"], dtype=float).reshape(-1, 2)
         width = float(data["width"])
+        widths = data.get("widths")
+        if widths is not None:
+            widths = np.asarray(widths, dtype=float).reshape(-1)
     except (KeyError, TypeError, ValueError) as exc:
         raise MonitorError(
             f"lane {lane_id!r} in the trajectory's meta['lanes'] needs 'xy' (centre line points "
-            f"[m]) and 'width' [m]: {exc}") from None
+            f"[m]) and 'width' [m] (and 'widths', if given, a width [m] per point): "
+            f"{exc}") from None
     if xy.shape[0] < 2 or not np.isfinite(xy).all():
         raise MonitorError(f"lane {lane_id!r} in meta['lanes'] needs >= 2 finite points")
+    if widths is not None and (widths.shape[0] != xy.shape[0] or not np.isfinite(widths).all()
+                               or (widths < 0).any()):
+        raise MonitorError(f"lane {lane_id!r} in meta['lanes']: 'widths' needs one finite width "
+                           f">= 0 [m] per point of 'xy' ({xy.shape[0]}), got "
+                           f"{widths.shape[0]}")
     d = xy[1:] - xy[:-1]  # np.diff's arithmetic
     seg = np.hypot(d[:, 0], d[:, 1])
     apart = seg > 1e-9  # repeated points have no direction
     if not apart.all():
-        xy = xy[np.concatenate([[True], apart])]
+        keep = np.concatenate([[True], apart])
+        xy = xy[keep]
+        if widths is not None:
+            widths = widths[keep]
         if xy.shape[0] < 2:
             raise MonitorError(f"lane {lane_id!r} in meta['lanes'] has zero length")
         d = xy[1:] - xy[:-1]
@@ -125,7 +149,7 @@ def _polyline(lane_id: str, data: Mapping[str, Any]) -> LanePolyline:
     cum = np.zeros(xy.shape[0])
     np.cumsum(seg, out=cum[1:])
     return LanePolyline(lane_id, xy, cum, width, str(data.get("kind", "travel")),
-                        str(data.get("group", "")), seg)
+                        str(data.get("group", "")), widths=widths, seg=seg)
 
 
 class RoadLanes(Mapping[str, LanePolyline]):
@@ -216,7 +240,7 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
         # one known lane all along (a scenario on one lane): project every sample at once
         poly = lanes[str(lane[0])]
         s, r, h = poly.project(traj.x[0], traj.y[0])
-        got = cache["road.frame"] = LaneFrame(s, r, h, np.full(T, poly.width))
+        got = cache["road.frame"] = LaneFrame(s, r, h, poly.width_at(s))
         cache["road.frame_lane"] = poly  # the frame is this lane's projection of every sample
         return got
     s, r, h, w = (np.full(T, np.nan) for _ in range(4))
@@ -230,7 +254,7 @@ def lane_frame(traj: Trajectory, monitor: str = "") -> LaneFrame:
         if not sel.any():
             continue
         s[sel], r[sel], h[sel] = poly.project(traj.x[0, sel], traj.y[0, sel])
-        w[sel] = poly.width
+        w[sel] = poly.width_at(s[sel])
     got = cache["road.frame"] = LaneFrame(s, r, h, w)
     return got
 

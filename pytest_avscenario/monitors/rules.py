@@ -145,7 +145,7 @@ def _inside_any(traj: Trajectory, lanes: list[LanePolyline], where: np.ndarray) 
     inside = np.zeros(idx.size, dtype=bool)
     for lane in lanes:
         s, r, _ = lane.project(traj.x[0, idx], traj.y[0, idx])
-        inside |= (s >= 0) & (s <= lane.length) & (np.abs(r) <= lane.width / 2)
+        inside |= (s >= 0) & (s <= lane.length) & (np.abs(r) <= lane.width_at(s) / 2)
     out = np.zeros(traj.n_steps, dtype=bool)
     out[idx] = inside
     return out

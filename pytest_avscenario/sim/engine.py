@@ -324,7 +324,9 @@ class _Agent:
         ahead = self.world.lights_ahead(self)
         if not ahead:
             return None
-        went = self.__dict__.setdefault("_light_went", set())
+        went = self.__dict__.get("_light_went")
+        if went is None:
+            went = self._light_went = set()
         v = max(float(self.speed), 0.0)
         for d, state, sid in ahead:
             front = d - self.LENGTH / 2

@@ -130,6 +130,9 @@ def _shape_class() -> type:
                 self.length = float(self._s[-1])
                 self.width = float(np.median(self._w))
                 self._wconst = float(self._w[0]) if np.ptp(self._w) == 0 else None
+                #: the width is one number all along (to a micrometre): what the recording
+                #: needs to know to write a width per point or not
+                self.width_constant = bool(np.ptp(np.round(self._w, 6)) == 0)
                 self.line_types = (LineType.STRIPED, LineType.STRIPED)
                 self.speed_limit = float(speed_limit)
                 self.forbidden = False
@@ -147,7 +150,7 @@ def _shape_class() -> type:
                         self._line = (float(self._xy[0, 0]), float(self._xy[0, 1]), float(ux), float(uy),
                                       clen / self.length)
                 self._memo: tuple | None = None
-                self._grid: dict | None = None  # see _local_near, made on first use
+                self._grid: dict | None = None  # see _local_near: cells filled on first use
                 # for what other modules compute from this lane alone (the autopilot's route
                 # samples): the lane never changes and is shared by every world on the map
                 self.memo: dict = {}
@@ -176,6 +179,17 @@ def _shape_class() -> type:
                 k, f = self._at(float(longitudinal))
                 f = min(max(f, 0.0), 1.0)
                 return self._wl[k] + f * (self._wl[k + 1] - self._wl[k])
+
+            def widths_at(self, ss: Any) -> np.ndarray:
+                """``width_at(s)`` [m] for every ``s`` of ``ss`` [m], vectorized with the
+                same arithmetic."""
+                ss = np.asarray(ss, dtype=float)
+                if self._wconst is not None:
+                    return np.full(ss.shape, self._wconst)
+                s0, w = self._s, self._w
+                k = np.clip(np.searchsorted(s0, ss, side="right") - 1, 0, len(s0) - 2)
+                f = np.clip((ss - s0[k]) / (s0[k + 1] - s0[k]), 0.0, 1.0)
+                return w[k] + f * (w[k + 1] - w[k])
 
             def positions(self, ss: Any, lateral: float = 0.0) -> np.ndarray:
                 """``position(s, lateral)`` for every ``s`` of ``ss`` [m] as an (N, 2) array
@@ -244,16 +258,20 @@ def _shape_class() -> type:
 
             def _local_near(self, px: float, py: float) -> tuple[float, float] | None:
                 # A point within _NEAR of the centre line (a vehicle on or beside the lane):
-                # every block that could hold its foot is listed in its cell of a grid made
-                # once, so the blocks are not all measured. Searched nearest first, stopping
-                # when no further block can hold a nearer foot: the same answer as a scan of
-                # every segment. None for a point further out (the caller scans).
+                # every block that could hold its foot is listed in its cell of a grid, so
+                # the blocks are not all measured. Searched nearest first, stopping when no
+                # further block can hold a nearer foot: the same answer as a scan of every
+                # segment. None for a point further out (the caller scans).
+                key = (math.floor(px / _CELL), math.floor(py / _CELL))
                 grid = self._grid
-                if grid is None:
-                    grid = self._grid = self._make_grid()
-                cell = grid.get((math.floor(px / _CELL), math.floor(py / _CELL)))
+                cell = grid.get(key) if grid is not None else None
                 if cell is None:
+                    cell = self._cell(key)
+                if not cell:
                     return None
+                if len(cell) == 1:  # one block near: nothing to order or to stop early
+                    best = self._foot(px, py, *self._blocks[cell[0]])
+                    return None if best[0] > _NEAR * _NEAR else (best[1], best[2])
                 bl = self._bl
                 order = sorted((math.hypot(bl[b][0] - px, bl[b][1] - py) - bl[b][2], b)
                                for b in cell)
@@ -271,16 +289,23 @@ def _shape_class() -> type:
                     return None
                 return best[1], best[2]
 
-            def _make_grid(self) -> dict:
-                # cell -> the blocks whose bounding circle comes within _NEAR of the cell
-                grid: dict[tuple[int, int], list[int]] = {}
-                for b, (cx, cy, r) in enumerate(self._bl):
-                    e = r + _NEAR
-                    for ix in range(math.floor((cx - e) / _CELL), math.floor((cx + e) / _CELL) + 1):
-                        for iy in range(math.floor((cy - e) / _CELL),
-                                        math.floor((cy + e) / _CELL) + 1):
-                            grid.setdefault((ix, iy), []).append(b)
-                return grid
+            def _cell(self, key: tuple[int, int]) -> list[int]:
+                # The blocks whose bounding circle comes within _NEAR of the grid cell ``key``
+                # (its square of cells covers the cell), in block order. Cells are filled as
+                # agents reach them and kept with the lane: a long lane's whole grid (tens of
+                # thousands of cells) would cost more than the cases that use it.
+                grid = self._grid
+                if grid is None:
+                    e = self._br + _NEAR
+                    cx, cy = self._bc[:, 0], self._bc[:, 1]
+                    self._span = (np.floor((cx - e) / _CELL), np.floor((cx + e) / _CELL),
+                                  np.floor((cy - e) / _CELL), np.floor((cy + e) / _CELL))
+                    grid = self._grid = {}
+                x0, x1, y0, y1 = self._span
+                ix, iy = key
+                got = grid[key] = np.flatnonzero((x0 <= ix) & (ix <= x1)
+                                                 & (y0 <= iy) & (iy <= y1)).tolist()
+                return got
 
             def _foot(self, px: float, py: float, i: int, j: int) -> tuple[float, float, float]:
                 """(squared distance, s, r) of the foot on segments i..j-1, 1e9 added to the
@@ -293,9 +318,19 @@ def _shape_class() -> type:
                     ex, ey = px - xl[k], py - yl[k]
                     f = (ex * tx[k] + ey * ty[k]) / along[k]
                     if f < 0.0:
-                        fc = f if k == 0 else 0.0  # before the start: the first segment's line
+                        if k != 0:
+                            if best_d2 < 1e9:
+                                continue  # clipped: 1e9 or more, never nearer than a held foot
+                            fc = 0.0
+                        else:
+                            fc = f  # before the start: the first segment's line
                     elif f > 1.0:
-                        fc = f if k == last else 1.0  # past the end: the last segment's line
+                        if k != last:
+                            if best_d2 < 1e9:
+                                continue
+                            fc = 1.0
+                        else:
+                            fc = f  # past the end: the last segment's line
                     else:
                         fc = f
                     dx, dy = ex - fc * dcx[k], ey - fc * dcy[k]
@@ -364,6 +399,7 @@ class MapLaneIndex(LaneIndex):
         # what the recorder writes of each lane, shared by every world on the map (its lanes
         # never change): the lane ids by code, and road_meta's entry per lane once computed
         self.id_array = np.asarray([l.id for l in self.order] + [""])
+        self.id_code = {l.id: i for i, l in enumerate(self.order)}
         self.lane_records: dict[str, Any] = {}
         boxes = []
         for lane in self.order:

@@ -144,8 +144,9 @@ LANE_POINT_SPACING_M = 1.0
 
 def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
     """The road as the rule monitors read it, for the lanes named in ``ids`` (the lanes any
-    agent was on, and the ego's route): ``{"lanes": {id: {"kind", "group", "width" [m],
-    "xy": centre line points [m]}}, "stops": [{"lane", "s" [m], "kind"}]}``.
+    agent was on, and the ego's route): ``{"lanes": {id: {"kind", "group", "width" [m] (at
+    s = 0), "xy": centre line points [m], and for a lane whose width varies along it
+    "widths": the width [m] at each point}}, "stops": [{"lane", "s" [m], "kind"}]}``.
 
     Any lane geometry with ``position(s, r)``, ``heading_at(s)``, ``length`` and
     ``width_at(s)`` is written the same way (a straight lane as its two ends, anything else
@@ -158,7 +159,11 @@ def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
     memo = getattr(index, "lane_records", None)
     if memo is not None and not memo:
         memo.update((lane.id, _lane_record(lane)) for lane in index.order)
-    for lane in index.order:
+    order = index.order
+    codes = getattr(index, "id_code", None)  # a map's: lane id -> place in order, made once
+    if codes is not None:  # the few lanes named, in the index's order, not a scan of all
+        order = [order[i] for i in sorted(codes[k] for k in ids if k in codes)]
+    for lane in order:
         if lane.id not in ids:
             continue
         for s, kind in index.stop_marks.get(lane.index, ()):
@@ -168,53 +173,72 @@ def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
             got = _lane_record(lane)
             if memo is not None:
                 memo[lane.id] = got
-        kind, group, width, xy = got
+        kind, group, width, xy, widths = got
         lanes[lane.id] = {"kind": kind, "group": group, "width": width, "xy": xy.tolist()}
+        if widths is not None:
+            lanes[lane.id]["widths"] = widths.tolist()
     return {"lanes": lanes, "stops": stops}
 
 
-def _lane_record(lane: Any) -> tuple[str, str, float, np.ndarray]:
-    """(kind, group, width [m], centre line points [m] rounded to 0.1 mm) of one lane."""
+def _lane_record(lane: Any) -> tuple[str, str, float, np.ndarray, np.ndarray | None]:
+    """(kind, group, width at s = 0 [m], centre line points [m] rounded to 0.1 mm, the
+    width [m] at each point, rounded to a micrometre, or None where it is the same all
+    along) of one lane. A lane whose width varies is written as points every
+    :data:`LANE_POINT_SPACING_M` even when straight, so the width between two points is
+    their linear interpolation."""
     g = lane.geometry
     L = float(g.length)
     ends = np.array([g.position(0.0, 0.0), g.position(L, 0.0)], dtype=float)
     mid = np.asarray(g.position(L / 2, 0.0), dtype=float)
     straight = (abs(wrap_to_pi(g.heading_at(L) - g.heading_at(0.0))) < 1e-9
                 and float(np.hypot(*(mid - ends.mean(axis=0)))) < 1e-6)
-    n = 2 if straight else int(min(max(math.ceil(L / LANE_POINT_SPACING_M) + 1, 3), 2000))
+    many_w = getattr(g, "widths_at", None)  # a map lane's vectorized width_at(s)
+    if many_w is not None:
+        varies = not getattr(g, "width_constant", False)
+    else:  # the built roads' lanes: one width each, checked at both ends and the middle
+        varies = len({float(g.width_at(s)) for s in (0.0, L / 2, L)}) > 1
+    n = 2 if straight and not varies else \
+        int(min(max(math.ceil(L / LANE_POINT_SPACING_M) + 1, 3), 2000))
+    ss = np.linspace(0.0, L, n)
     many = getattr(g, "positions", None)  # a map lane's vectorized position(s, 0)
-    if straight:
+    if n == 2:
         xy = ends
     elif many is not None:
-        xy = many(np.linspace(0.0, L, n))
+        xy = many(ss)
     else:
-        xy = np.array([g.position(s, 0.0) for s in np.linspace(0.0, L, n)])
-    return lane.kind, lane.group, round(float(g.width_at(0.0)), 6), np.round(xy, 4)
+        xy = np.array([g.position(s, 0.0) for s in ss])
+    widths = None
+    if varies:
+        widths = np.round(many_w(ss) if many_w is not None
+                          else np.array([g.width_at(s) for s in ss], dtype=float), 6)
+    return lane.kind, lane.group, round(float(g.width_at(0.0)), 6), np.round(xy, 4), widths
 
 
 def map_sidewalks(data: Any, lanes: dict[str, Any]) -> dict[str, Any]:
     """The sidewalk lanes of a map (:class:`~.opendrive.MapData`) in the lane sections of
     ``lanes`` (the recorded ones), written as :func:`road_meta` writes a lane (``kind``
     "sidewalk"; centre line points about every :data:`LANE_POINT_SPACING_M`; ``width`` the
-    narrowest along it, so a point counted on the sidewalk is on it)."""
+    narrowest along it, and ``widths`` the width at each point where it varies)."""
     every = _SIDEWALKS.get(id(data))
     if every is None or every[0] is not data:  # once per map and process: its lanes never change
         every = (data, _sidewalks(data))
         _SIDEWALKS[id(data)] = every
     sections = {(l.road, l.section) for l in (data.lanes.get(k) for k in lanes) if l is not None}
     out: dict[str, Any] = {}
-    for k, section, width, xy in every[1]:
+    for k, section, width, xy, widths in every[1]:
         if section in sections and k not in lanes:
             out[k] = {"kind": "sidewalk", "group": "", "width": width, "xy": xy.tolist()}
+            if widths is not None:
+                out[k]["widths"] = widths.tolist()
     return out
 
 
 _SIDEWALKS: dict[int, tuple[Any, list]] = {}
 
 
-def _sidewalks(data: Any) -> list[tuple[str, tuple, float, np.ndarray]]:
-    """(id, (road, section), width [m], points [m]) of every sidewalk lane of a map, in file
-    order."""
+def _sidewalks(data: Any) -> list[tuple[str, tuple, float, np.ndarray, np.ndarray | None]]:
+    """(id, (road, section), narrowest width [m], points [m], the width [m] at each point or
+    None where it is the same all along) of every sidewalk lane of a map, in file order."""
     out = []
     for k, l in data.lanes.items():
         if l.kind != "sidewalk":
@@ -222,8 +246,9 @@ def _sidewalks(data: Any) -> list[tuple[str, tuple, float, np.ndarray]]:
         step = max(int(round(LANE_POINT_SPACING_M / max(float(l.s[1] - l.s[0]), 1e-9))), 1) \
             if len(l.s) > 1 else 1
         keep = np.unique(np.r_[np.arange(0, len(l.s), step), len(l.s) - 1])
+        widths = np.round(l.width[keep], 6)
         out.append((k, (l.road, l.section), round(float(l.width.min()), 6),
-                    np.round(l.xy[keep], 4)))
+                    np.round(l.xy[keep], 4), widths if np.ptp(widths) > 0 else None))
     return out
 
 

@@ -131,6 +131,9 @@ class MapSignals:
     signals: dict[str, SignalData]
     controllers: dict[str, ControllerData]
     groups: dict[str, tuple[str, ...]]
+    #: what is computed from these signals alone, once per map and process (their lights'
+    #: entries in a recording): every world on the map shares it
+    memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     def of_kind(self, kind: str) -> list[SignalData]:
         return [s for s in self.signals.values() if s.kind == kind]
@@ -562,22 +565,61 @@ class TrafficLights:
         ``light.<id>`` series of state codes over ``t``, and the meta entries ``{"id",
         "controller", "x", "y", "heading", "stops": [{"lane", "s", "x", "y", "heading",
         "width"}]}``."""
-        lanes = set(lanes)
-        groups = {self.phase[self.controller_of[sid]][0] for sid, sg in self.lights.items()
-                  if sid in self.controller_of and any(p.lane in lanes for p in sg.stops)}
-        series, meta = {}, []
-        for sid, sg in self.lights.items():
-            cid = self.controller_of.get(sid)
-            if cid is None or self.phase[cid][0] not in groups:
-                continue
-            mine = sg.stops
-            series[f"light.{sid}"] = self.codes(sid, t).astype(float)
-            meta.append({"id": sid, "controller": self.controller_of[sid],
-                         "x": round(sg.x, 3), "y": round(sg.y, 3), "heading": round(sg.heading, 4),
-                         "stops": [{"lane": p.lane, "s": round(p.s, 4), "x": round(p.x, 3),
-                                    "y": round(p.y, 3), "heading": round(p.heading, 4),
-                                    "width": round(p.width, 3)} for p in mine]})
+        by_lane, entries = self._recordable()
+        groups = set()
+        for lane in lanes:
+            got = by_lane.get(lane)
+            if got:
+                groups |= got
+        mine = [(sid, e) for sid, g, e in entries if g in groups]
+        if not mine:
+            return {}, []
+        codes = self._codes_many([sid for sid, _ in mine], t).astype(float)
+        series = {f"light.{sid}": row for (sid, _), row in zip(mine, codes)}
+        meta = [{"id": sid, "controller": cid, "x": x, "y": y, "heading": h,
+                 "stops": [{"lane": lane, "s": s, "x": px, "y": py, "heading": ph, "width": w}
+                           for lane, s, px, py, ph, w in stops]}
+                for sid, (cid, x, y, h, stops) in mine]
         return series, meta
+
+    def _recordable(self) -> tuple[dict[str, set], list[tuple[str, str, tuple]]]:
+        """(lane id -> the junctions whose lights rule it, [(signal, junction, its meta entry
+        as plain values)] in the lights' order): what :meth:`record` writes of the map's
+        lights, made once (the lights and their stops never change; the plan does)."""
+        got = self.map.memo.get("record")
+        if got is None:
+            by_lane: dict[str, set] = {}
+            entries = []
+            for sid, sg in self.lights.items():
+                cid = self.controller_of.get(sid)
+                if cid is None:
+                    continue
+                g = self.phase[cid][0]
+                for p in sg.stops:
+                    by_lane.setdefault(p.lane, set()).add(g)
+                entries.append((sid, g, (cid, round(sg.x, 3), round(sg.y, 3),
+                                         round(sg.heading, 4),
+                                         tuple((p.lane, round(p.s, 4), round(p.x, 3),
+                                                round(p.y, 3), round(p.heading, 4),
+                                                round(p.width, 3)) for p in sg.stops))))
+            got = self.map.memo["record"] = (by_lane, entries)
+        return got
+
+    def _codes_many(self, signals: list[str], t: Any) -> np.ndarray:
+        """:meth:`codes` of each of ``signals`` (controlled lights) as the rows of one
+        ``(len(signals), len(t))`` array, the same arithmetic element by element."""
+        t = np.asarray(t, dtype=float)
+        off, shift, cyc = [], [], []
+        for sid in signals:
+            g, j, _ = self.phase[self.controller_of[sid]]
+            off.append(self._offset(g))
+            shift.append(j * self.slot)
+            cyc.append(self.cycle_of(g))
+        off, shift, cyc = (np.asarray(v, dtype=float)[:, None] for v in (off, shift, cyc))
+        tau = np.mod(t[None, :] + off - shift, cyc)
+        tau = np.where(tau > cyc - 1e-9, 0.0, tau)
+        return np.where(tau < self.green - 1e-9, 0,
+                        np.where(tau < self.green + self.amber - 1e-9, 1, 2)).astype(np.int8)
 
 
 def intersection_lights(inter: Any) -> TrafficLights:

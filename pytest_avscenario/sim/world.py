@@ -336,18 +336,27 @@ class World:
         [m] from its centre to the stop position (negative once passed, until it leaves that
         lane), state now, signal id)``, nearest first; [] on a road without lights."""
         lights = self._lights if self._lights is not None else self.traffic_lights
-        plan, ri = agent.plan, agent.route_index
-        if not lights or not plan:
+        if not lights:
             return []
-        memo = agent.__dict__.get("_lights_memo")
-        if memo is None or memo[0] is not plan or memo[1] != ri:
-            memo = agent._lights_memo = (plan, ri, lights.ahead(plan, ri, horizon))
-        if not memo[2]:
+        ahead = self._stops_ahead(lights, agent, horizon)
+        if not ahead:
             return []
         rs = float(agent.route_s)
         t = self.t
         state = lights.state
-        return [(acc - rs, state(sid, t), sid) for _, _, acc, sid in memo[2]]
+        return [(acc - rs, state(sid, t), sid) for _, _, acc, sid in ahead]
+
+    @staticmethod
+    def _stops_ahead(lights: Any, agent: Any, horizon: float) -> list:
+        """``lights.ahead`` of ``agent``'s route from its lane on, kept until it moves to
+        another lane or route: the stops ahead are looked up per lane, not per step."""
+        plan, ri = agent.plan, agent.route_index
+        if not plan:
+            return []
+        memo = agent.__dict__.get("_lights_memo")
+        if memo is None or memo[0] is not plan or memo[1] != ri:
+            memo = agent._lights_memo = (plan, ri, lights.ahead(plan, ri, horizon))
+        return memo[2]
 
     # -- placing agents --------------------------------------------------------------------------
     def _need_road(self, what: str) -> None:
@@ -864,13 +873,24 @@ class World:
             "sensor_range": self.sensor_range, "traffic_lights": self._lights_seen(ego)})
 
     def _lights_seen(self, ego: Any) -> tuple:
-        lights = self.traffic_lights
-        if lights is None:
+        lights = self._lights if self._lights is not None else self.traffic_lights
+        if not lights:
             return ()
-        if not self.lights_ahead(ego):  # (refreshes the memo of the stops ahead)
+        ahead = self._stops_ahead(lights, ego, 150.0)
+        if not ahead:
             return ()
-        return tuple(TrafficLight(j, s, lights.state(sid, self.t), sid)
-                     for j, s, _, sid in ego._lights_memo[2])
+        t = self.t
+        state = lights.state
+        states = [state(sid, t) for _, _, _, sid in ahead]
+        # the lights' states change every few seconds: the observation's tuple is made again
+        # only when one changed or the stops ahead did (its items are frozen, so shared)
+        seen = ego.__dict__.get("_lights_seen")
+        if seen is not None and seen[0] is ahead and seen[1] == states:
+            return seen[2]
+        out = tuple(_frozen(TrafficLight, {"route_index": j, "s": s, "state": st, "signal": sid})
+                    for (j, s, _, sid), st in zip(ahead, states))
+        ego._lights_seen = (ahead, states, out)
+        return out
 
     def view(self) -> Any:
         """A read-only :class:`~.view.SceneView` of the simulation now: every lane of the road

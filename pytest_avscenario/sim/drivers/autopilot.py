@@ -34,6 +34,7 @@ from pytest_avscenario.sim.drivers.parking import Parker
 from pytest_avscenario.sim.drivers.perception import EMPTY, Perceived
 from pytest_avscenario.sim.drivers.route_path import RoutePath, pursuit_steering
 from pytest_avscenario.sim.right_of_way import waiting_at_line
+from pytest_avscenario.sim.signals import GREEN, must_stop
 
 __all__ = ["Autopilot", "AutopilotOptions"]
 
@@ -204,10 +205,7 @@ class Autopilot:
             # Every point's allowed speed is at least sqrt(lateral_accel / |k|max): when that
             # is no cap on v0, the points need not be looked at (the same v0 either way).
             if math.sqrt(o.lateral_accel / max(path.max_curvature_bound(w), 1e-6)) < v0:
-                k = np.abs(path.curvature[w])
-                d = np.maximum(path.S[w] - s_ego, 0.0)
-                v_allow = np.sqrt(o.lateral_accel / np.maximum(k, 1e-6) + 2 * b * d)
-                v0 = min(v0, float(v_allow.min()))
+                v0 = min(v0, path.curve_speed_min(w, s_ego, o.lateral_accel, b))
         accel = o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else -o.comfort_decel
         reason = "cruise"
 
@@ -362,11 +360,12 @@ class Autopilot:
         """Stop targets for the traffic lights ahead: red, and amber when it can stop at its
         comfortable deceleration; once it went on at amber it keeps going through that
         light (:func:`~pytest_avscenario.sim.signals.must_stop`)."""
-        from pytest_avscenario.sim.signals import GREEN, must_stop
-
+        lights = getattr(obs, "traffic_lights", ())
+        if not lights:
+            return []
         o = self.options
         out = []
-        for light in getattr(obs, "traffic_lights", ()):
+        for light in lights:
             if not 0 <= light.route_index < len(path.offsets):
                 continue
             front = path.offsets[light.route_index] + light.s - (s_ego + 0.5 * L)

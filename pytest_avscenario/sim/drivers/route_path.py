@@ -213,6 +213,7 @@ class RoutePath:
         self._kmax = np.concatenate([ak, np.zeros(pad)]).reshape(-1, _KBLOCK).max(axis=1).tolist()
         self.n = len(grid)
         self._xl = self.x.tolist()
+        self._curve_base: dict[float, np.ndarray] = {}
         self._yl = self.y.tolist()
         self._txl = self.tx.tolist()
         self._tyl = self.ty.tolist()
@@ -254,6 +255,20 @@ class RoutePath:
         :meth:`window`): the largest of the blocks it touches."""
         b0, b1 = w.start // _KBLOCK, (max(w.stop, w.start + 1) - 1) // _KBLOCK
         return max(self._kmax[b0:b1 + 1])
+
+    def curve_speed_min(self, w: slice, s: float, lateral_accel: float, decel: float) -> float:
+        """``min sqrt(lateral_accel / max(|curvature|, 1e-6) + 2 decel d)`` [m/s] over the
+        grid indices of ``w``, ``d`` [m] each point's distance ahead of ``s`` (0 behind it);
+        the first term is computed once per path (the same numbers as point by point)."""
+        base = self._curve_base.get(lateral_accel)
+        if base is None:
+            base = self._curve_base[lateral_accel] = \
+                lateral_accel / np.maximum(np.abs(self.curvature), 1e-6)
+        d = self.S[w] - s
+        np.maximum(d, 0.0, out=d)
+        d *= 2 * decel
+        d += base[w]
+        return math.sqrt(float(d.min()))  # sqrt is monotonic: the root of the least
 
     def project_near(self, x: float, y: float, s_guess: float) -> tuple[float, float, float, float]:
         """Arc length, lateral offset [m] and unit tangent of the route point nearest (x, y).
