@@ -39,11 +39,16 @@ class CompactMapping(Mapping):
         return items if type(items) is cls else cls(items)
 
     def __getitem__(self, key: str) -> Any:
-        names = self._names
-        for i in range(len(names)):  # a handful of names: a scan beats a shared index dict
-            if names[i] == key:
-                return self._values[i]
-        raise KeyError(key)
+        try:  # a handful of names: a scan (in C) beats a shared index dict
+            return self._values[self._names.index(key)]
+        except ValueError:
+            raise KeyError(key) from None
+
+    def get(self, key: str, default: Any = None) -> Any:
+        try:
+            return self._values[self._names.index(key)]
+        except ValueError:
+            return default
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._names)
