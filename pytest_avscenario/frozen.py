@@ -28,8 +28,8 @@ class CompactMapping(Mapping):
         if shared is None:
             if len(CompactMapping._known) > 4096:  # mappings of many shapes: nothing left to share
                 CompactMapping._known.clear()
-            shared = CompactMapping._known[names] = tuple(sys.intern(str(n)) if isinstance(n, str) else n
-                                                      for n in names)
+            shared = CompactMapping._known[names] = tuple(
+                sys.intern(n) if type(n) is str else n for n in names)
         self._names = shared
         self._values = tuple(items.values())
 

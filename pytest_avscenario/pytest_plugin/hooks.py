@@ -428,7 +428,7 @@ def _release(item: pytest.Item) -> None:
     if item.stash.get(sent_key, False):
         # its teardown report has its copy for the JUnit writer (which reads the teardown's)
         _drop_own_properties(item)
-    from .items import compact_stash
+    from .kept import compact_stash
 
     compact_stash(item)
 

@@ -4,7 +4,7 @@ item — its test, slot, function, and how to reach its fixtures and its driver 
 what the case gives (row, shrink rows, pictures) in the item's stash for the report hooks.
 
 With :mod:`.collect` and :mod:`.controller`, the only module that reads pytest's private
-attributes (``item._fixtureinfo``, ``item._request``, ``item.stash._storage``).
+attributes (``item._fixtureinfo``, ``item._request``).
 """
 
 from __future__ import annotations
@@ -94,16 +94,6 @@ def driver_identity(item: pytest.Item) -> dict[str, Any] | None:
         where = ""
     out["from"] = f"avs_driver fixture ({where})" if where else "avs_driver fixture"
     return out
-
-
-def compact_stash(item: pytest.Item) -> None:
-    """The item's stash, once its case's keys are gone, in a dict of the size it needs now:
-    a dict never shrinks, and our keys beside pytest's made it grow to the next size
-    (~0.13 KB an item, kept to the end of the run)."""
-    storage = getattr(item.stash, "_storage", None)
-    if type(storage) is dict:
-        # key by key: dict(storage) would copy its table, at the size it grew to
-        item.stash._storage = {key: value for key, value in storage.items()}
 
 
 def record_error_row(item: pytest.Item, error: str) -> None:
