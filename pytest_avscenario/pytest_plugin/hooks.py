@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from .astguard import guard_ast_parse
-from .controller import RunState
+from .controller import RunState, compact_stash
 from .options import DeclarationError, add_options, read_settings
 from .stopping import ExitGuard, TermGuard, end_workers, shorten_interrupt, unknown_test_info
 from .session import ScenarioSession, session_of
@@ -428,8 +428,6 @@ def _release(item: pytest.Item) -> None:
     if item.stash.get(sent_key, False):
         # its teardown report has its copy for the JUnit writer (which reads the teardown's)
         _drop_own_properties(item)
-    from .kept import compact_stash
-
     compact_stash(item)
 
 

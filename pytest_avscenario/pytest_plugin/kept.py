@@ -7,10 +7,8 @@ module and folders), empty ``sections`` and ``user_properties`` lists and pytest
 empty ``extras`` list: ~0.45 KB a case that nothing reads once every plugin has handled the
 report, 45 MB of a 100,000-case campaign (issue #35). :func:`slim_report` keeps what is
 read later (node id, location, outcome, longrepr, sections with content, durations) and
-shares the rest; :func:`compact_stash` gives back what an item's stash grew by for its case.
-Light: loaded for plain tests' items too (no numpy, nothing of the campaign). It reads one
-private attribute of pytest's (``item.stash._storage``), as :mod:`.items`, :mod:`.collect` and
-:mod:`.controller` read others.
+shares the rest (:func:`.controller.compact_stash` gives back what an item's stash grew by
+for its case).
 """
 
 from __future__ import annotations
@@ -79,13 +77,3 @@ def slim_report(report: Any) -> None:
             setattr(report, name, ())  # read (iterated) later, never extended
     if getattr(report, "extras", True) == []:
         del report.extras  # pytest-html's, read while it handles the report
-
-
-def compact_stash(item: Any) -> None:
-    """The item's stash, once its case's keys are gone, in a dict of the size it needs now:
-    a dict never shrinks, and our keys beside pytest's made it grow to the next size
-    (~0.13 KB an item, kept to the end of the run)."""
-    storage = getattr(item.stash, "_storage", None)
-    if type(storage) is dict:
-        # key by key: dict(storage) would copy its table, at the size it grew to
-        item.stash._storage = {key: value for key, value in storage.items()}
