@@ -19,11 +19,11 @@ import os
 import pickle
 import sys
 import traceback
-import types
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
 from .codec import jsonable, rho_from_json, rho_to_json
+from .frozen import CompactMapping
 
 __all__ = ["CaseOutcome", "CaseRow", "ORIGINS", "VERDICTS", "all_unavoidable", "violations_of"]
 
@@ -216,9 +216,9 @@ class CaseRow:
             raise ValueError(f"row verdict must be one of {VERDICTS}, got {self.verdict!r}")
         if not isinstance(self.params, Mapping) or not isinstance(self.rho, Mapping):
             raise ValueError("row 'params' and 'rho' must be mappings {name: value}")
-        # read-only views: a row is shared by the table, JUnit and the summary
-        object.__setattr__(self, "params", types.MappingProxyType(dict(self.params)))
-        object.__setattr__(self, "rho", types.MappingProxyType(dict(self.rho)))
+        # read-only: a row is shared by the table, JUnit and the summary
+        object.__setattr__(self, "params", CompactMapping.of(self.params))
+        object.__setattr__(self, "rho", CompactMapping.of(self.rho))
 
     def to_json(self) -> dict[str, Any]:
         """The row as JSON data (one line of errors.jsonl, or what crosses the xdist channel)."""

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from ..case import RESERVED, Case, stable_seed
+from ..frozen import CompactMapping
 from ..markers.spec import SPEC_KEYWORDS, BadExample, ScenarioSpec
 from ..space import Distribution, FeatureSpace, SpaceError, _show
 from .settings import DeclarationError, Settings
@@ -234,7 +235,8 @@ def build_plan(test: str, spec: ScenarioSpec, function: Any, settings: Settings,
                 raise DeclarationError(
                     f"sampler {name!r} could not draw {plan.samples} cases with "
                     f"sampler_options={_show(opts)}: {type(exc).__name__}: {exc}") from None
-            values = [space.from_unit(p) for p in points]
+            # one per item, alive for the whole run: compact (frozen.CompactMapping)
+            values = [CompactMapping(space.from_unit(p)) for p in points]
         for k, params in enumerate(values):
             slots.append(sampled_slot(plan, name, k, params))
     return plan, slots

@@ -478,6 +478,17 @@ class RunState:
         return out
 
 
+def compact_stash(item: Any) -> None:
+    """The item's stash, once its case's keys are gone, in a dict of the size it needs now:
+    a dict never shrinks, and our keys beside pytest's made it grow to the next size
+    (~0.13 KB an item, kept to the end of the run; issue #35). Here, in a module loaded with
+    the plugin: it runs for every item, a plain test's too (:mod:`.items` loads numpy)."""
+    storage = getattr(item.stash, "_storage", None)
+    if type(storage) is dict:
+        # key by key: dict(storage) would copy its table, at the size it grew to
+        item.stash._storage = {key: value for key, value in storage.items()}
+
+
 def _space_of(description: Any) -> Any:
     from ..space import FeatureSpace  # numpy: only once there are scenario rows
 

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from .astguard import guard_ast_parse
-from .controller import RunState
+from .controller import RunState, compact_stash
 from .options import DeclarationError, add_options, read_settings
 from .stopping import ExitGuard, TermGuard, end_workers, shorten_interrupt, unknown_test_info
 from .session import ScenarioSession, session_of
@@ -428,6 +428,7 @@ def _release(item: pytest.Item) -> None:
     if item.stash.get(sent_key, False):
         # its teardown report has its copy for the JUnit writer (which reads the teardown's)
         _drop_own_properties(item)
+    compact_stash(item)
 
 
 def _drop_own_properties(holder: Any) -> None:
@@ -443,8 +444,8 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> Any:
     """Once every plugin has handled a report (tryfirst: around the others' implementations
     and wrappers), the JSON copy of its row that travelled with it goes (the controller keeps
     the row itself), and so do the case's JUnit properties: pytest's terminal reporter keeps
-    every report to the end of the run. Not on an xdist worker,
-    whose reports are still to be sent."""
+    every report to the end of the run, each made small (:mod:`.kept`). Not on an xdist
+    worker, whose reports are still to be sent."""
     try:
         return (yield)
     finally:
@@ -456,6 +457,10 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> Any:
                 # pytest's JUnit writer took them (from the teardown report) as every other
                 # plugin did while handling it; the terminal reporter keeps the report
                 _drop_own_properties(report)
+                if report.when == "call" or not report.passed:
+                    from .kept import slim_report
+
+                    slim_report(report)  # kept by the terminal reporter to the end
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
