@@ -359,3 +359,53 @@ def test_a_recorded_width_per_point_is_checked_and_interpolated():
                                  meta={"lanes": {"a": {**lane, "widths": [2.0, 4.0]}}})
     with pytest.raises(MonitorError, match="lane 'a'.*one finite width >= 0 .* per point"):
         lane_frame(bad)
+
+
+_JUMP = ("<OpenDRIVE><road id='1' length='20' junction='-1'><planView>"
+         "<geometry s='0' x='0' y='0' hdg='0' length='20'><line/></geometry></planView><lanes>"
+         "<laneOffset s='0' a='0' b='0.1' c='0' d='0'/><laneOffset s='10' a='3' b='0' c='0' d='0'/>"
+         "<laneSection s='0'><left><lane id='1' type='driving'>"
+         "<width sOffset='0' a='3' b='0' c='0' d='0'/><width sOffset='10' a='5' b='0' c='0' d='0'/>"
+         "<link><predecessor id='1'/></link></lane></left>"
+         "<right><lane id='-1' type='driving'><width sOffset='0' a='3' b='0' c='0' d='0'/>"
+         "<link><successor id='-1'/></link></lane></right></laneSection>"
+         "<laneSection s='10'><left><lane id='1' type='driving'>"
+         "<width sOffset='0' a='3' b='0' c='0' d='0'/></lane></left>"
+         "<right><lane id='-1' type='driving'><width sOffset='0' a='3' b='0' c='0' d='0'/></lane>"
+         "</right></laneSection></lanes></road></OpenDRIVE>")
+
+
+def test_a_section_s_end_takes_the_records_in_force_before_it_not_those_starting_there(tmp_path):
+    """A record holds on [its start, the next record's start): laneOffset = 0.1 s on the first
+    section, 3 from s = 10 where the second section starts (and lane 1's width 3, then 5 from
+    its sOffset 10). The first section's lanes end where the earlier records put them: lane -1
+    at (10, 1 - 1.5), lane 1 (driven towards s = 0, so it starts at s = 10) at (10, 1 + 1.5) of
+    width 3; the second section's lanes start at offset 3."""
+    path = tmp_path / "jump.xodr"
+    path.write_text(_JUMP)
+    lanes = od.load(path).lanes
+    right, left = lanes["1/0/-1"], lanes["1/0/1"]
+    assert right.xy[-1] == pytest.approx([10.0, -0.5], abs=1e-9)
+    assert right.xy[0] == pytest.approx([0.0, -1.5], abs=1e-9)
+    assert left.xy[0] == pytest.approx([10.0, 2.5], abs=1e-9) and left.width[0] == 3.0
+    assert lanes["1/1/-1"].xy[0] == pytest.approx([10.0, 1.5], abs=1e-9)
+    assert lanes["1/1/1"].xy[-1] == pytest.approx([10.0, 4.5], abs=1e-9)
+    # every step is a sample step: no sideways jump at the section's end
+    for lane in (right, left):
+        assert np.hypot(*np.diff(lane.xy, axis=0).T).max() < od.STEP + 0.01, lane.id
+
+
+def test_town06_lanes_meet_the_lanes_their_links_name():
+    """Town06 jumps its laneOffset (and the widths of its "none" lanes) where a lane section
+    ends: each section's lanes still end where their next section's lanes start, so every link
+    of the file is followed and the default route stops only at the map's one open end."""
+    data = od.load(Path(__file__).parents[1] / "example_tests" / "maps" / "Town06.xodr")
+    gaps = [float(np.hypot(*(lane.xy[-1] - data.lanes[nxt].xy[0])))
+            for lane in data.lanes.values() for nxt in lane.successors]
+    assert len(gaps) > 500 and max(gaps) < 0.05
+    assert np.hypot(*(data.lanes["764/1/-2"].xy[-1] - data.lanes["764/2/-3"].xy[0])) < 0.05
+    assert data.lanes["764/1/-2"].successors == ("764/2/-3",)
+    assert data.lanes["741/1/3"].successors == ("741/0/6",)
+    dead = [l.id for l in data.lanes.values()
+            if l.kind in od.DRIVABLE and od.default_successor(l, data.lanes) is None]
+    assert dead == ["48/0/-3"], [od.why_no_successor(data, i) for i in dead]

@@ -46,6 +46,8 @@ DRIVABLE = frozenset({"driving", "entry", "exit", "onRamp", "offRamp", "connecti
 STEP = 0.5
 #: [m] resolution at which pyxodr evaluates the reference lines
 RESOLUTION = 0.1
+#: [m] a sample this close to a lane section's end counts as on it (see :func:`_poly`)
+_AT_BOUNDARY = 1e-6
 #: [rad] largest turn of one sample step pyxodr's arc check accepts is 0.2; we stay below this
 _ARC_STEP = 0.15
 _GEOMETRIES = ("line", "arc", "spiral", "poly3", "paramPoly3")
@@ -446,8 +448,15 @@ def _kind(g: Any) -> str:
     return next((c.tag for c in g if isinstance(c.tag, str) and c.tag in _GEOMETRIES), "?")
 
 
-def _poly(records: list[tuple[float, float, float, float, float]], s: np.ndarray) -> np.ndarray:
-    """Piecewise cubic ``a + b ds + c ds^2 + d ds^3`` (records sorted by start) at ``s``."""
+def _poly(records: list[tuple[float, float, float, float, float]], s: np.ndarray,
+          end: float | None = None) -> np.ndarray:
+    """Piecewise cubic ``a + b ds + c ds^2 + d ds^3`` (records sorted by start) at ``s``.
+
+    A record holds on ``[its start, the next record's start)``, so a sample on a boundary takes
+    the record that starts there; except at ``end`` (a lane section's end, which is the next
+    section's start): samples there take the limit from the left, the record in force just
+    before it, so that a record starting exactly where the section ends (its jump belongs to
+    the next section) does not move the section's last point."""
     if not records:
         return np.zeros_like(s)
     if len(records) == 1:
@@ -455,7 +464,12 @@ def _poly(records: list[tuple[float, float, float, float, float]], s: np.ndarray
         ds = s - s0
         return a + ds * (b + ds * (c + ds * d))
     starts = np.array([r[0] for r in records])
-    k = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, len(records) - 1)
+    k = np.searchsorted(starts, s, side="right") - 1
+    if end is not None:
+        at_end = s >= end - _AT_BOUNDARY
+        if at_end.any():
+            k = np.where(at_end, np.searchsorted(starts, s - _AT_BOUNDARY, side="left") - 1, k)
+    k = np.clip(k, 0, len(records) - 1)
     coef = np.array([r[1:] for r in records])
     ds = s - starts[k]
     a, b, c, d = coef[k].T
@@ -512,7 +526,7 @@ def _road_lanes(path: str, road: Any, ref: Any, lanes: dict) -> list:
         ss = np.linspace(s0, s1, n)
         x, y, h = ref(ss)
         nx, ny = -np.sin(h), np.cos(h)
-        base = _poly(offsets, ss)
+        base = _poly(offsets, ss, end=s1)
         road_speed = next((_speed(t.find("speed"), path, f"road {rid} <type>")
                            for ts, t in reversed(types) if ts <= s0 + 1e-9), math.nan)
         made = []
@@ -526,7 +540,8 @@ def _road_lanes(path: str, road: Any, ref: Any, lanes: dict) -> list:
                 if el.find("border") is not None and el.find("width") is None:
                     raise MapError(f"map file {path}: {where} gives its shape by <border>, "
                                    "which is not supported (use <width>)")
-                w = _poly(_records(el.findall("width"), "sOffset", path, where), ss - s0)
+                w = _poly(_records(el.findall("width"), "sOffset", path, where), ss - s0,
+                          end=s1 - s0)
                 w = np.maximum(w, 0.0)
                 t = base + sign * (inner + w / 2)
                 inner = inner + w
