@@ -146,7 +146,7 @@ class RunState:
         del left[test]
         self.guarded("the plots and ε-coverage made ahead", test, lambda: self.make_ahead(test))
 
-    def make_ahead(self, test: str, coverage: bool = True) -> None:
+    def make_ahead(self, test: str) -> None:
         """Hand ``test``'s plots (and its ε-coverage) to the helpers, from the rows it has."""
         if self.hurry or self.folder is None or os.getpid() != self.pid:
             return
@@ -160,7 +160,7 @@ class RunState:
             from ..report.ahead import ReportAhead
 
             self.ahead = ReportAhead(self.folder.path, self._workers)
-        for path in self.ahead.submit(test, rows, info, coverage=coverage):
+        for path in self.ahead.submit(test, rows, info):
             self.folder.add(path)  # in the manifest before a helper writes it
 
     def drawn_ahead(self, test: str, rows: list[CaseRow]) -> Any:
@@ -248,9 +248,10 @@ class RunState:
             self.guarded("the error table (closing it)", None, self.table.close)
             if self._left is not None and not self.hurry:
                 # an xdist controller: the tests not handed to the helpers yet have their plots
-                # drawn there while this process makes the summary and the cards
+                # and ε made there (the workers are done: their cores are free) while this
+                # process makes the rest of the summary and the cards
                 for test in [t for t in self.tests if self.ahead is None or not self.ahead.submitted(t)]:
-                    self.guarded("the plots made ahead", test, lambda test=test: self.make_ahead(test, coverage=False))
+                    self.guarded("the plots and ε-coverage made ahead", test, lambda test=test: self.make_ahead(test))
 
             def report() -> list[Any]:
                 from ..report.build import finish_report

@@ -54,12 +54,11 @@ class ReportAhead:
     def submitted(self, test: str) -> bool:
         return test in self._jobs
 
-    def submit(self, test: str, rows: Sequence[CaseRow], info: Mapping[str, Any], *,
-               coverage: bool = True) -> list[Path]:
-        """Start making ``test``'s plots (and, with ``coverage``, its campaigns' ε-coverage)
-        from its main-table rows in the report's order and its declaration (the JSON data of
-        its plan's ``info()``). Returns the paths the plots may be written to (for the report
-        folder's manifest, before they are written). Raises when no helper can be started."""
+    def submit(self, test: str, rows: Sequence[CaseRow], info: Mapping[str, Any]) -> list[Path]:
+        """Start making ``test``'s campaigns' ε-coverage, then its plots, from its main-table
+        rows in the report's order and its declaration (the JSON data of its plan's
+        ``info()``). Returns the paths the plots may be written to (for the report folder's
+        manifest, before they are written). Raises when no helper can be started."""
         if self._pool is None:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
@@ -69,9 +68,8 @@ class ReportAhead:
             self._pool = ProcessPoolExecutor(max_workers=self.processes, initializer=_ignore_sigint,
                                              mp_context=multiprocessing.get_context("spawn"))
         data = [row.to_json() for row in rows]
-        cover = None
-        if coverage:
-            cover = self._pool.submit(_coverage_job, info, data, self.tol, self.within_radius)
+        # first: the end of the run waits for it before the summary, for the plots after the cards
+        cover = self._pool.submit(_coverage_job, info, data, self.tol, self.within_radius)
         plots = {kind: self._pool.submit(_plot_job, str(self.directory), test, data, kind, info)
                  for kind in PLOT_KINDS}
         self._jobs[test] = _Submitted(tuple(row.item for row in rows), info, cover, plots)
@@ -98,7 +96,7 @@ class ReportAhead:
         """(ε, covering radius, fraction within) of the campaign ``(test, sampler)`` made
         ahead from these ``sampled`` rows and ``info`` (waiting for it), or None."""
         job = self._jobs.get(test)
-        if job is None or job.coverage is None or job.info is not info:
+        if job is None or job.info is not info:
             return None
         try:
             found = job.coverage.result().get(sampler)
