@@ -179,9 +179,15 @@ class RunState:
         if not cancel:
             ahead.close()
             return
-        for path in ahead.cancel():
+        paths = ahead.cancel()
+        for path in paths:
             try:
                 path.unlink()
+            except OSError:
+                pass
+        for folder in {path.parent for path in paths}:
+            try:
+                folder.rmdir()  # the plots folder a helper made, if it holds nothing else
             except OSError:
                 pass
 
