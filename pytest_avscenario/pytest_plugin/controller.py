@@ -136,6 +136,10 @@ class RunState:
         left = self._left
         if left is None:  # not an xdist controller: its report is made at the end
             return
+        if self.ahead is None:  # the first item: the helpers start (and import) meanwhile
+            self.start_ahead()
+            if self._left is None:
+                return
         test = nodeid.partition("[")[0]
         n = left.get(test)
         if n is None:
@@ -146,8 +150,25 @@ class RunState:
         del left[test]
         self.guarded("the plots and ε-coverage made ahead", test, lambda: self.make_ahead(test))
 
+    def start_ahead(self) -> None:
+        """Start the helpers of the report; if they cannot start (a machine without the
+        semaphores multiprocessing needs), say so once and make the report at the end."""
+        if self.ahead is not None or self.hurry or self.folder is None or os.getpid() != self.pid:
+            return
+        from ..report.ahead import ReportAhead
+
+        ahead = ReportAhead(self.folder.path, self._workers)
+        try:
+            ahead.start()
+        except Exception as exc:
+            self._left = None
+            ahead.cancel()
+            self.part_failed("the plots and ε-coverage ahead of the end (helper processes)", None, exc)
+            return
+        self.ahead = ahead
+
     def make_ahead(self, test: str) -> None:
-        """Hand ``test``'s plots (and its ε-coverage) to the helpers, from the rows it has."""
+        """Hand ``test``'s plots and ε-coverage to the helpers, from the rows it has."""
         if self.hurry or self.folder is None or os.getpid() != self.pid:
             return
         info = self.tests.get(test)
@@ -156,10 +177,9 @@ class RunState:
         rows = [r for r in self.rows if r.test == test and r.origin != "shrink"]
         if not rows:
             return
+        self.start_ahead()
         if self.ahead is None:
-            from ..report.ahead import ReportAhead
-
-            self.ahead = ReportAhead(self.folder.path, self._workers)
+            return
         for path in self.ahead.submit(test, rows, info):
             self.folder.add(path)  # in the manifest before a helper writes it
 

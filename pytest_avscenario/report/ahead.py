@@ -54,19 +54,28 @@ class ReportAhead:
     def submitted(self, test: str) -> bool:
         return test in self._jobs
 
+    def start(self) -> None:
+        """Start the helpers now, each importing what it draws and computes with (~1-2 s of
+        CPU per process) while cases still run, not once the first test — for a one-test
+        campaign, the last case — is done. Raises when no helper can be started."""
+        if self._pool is not None:
+            return
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawned, not forked: the controller has execnet's threads, which a fork copies in
+        # whatever state (a lock held) they are in
+        self._pool = ProcessPoolExecutor(max_workers=self.processes, initializer=_helper_start,
+                                         mp_context=multiprocessing.get_context("spawn"))
+        for _ in range(self.processes):  # one process is started per job while none is idle
+            self._pool.submit(os.getpid)
+
     def submit(self, test: str, rows: Sequence[CaseRow], info: Mapping[str, Any]) -> list[Path]:
         """Start making ``test``'s campaigns' ε-coverage, then its plots, from its main-table
         rows in the report's order and its declaration (the JSON data of its plan's
         ``info()``). Returns the paths the plots may be written to (for the report folder's
         manifest, before they are written). Raises when no helper can be started."""
-        if self._pool is None:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            # spawned, not forked: the controller has execnet's threads, which a fork copies
-            # in whatever state (a lock held) they are in
-            self._pool = ProcessPoolExecutor(max_workers=self.processes, initializer=_ignore_sigint,
-                                             mp_context=multiprocessing.get_context("spawn"))
+        self.start()
         data = [row.to_json() for row in rows]
         # first: the end of the run waits for it before the summary, for the plots after the cards
         cover = self._pool.submit(_coverage_job, info, data, self.tol, self.within_radius)
@@ -132,10 +141,22 @@ class ReportAhead:
             pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _ignore_sigint() -> None:
+def _helper_start() -> None:
+    """A helper's start: Ctrl-C is the controller's to answer (it ends the helpers); the
+    modules of the plots and of ε imported now."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.figure  # noqa: F401
+        import PIL.PngImagePlugin  # noqa: F401
+        import scipy.spatial  # noqa: F401
+        import scipy.stats.qmc  # noqa: F401
+
+        from . import cards, plots, summary  # noqa: F401
+    except Exception:  # noqa: BLE001 - a job that needs one says so (and is made at the end)
+        pass
 
 
 def _space(info: Mapping[str, Any]) -> Any:
