@@ -126,7 +126,11 @@ class RunState:
             test = nodeid.partition("[")[0]
             left[test] = left.get(test, 0) + 1
         self._left = left
-        self._workers = max(1, min(int(workers or 1), os.cpu_count() or 1))
+        try:
+            workers = int(workers or 1)
+        except (TypeError, ValueError):  # an xdist that left "auto" unresolved
+            workers = os.cpu_count() or 1
+        self._workers = max(1, min(workers, os.cpu_count() or 1))
 
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
