@@ -20,9 +20,10 @@ cancel`).
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 from ..outcome import CaseRow
 from .coverage import DEFAULT_TOL
@@ -67,8 +68,9 @@ class ReportAhead:
         # whatever state (a lock held) they are in
         self._pool = ProcessPoolExecutor(max_workers=self.processes, initializer=_helper_start,
                                          mp_context=multiprocessing.get_context("spawn"))
-        for _ in range(self.processes):  # one process is started per job while none is idle
-            self._pool.submit(os.getpid)
+        with _sigint_blocked():
+            for _ in range(self.processes):  # one process is started per job while none is idle
+                self._pool.submit(os.getpid)
 
     def submit(self, test: str, rows: Sequence[CaseRow], info: Mapping[str, Any]) -> list[Path]:
         """Start making ``test``'s campaigns' ε-coverage, then its plots, from its main-table
@@ -77,10 +79,11 @@ class ReportAhead:
         manifest, before they are written). Raises when no helper can be started."""
         self.start()
         data = [row.to_json() for row in rows]
-        # first: the end of the run waits for it before the summary, for the plots after the cards
-        cover = self._pool.submit(_coverage_job, info, data, self.tol, self.within_radius)
-        plots = {kind: self._pool.submit(_plot_job, str(self.directory), test, data, kind, info)
-                 for kind in PLOT_KINDS}
+        with _sigint_blocked():  # a submit may start a helper
+            # first: the end of the run waits for it before the summary, for the plots after the cards
+            cover = self._pool.submit(_coverage_job, info, data, self.tol, self.within_radius)
+            plots = {kind: self._pool.submit(_plot_job, str(self.directory), test, data, kind, info)
+                     for kind in PLOT_KINDS}
         self._jobs[test] = _Submitted(tuple(row.item for row in rows), info, cover, plots)
         return list(plot_paths(self.directory, test).values())
 
@@ -139,6 +142,25 @@ class ReportAhead:
         self._jobs.clear()
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread while helpers are started: a helper inherits the mask,
+    so a Ctrl-C at the terminal (sent to the whole process group) never reaches one, not even
+    while the interpreter starts, before it could ignore it; this process gets a Ctrl-C that
+    came meanwhile once it is unblocked."""
+    import signal
+
+    block = getattr(signal, "pthread_sigmask", None)
+    if block is None:  # pragma: no cover - no POSIX signal masks: the helpers ignore it once started
+        yield
+        return
+    before = block(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        block(signal.SIG_SETMASK, before)
 
 
 def _helper_start() -> None:
