@@ -17,7 +17,9 @@ Per run: *wall* (the whole command), *cpu* (user+system of the process tree,
 session (the controller under xdist): its own CPU (``RUSAGE_SELF``, main thread and the
 execnet thread that receives the workers' reports) from the first to the last call report,
 divided by the items — the *controller's CPU per item* — and the items per second it
-received meanwhile. The goal line of each size: ``-n 2`` wall / serial wall (median of the
+received meanwhile; *ctl end s*, that process's CPU after the last call report (the end of
+the run: under xdist, not the helpers' that make plots ahead, whose CPU is in *cpu*), and *end
+wall s*, the wall time from the last call report to the process's end. The goal line of each size: ``-n 2`` wall / serial wall (median of the
 pairs) against 0.65, PASS or MISS. The machine is shared: the load average is printed with
 every run; when it is high, read the CPU columns.
 """
@@ -68,7 +70,8 @@ def pytest_unconfigure(config):
     if "PYTEST_XDIST_WORKER" in os.environ or not _t["n"] or not os.environ.get("AVS_BENCH_CTL"):
         return
     with open(os.environ["AVS_BENCH_CTL"], "w") as f:
-        json.dump({"n": _t["n"], "first": _t["first"], "last": _t["last"], "end_cpu": _cpu()}, f)
+        json.dump({"n": _t["n"], "first": _t["first"], "last": _t["last"], "end_cpu": _cpu(),
+                   "end_wall": time.perf_counter() - _t["last"][2]}, f)
 '''
 
 
@@ -98,7 +101,7 @@ def run(args: list[str], cwd: Path, tmp: Path, tag: str, pythonpath: str) -> dic
     return {"wall": wall, "cpu": cpu, "n": n,
             "ctl_us": 1e6 * (c["last"][0] - c["first"][0]) / max(1, n - 1),
             "ctl_main_us": 1e6 * (c["last"][1] - c["first"][1]) / max(1, n - 1),
-            "ctl_end_s": c["end_cpu"] - c["last"][0],
+            "ctl_end_s": c["end_cpu"] - c["last"][0], "end_wall_s": c["end_wall"],
             "rate": (n - 1) / span if span > 0 else float("nan"),
             "summary": (proc.stdout.strip().splitlines() or ["?"])[-1]}
 
@@ -107,13 +110,13 @@ def pairs(name: str, cwd: Path, tmp: Path, args: list[str], repeats: int, python
     res: dict[str, list[dict]] = {"serial": [], "-n 2": []}
     print(f"\n{name}: pytest {' '.join(args)}", flush=True)
     print(f"  {'':<10}{'wall s':>8}{'cpu s':>8}{'items':>7}{'items/s':>9}{'ctl us/item':>12}"
-          f"{'(main thr)':>11}{'ctl end s':>10}  load / outcome")
+          f"{'(main thr)':>11}{'ctl end s':>10}{'end wall s':>11}  load / outcome")
     for r in range(repeats):
         for mode, extra in (("serial", []), ("-n 2", ["-n", "2"])):
             x = run([*args, *extra], cwd, tmp, f"{name}-{r}-{mode.strip('-').replace(' ', '')}", pythonpath)
             res[mode].append(x)
             print(f"  {mode:<10}{x['wall']:8.1f}{x['cpu']:8.1f}{x['n']:7d}{x['rate']:9.1f}"
-                  f"{x['ctl_us']:12.0f}{x['ctl_main_us']:11.0f}{x['ctl_end_s']:10.1f}  "
+                  f"{x['ctl_us']:12.0f}{x['ctl_main_us']:11.0f}{x['ctl_end_s']:10.1f}{x['end_wall_s']:11.1f}  "
                   f"load {load()}; {x['summary']}", flush=True)
     ratios = [p["wall"] / s["wall"] for s, p in zip(res["serial"], res["-n 2"])]
     cpu_ratios = [p["cpu"] / s["cpu"] for s, p in zip(res["serial"], res["-n 2"])]

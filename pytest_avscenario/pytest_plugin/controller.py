@@ -68,6 +68,11 @@ class RunState:
         #: then says ``"interrupted": true`` and the exit status is never 0
         self.stopped: str | None = None
         self.hurry = False  # the run was interrupted: no pictures in its report
+        #: an xdist controller's helpers making each finished test's plots and ε ahead of the
+        #: end (report.ahead.ReportAhead), and the items of each test still to finish
+        self.ahead: Any = None
+        self._left: dict[str, int] | None = None
+        self._workers = 1
 
     @property
     def directory(self) -> Path | None:
@@ -109,9 +114,106 @@ class RunState:
         for nodeid in nodeids:
             self.order.setdefault(nodeid.partition("[")[0], None)
 
+    def note_items(self, nodeids: Any, workers: int) -> None:
+        """An xdist controller learns the items (the first worker's collection; every worker
+        collects the same) and how many workers run them: from then on, each test whose
+        items have all finished has its plots and ε made ahead by as many helper processes
+        (:mod:`..report.ahead`), while the other tests' cases run."""
+        if self._left is not None or self.requested is None or self.is_worker:
+            return
+        left: dict[str, int] = {}
+        for nodeid in nodeids:
+            test = nodeid.partition("[")[0]
+            left[test] = left.get(test, 0) + 1
+        self._left = left
+        try:
+            workers = int(workers or 1)
+        except (TypeError, ValueError):  # an xdist that left "auto" unresolved
+            workers = os.cpu_count() or 1
+        self._workers = max(1, min(workers, os.cpu_count() or 1))
+
     # -- hooks (this object is registered as a plugin for its config) ---------------------
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.note_order(item.nodeid for item in session.items)
+
+    def pytest_runtest_logfinish(self, nodeid: str) -> None:
+        left = self._left
+        if left is None:  # not an xdist controller: its report is made at the end
+            return
+        if self.ahead is None:  # the first item: the helpers start (and import) meanwhile
+            self.start_ahead()
+            if self._left is None:
+                return
+        test = nodeid.partition("[")[0]
+        n = left.get(test)
+        if n is None:
+            return
+        if n > 1:
+            left[test] = n - 1
+            return
+        del left[test]
+        self.guarded("the plots and ε-coverage made ahead", test, lambda: self.make_ahead(test))
+
+    def start_ahead(self) -> None:
+        """Start the helpers of the report; if they cannot start (a machine without the
+        semaphores multiprocessing needs), say so once and make the report at the end."""
+        if self.ahead is not None or self.hurry or self.folder is None or os.getpid() != self.pid:
+            return
+        from ..report.ahead import ReportAhead
+
+        ahead = ReportAhead(self.folder.path, self._workers)
+        try:
+            ahead.start()
+        except Exception as exc:
+            self._left = None
+            ahead.cancel()
+            self.part_failed("the plots and ε-coverage ahead of the end (helper processes)", None, exc)
+            return
+        self.ahead = ahead
+
+    def make_ahead(self, test: str) -> None:
+        """Hand ``test``'s plots and ε-coverage to the helpers, from the rows it has."""
+        if self.hurry or self.folder is None or os.getpid() != self.pid:
+            return
+        info = self.tests.get(test)
+        if info is None or info.get("unknown"):
+            return
+        rows = [r for r in self.rows if r.test == test and r.origin != "shrink"]
+        if not rows:
+            return
+        self.start_ahead()
+        if self.ahead is None:
+            return
+        for path in self.ahead.submit(test, rows, info):
+            self.folder.add(path)  # in the manifest before a helper writes it
+
+    def drawn_ahead(self, test: str, rows: list[CaseRow]) -> Any:
+        return self.ahead.plots(test, rows, self.tests.get(test)) if self.ahead is not None else None
+
+    def coverage_ahead(self, test: str, sampler: str, sampled: list[CaseRow]) -> Any:
+        return self.ahead.coverage(test, sampler, sampled, self.tests.get(test)) if self.ahead is not None else None
+
+    def end_ahead(self, cancel: bool = False) -> None:
+        """The helpers' end: after the report, or at once (``cancel``: an interrupted run,
+        whose report has no pictures — those they drew go too)."""
+        ahead, self.ahead = self.ahead, None
+        self._left = None
+        if ahead is None:
+            return
+        if not cancel:
+            ahead.close()
+            return
+        paths = ahead.cancel()
+        for path in paths:
+            try:
+                path.unlink()
+            except OSError:
+                pass
+        for folder in {path.parent for path in paths}:
+            try:
+                folder.rmdir()  # the plots folder a helper made, if it holds nothing else
+            except OSError:
+                pass
 
     def pytest_keyboard_interrupt(self, excinfo: Any) -> None:
         # Ctrl-C, SIGTERM (read as Ctrl-C), pytest.exit(), or a session told to stop
@@ -121,6 +223,7 @@ class RunState:
         # index.html, the error table, the cards, JUnit) and leaves out the pictures, whose
         # drawing grows with the rows and would outlast a CI runner's grace before SIGKILL
         self.hurry = True
+        self.guarded("ending the helpers of the report", None, lambda: self.end_ahead(cancel=True))
         # what exists now lives to the end of the run; in the permanent generation, the
         # collections pytest runs at its end (five full ones while unconfiguring), those the
         # report triggers and the interpreter's at exit no longer walk it — seconds per 10,000
@@ -173,6 +276,12 @@ class RunState:
         settings = self.config.stash[settings_key]
         if self.folder is not None and self.table is not None:
             self.guarded("the error table (closing it)", None, self.table.close)
+            if self._left is not None and not self.hurry:
+                # an xdist controller: the tests not handed to the helpers yet have their plots
+                # and ε made there (the workers are done: their cores are free) while this
+                # process makes the rest of the summary and the cards
+                for test in [t for t in self.tests if self.ahead is None or not self.ahead.submitted(t)]:
+                    self.guarded("the plots and ε-coverage made ahead", test, lambda test=test: self.make_ahead(test))
 
             def report() -> list[Any]:
                 from ..report.build import finish_report
@@ -184,9 +293,11 @@ class RunState:
                                      rerun=self.rerun_command, partial=self.partial,
                                      baseline=settings.baseline, driver=session_driver(self.config),
                                      card_sections=self.card_sections, interrupted=self.stopped,
-                                     pictures=not self.hurry)
+                                     pictures=not self.hurry, drawn=self.drawn_ahead,
+                                     known_coverage=self.coverage_ahead)
 
             self.summary_rows = self.guarded("the report", None, report)
+        self.guarded("ending the helpers of the report", None, lambda: self.end_ahead(cancel=self.hurry))
         if self.summary_rows is None:
             self.summary_rows = self.guarded("the summary", None, lambda: self.summary(verdicts, infos)) or []
         self.guarded("the JUnit suite properties", None, self.add_suite_properties)
@@ -410,6 +521,8 @@ class RunState:
         Each step on its own: a full disk (ENOSPC while a buffer is flushed) is one line
         naming the folder, never a traceback out of pytest_unconfigure that turns an
         all-passing run into exit status 1 — every row was flushed as it came."""
+        if self.ahead is not None:  # the session did not finish: what the helpers drew goes
+            self.guarded("ending the helpers of the report", None, lambda: self.end_ahead(cancel=True))
         steps = [("the error table", self.table.close)] if self.table is not None else []
         if self._claimed is not None:
             steps.append(("the report folder's manifest and lock", self._claimed.release))

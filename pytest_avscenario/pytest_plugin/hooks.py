@@ -144,7 +144,9 @@ class _XdistHooks:
             shutil.rmtree(self.lastwords, ignore_errors=True)  # made by this run (mkdtemp)
 
     def pytest_xdist_node_collection_finished(self, node: Any, ids: Any) -> None:
-        node.config.stash[controller_key].note_order(ids)  # the summary lists tests in this order
+        state = node.config.stash[controller_key]
+        state.note_order(ids)  # the summary lists tests in this order
+        state.note_items(ids, getattr(node.config.option, "numprocesses", None) or 1)
 
     def pytest_handlecrashitem(self, crashitem: str, report: Any, sched: Any) -> None:
         """A worker died running ``crashitem``: a scenario case still gets its (error) row."""

@@ -60,6 +60,8 @@ def finish_report(
     driver: Mapping[str, Any] | None = None,
     card_sections: Callable[[CaseRow], Sequence[tuple[str, str]]] | None = None,
     interrupted: str | None = None,
+    drawn: Callable[[str, list[CaseRow]], Mapping[str, Path] | None] | None = None,
+    known_coverage: Callable[[str, str, list[CaseRow]], tuple | None] | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -86,7 +88,9 @@ def finish_report(
     counterexample gets a card page under ``cases/``. ``driver``: the identity of the options'
     driver, the run's when no row names one; ``summary.json`` holds the run's driver as
     ``"driver"`` and each campaign's as its ``"driver"``, the index names it (see
-    :mod:`.drivers`). Returns the summary rows.
+    :mod:`.drivers`). ``drawn(test, rows)``: the plots of ``test`` already drawn from these
+    main-table rows (``{kind: path}``), or None to draw them here; ``known_coverage``: see
+    :func:`.summary.summarize` (both: :mod:`.ahead`). Returns the summary rows.
     """
     from .folder import ReportFolder
 
@@ -108,7 +112,8 @@ def finish_report(
             return None
 
     summary = part("the summary", None, lambda: summarize(
-        rows, tests, tol=tol, within_radius=within_radius, verdicts=verdicts, on_error=on_error)) or []
+        rows, tests, tol=tol, within_radius=within_radius, verdicts=verdicts, on_error=on_error,
+        known_coverage=known_coverage)) or []
 
     comparison = None
     if baseline is not None and not partial:  # some cases of a campaign: no rate to compare
@@ -142,13 +147,6 @@ def finish_report(
     for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
         slug = file_slug(test)
         tables[test] = [p for p in (root / TABLES_DIR / f"{slug}.csv", root / TABLES_DIR / f"{slug}.shrink.csv") if p.exists()]
-        if pictures and by_test.get(test):
-            images[test] = part("the plots", test, lambda test=test: _plot(root, folder, test, by_test[test], tests))
-    for test, extra in (case_images or {}).items():  # pictures a caller adds to a test's own
-        merged = dict(images.get(test) or {})
-        merged.update({caption: path for caption, path in extra.items() if Path(path).exists()})
-        images[test] = merged
-    images = {test: pics for test, pics in images.items() if pics}
 
     sections: dict[str, list[str]] = {}
     for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
@@ -157,6 +155,18 @@ def finish_report(
             [s for s in summary if s.test == test], card_sections))
         if made:
             sections[test] = made
+
+    # after the cards: plots made ahead (drawn) had the time of the summary and the cards
+    for test in dict.fromkeys([s.test for s in summary] + list(by_test)):
+        if pictures and by_test.get(test):
+            made = drawn(test, by_test[test]) if drawn is not None else None
+            images[test] = made if made is not None else part(
+                "the plots", test, lambda test=test: _plot(root, folder, test, by_test[test], tests))
+    for test, extra in (case_images or {}).items():  # pictures a caller adds to a test's own
+        merged = dict(images.get(test) or {})
+        merged.update({caption: path for caption, path in extra.items() if Path(path).exists()})
+        images[test] = merged
+    images = {test: pics for test, pics in images.items() if pics}
 
     def write_page() -> None:
         from .cards import e, href

@@ -163,6 +163,7 @@ def summarize(
     verdicts: Mapping[tuple[str, str], Sequence[str]] | None = None,
     on_error: Callable[[str, str | None, Exception], None] | None = None,
     modes: bool = True,
+    known_coverage: Callable[[str, str, list[CaseRow]], tuple | None] | None = None,
 ) -> list[SummaryRow]:
     """Summary rows per (test, sampler), tests in the order of ``tests`` (collection order),
     then any others in order of first appearance; samplers in order of first appearance.
@@ -175,8 +176,9 @@ def summarize(
     reported there and its figures are "—" (the other campaigns are still summarized);
     without it the exception propagates. ``modes``: group each campaign's counterexamples
     into failure modes (:mod:`.modes`; False leaves ``SummaryRow.modes`` empty).
+    ``known_coverage(test, sampler, sampled rows)``: the campaign's :func:`campaign_coverage`
+    when it was computed already from those rows (:mod:`.ahead`), else None.
     """
-    from . import coverage
     from ..monitors.score import campaign_score
 
     tests = dict(tests or {})
@@ -216,18 +218,13 @@ def summarize(
         space = info.space
         continuous = tuple(getattr(space, "continuous", ()) or ()) if space is not None else ()
         eps = cover = frac = None
-        # beyond MAX_EPS_DIMENSIONS continuous parameters the mesh ε-coverage probes cannot be
-        # enumerated in reasonable time (seconds at 16, minutes at 20, 2^200 nodes at 200):
-        # ε is "—" there, as for a space with no continuous parameter, not a failed report part
-        if continuous and sampled and len(continuous) <= MAX_EPS_DIMENSIONS:
+        known = None if known_coverage is None else known_coverage(test, sampler, sampled)
+        if known is not None:  # computed ahead, from these very rows (.ahead)
+            eps, cover, frac = known
+        else:
             try:
-                pts = _unit_points(sampled, space)
-                if pts is not None and pts.shape[1] > 0:
-                    eps = coverage.epsilon_coverage(pts, tol=tol)
-                    if cross_check:
-                        cover = coverage.covering_radius(pts, _summary_resolution(pts.shape[1]))
-                    if within_radius is not None:
-                        frac = coverage.fraction_within(pts, within_radius, n_probe=1 << 14)
+                eps, cover, frac = campaign_coverage(sampled, space, tol=tol, within_radius=within_radius,
+                                                     cross_check=cross_check)
             except Exception as exc:  # e.g. scipy failing to load in a starved process
                 if on_error is None:
                     raise
@@ -279,6 +276,31 @@ def summarize(
 
 #: the most continuous parameters whose ε-coverage the summary computes (see summarize)
 MAX_EPS_DIMENSIONS = 12
+
+
+def campaign_coverage(
+    sampled: Sequence[CaseRow], space: Any, *, tol: float = DEFAULT_TOL,
+    within_radius: float | None = 0.1, cross_check: bool = True,
+) -> tuple[float | None, float | None, float | None]:
+    """(ε, covering radius, fraction within ``within_radius``) of one campaign's sampled
+    cases in ``space``'s continuous parameters; None for what is not computed (see
+    :func:`summarize`)."""
+    from . import coverage
+
+    continuous = tuple(getattr(space, "continuous", ()) or ()) if space is not None else ()
+    eps = cover = frac = None
+    # beyond MAX_EPS_DIMENSIONS continuous parameters the mesh ε-coverage probes cannot be
+    # enumerated in reasonable time (seconds at 16, minutes at 20, 2^200 nodes at 200):
+    # ε is "—" there, as for a space with no continuous parameter, not a failed report part
+    if continuous and sampled and len(continuous) <= MAX_EPS_DIMENSIONS:
+        pts = _unit_points(sampled, space)
+        if pts is not None and pts.shape[1] > 0:
+            eps = coverage.epsilon_coverage(pts, tol=tol)
+            if cross_check:
+                cover = coverage.covering_radius(pts, _summary_resolution(pts.shape[1]))
+            if within_radius is not None:
+                frac = coverage.fraction_within(pts, within_radius, n_probe=1 << 14)
+    return eps, cover, frac
 
 
 def _summary_resolution(d: int) -> int:

@@ -1,0 +1,118 @@
+"""Under xdist a finished test's plots and ε-coverage are made while other tests still run
+(report.ahead), and they are the serial run's: the same pictures, byte for byte, the same ε."""
+
+import json
+
+import pytest
+
+QUICK = """
+from pytest_avscenario import Choice, Uniform, scenario
+
+
+@scenario(x=Uniform(0.0, 1.0, unit="m"), y=Uniform(0.0, 1.0), c=Choice(["a", "b", "c"]),
+          samples=12, sampler=["halton", "random"])
+def test_one(case):
+    assert case.x < 0.7
+
+
+@scenario(x=Uniform(0.0, 1.0), y=Uniform(0.0, 1.0, unit="s"), samples=8, sampler="halton")
+def test_two(case):
+    assert case.x + case.y < 1.5
+"""
+
+# runs on the other worker (--dist loadfile): its one case waits for test_one's plot, which
+# a run that draws every plot after the last case would only make once this case had ended
+WAITS = """
+import time
+from pathlib import Path
+
+from pytest_avscenario import Uniform, scenario
+from pytest_avscenario.report.plots import plot_paths
+
+
+@scenario(x=Uniform(0.0, 1.0), samples=1, sampler="halton")
+def test_waits(case):
+    plot = plot_paths(Path("parallel").resolve(), "test_quick.py::test_one")["space"]
+    for _ in range(900):
+        if plot.exists():
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"{plot} was not drawn while this case ran")
+"""
+
+
+def test_a_finished_tests_plots_are_drawn_while_others_run_and_equal_the_serial_runs(pytester):
+    pytest.importorskip("xdist")
+    pytester.makepyfile(test_quick=QUICK)
+    serial = pytester.runpytest_subprocess("test_quick.py", "-p", "no:xdist", "--avs-seed=4", "--avs-db=none",
+                                           "--avs-report=serial")
+    serial.assert_outcomes(passed=24, failed=8)
+    pytester.makepyfile(test_waits=WAITS)
+    parallel = pytester.runpytest_subprocess("-n", "2", "--dist", "loadfile", "--avs-seed=4", "--avs-db=none",
+                                             "--avs-report=parallel")
+    parallel.assert_outcomes(passed=25, failed=8)
+
+    plots = sorted(p.name for p in (pytester.path / "serial" / "plots").iterdir())
+    assert len(plots) == 2 and all(p.endswith(".space.png") for p in plots)  # no metrics: no ρ plot
+    for name in plots:
+        assert (pytester.path / "parallel" / "plots" / name).read_bytes() == \
+            (pytester.path / "serial" / "plots" / name).read_bytes(), name
+
+    def coverage(folder):
+        tests = json.loads((pytester.path / folder / "summary.json").read_text())["tests"]
+        return {(t["test"], t["sampler"]): (t["epsilon"], t["covering_radius"], t["fraction_within"])
+                for t in tests if t["test"].startswith("test_quick.py")}
+
+    assert coverage("parallel") == coverage("serial")
+    assert len(coverage("serial")) == 3 and all(v[0] is not None for v in coverage("serial").values())
+    index = (pytester.path / "parallel" / "index.html").read_text()
+    assert all(f"plots/{name}" in index for name in plots)
+
+
+def _rows(n, test="t.py::test_x"):
+    from pytest_avscenario.outcome import CaseRow
+
+    return [CaseRow(test=test, item=f"{test}[halton-{i:03d}]", sampler="halton", index=i, seed=i,
+                    origin="sampled", params={"gap": (i * 0.37) % 1 * 30, "speed": (i * 0.61) % 1 * 10},
+                    rho={"distance": (i * 0.37) % 1 - 0.3}, verdict="fail" if (i * 0.37) % 1 < 0.3 else "pass")
+            for i in range(n)]
+
+
+def test_the_helpers_plots_and_coverage_are_those_made_here_and_taken_for_the_same_rows_only(tmp_path):
+    from pytest_avscenario import Uniform
+    from pytest_avscenario.report.ahead import ReportAhead
+    from pytest_avscenario.report.plots import plot_test
+    from pytest_avscenario.report.summary import campaign_coverage
+    from pytest_avscenario.space import FeatureSpace
+
+    space = FeatureSpace({"gap": Uniform(0.0, 30.0, unit="m"), "speed": Uniform(0.0, 10.0)})
+    info = {"metrics": ["distance"], "space": space.describe()}
+    rows = _rows(25)
+    ahead = ReportAhead(tmp_path / "ahead", 1)
+    try:
+        paths = ahead.submit("t.py::test_x", rows, info)
+        assert sorted(p.name for p in paths) == sorted(p.name for p in ahead.plots("t.py::test_x", rows, info).values())
+        here = plot_test(tmp_path / "here", "t.py::test_x", rows, metrics=("distance",), units={"gap": "m"})
+        made = ahead.plots("t.py::test_x", rows, info)
+        assert set(made) == set(here) == {"space", "rho"}
+        assert all(made[k].read_bytes() == here[k].read_bytes() for k in here)
+        assert ahead.coverage("t.py::test_x", "halton", rows, info) == campaign_coverage(rows, space)
+        # not the rows it was made from (a row more, or another order), or another declaration:
+        # made again at the end
+        assert ahead.plots("t.py::test_x", _rows(26), info) is None
+        assert ahead.plots("t.py::test_x", rows[::-1], info) is None
+        assert ahead.coverage("t.py::test_x", "halton", rows[:-1], info) is None
+        assert ahead.plots("t.py::test_x", rows, dict(info)) is None
+        assert ahead.plots("t.py::test_other", rows, info) is None
+    finally:
+        ahead.close()
+
+
+def test_cancelled_helpers_end_at_once(tmp_path):
+    from pytest_avscenario.report.ahead import ReportAhead
+
+    ahead = ReportAhead(tmp_path, 1)
+    ahead.submit("t.py::test_x", _rows(400), {"metrics": ["distance"], "space": {}})
+    processes = list(ahead._pool._processes.values())
+    paths = ahead.cancel()
+    assert len(paths) == 2 and all(not p.is_alive() for p in processes)
