@@ -393,7 +393,7 @@ OPTIONS = (
     Option("export", "N|all|none",
            "write counterexamples as OpenSCENARIO (.xosc) + OpenDRIVE (.xodr) and an OSI "
            "trace beside their cards: the minimized ones and at most N more per test and "
-           "sampler (default 1, none with --avs-case-pictures=0), 'all' or "
+           "sampler (default: every pictured one, --avs-case-pictures), 'all' or "
            "'none' (needs the [export] extra; the trace also [osi])",
            "counterexamples per test and sampler exported as OpenSCENARIO/OpenDRIVE/OSI "
            "besides the minimized ones (N, all or none)",
