@@ -194,6 +194,8 @@ def pytest_terminal_summary(terminalreporter, config):
     # the strings of the item (its node id, name, parameter id) are the item's, kept anyway
     for r in late:
         seen.update({id(r.nodeid), id(r.location), id(r.location[2])})
+        if hasattr(r, "id"):  # pytest >= 9.2: the item's structured node id, which it shares
+            seen.add(id(r.id))
     passed = [r for r in late if r.passed]  # a failure's longrepr is what pytest shows of it
     report_bytes = sum(_size(r, seen) for r in passed) / len(passed)
     row_bytes = sum(_size(rows[r.nodeid], seen) for r in late) / len(late)
