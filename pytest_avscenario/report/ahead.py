@@ -132,8 +132,7 @@ class ReportAhead:
                     process.terminate()
                 except Exception:  # noqa: BLE001 - already gone
                     pass
-            for process in processes:
-                process.join(timeout=2.0)
+            _ended(processes, _CANCEL_WAIT_S)
         return paths
 
     def close(self) -> None:
@@ -142,6 +141,34 @@ class ReportAhead:
         self._jobs.clear()
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: how long :meth:`ReportAhead.cancel` waits for terminated helpers before it kills them
+_CANCEL_WAIT_S = 2.0
+
+
+def _ended(processes: Sequence[Any], wait: float) -> None:
+    """Wait until each terminated process is known to have ended, killing the ones still there
+    after ``wait`` seconds. Known, not only reaped: the pool's own thread reaps its workers
+    too, and a process it reaped a moment before this thread looked reads as alive here until
+    that thread records its exit code, so the exit code is what is waited for."""
+    import time
+
+    deadline = time.monotonic() + wait
+    for process in processes:
+        process.join(timeout=max(0.0, deadline - time.monotonic()))
+        while process.exitcode is None and time.monotonic() < deadline:
+            time.sleep(0.005)
+    for process in processes:
+        if process.exitcode is None:
+            try:
+                process.kill()
+            except Exception:  # noqa: BLE001 - gone meanwhile
+                pass
+            process.join(timeout=1.0)
+            end = time.monotonic() + 1.0
+            while process.exitcode is None and time.monotonic() < end:
+                time.sleep(0.005)
 
 
 @contextlib.contextmanager
