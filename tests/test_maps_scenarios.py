@@ -7,6 +7,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pytest_avscenario.space import Choice, FeatureSpace
@@ -236,3 +237,93 @@ def test_lanes(case):
     assert found, out[-3000:]
     assert all(lane in options[2:] for lane, _ in found)
     assert all(float(x) == 0.5 for _, x in found)  # x back at its nominal value
+
+
+# -- the autopilot's route path on a map's long routes, built piece by piece -------------------
+
+def _town06_long_route_case(seconds: float, driver=None, seed: int = 3):
+    """A case on the Town06 lane whose default route is the longest of those of >= 100 m; the
+    ego at 20 m/s wanting 30 m/s (the curve-speed cap at work), a car ahead."""
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.sim.drivers.autopilot import Autopilot
+
+    world = World(seed, name="long-route", driver=driver or Autopilot())
+    town = world.map(TOWN06)
+    lanes = [town.lane(i) for i in od.MapLane(TOWN06, kind="driving", min_length=100).options]
+    lane = max(lanes, key=lambda l: sum(x.length for x in town.default_route(l).lanes))
+    start = lane.at(10.0)
+    world.ego(start, speed=20.0, target_speed=30.0)
+    world.car(town.ahead(start, 40.0), speed=15.0)
+    traj = world.run(seconds=seconds)
+    return traj, town.default_route(lane)
+
+
+def test_a_long_route_is_built_only_as_far_as_the_case_drives():
+    from pytest_avscenario.sim.drivers.autopilot import Autopilot
+
+    pilot = Autopilot()
+    traj, route = _town06_long_route_case(5.0, driver=pilot)
+    path = pilot._path
+    driven = float(np.hypot(traj.x[0, -1] - traj.x[0, 0], traj.y[0, -1] - traj.y[0, 0]))
+    assert len(route.lanes) >= 30 and path.route_length > 2000.0  # kilometres of route
+    assert driven < 150.0
+    # what was built: the look-ahead past the distance driven, not the whole route
+    built_m = len(path.S) * path.ds
+    assert built_m < 0.2 * path.route_length
+    assert len(path.x) == len(path.tx) == len(path.curvature) == len(path.S)
+
+
+def test_a_case_built_piece_by_piece_drives_as_with_the_whole_route_built_up_front(monkeypatch):
+    from pytest_avscenario.sim.drivers import route_path
+
+    pieces = []
+    derive = route_path.RoutePath._derive
+
+    def counted(self):
+        pieces.append(self._ready)
+        derive(self)
+
+    monkeypatch.setattr(route_path.RoutePath, "_derive", counted)
+    monkeypatch.setattr(route_path, "_PIECE_M", 1e12)  # the whole route at the first look-up
+    whole, _ = _town06_long_route_case(25.0)
+    assert len(pieces) == 1
+    pieces.clear()
+    monkeypatch.setattr(route_path, "_PIECE_M", 3.0)  # a piece every few metres
+    parts, _ = _town06_long_route_case(25.0)
+    assert len(pieces) >= 4  # (a piece ends at a lane's end: Town06's run ~100 m)
+    assert whole.meta == parts.meta
+    for f in ("x", "y", "vx", "vy", "speed", "heading", "lane", "lane_offset", "crashed"):
+        assert np.array_equal(getattr(whole, f), getattr(parts, f)), f
+    assert whole.signals.keys() == parts.signals.keys()
+    for k in whole.signals:
+        assert np.array_equal(whole.signals[k], parts.signals[k]), k
+
+
+def test_a_route_path_built_piece_by_piece_has_the_numbers_of_the_whole_route(monkeypatch):
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.sim.drivers import route_path
+
+    town = World(0).map(TOWN06)
+    names = od.MapLane(TOWN06, kind="driving", min_length=100).options
+    for name in list(names)[::8]:
+        route = tuple(l.geometry for l in town.default_route(town.lane(name)).lanes)
+        monkeypatch.setattr(route_path, "_PIECE_M", 2.0)
+        parts = route_path.RoutePath(route)
+        for s in np.arange(0.0, 600.0, 3.0):  # look-ups along the route, as a drive makes them
+            w = parts.window(s, s + 40.0)
+            parts.max_curvature_bound(w)
+            parts.curve_speed_min(w, s, 2.5, 2.45)
+        monkeypatch.setattr(route_path, "_PIECE_M", 1e12)
+        whole = route_path.RoutePath(route)
+        assert whole.complete and parts.n == whole.n and parts.complete
+        for f in ("S", "x", "y", "tx", "ty", "curvature"):
+            assert np.array_equal(getattr(parts, f), getattr(whole, f)), (name, f)
+        assert tuple(parts.offsets) == tuple(whole.offsets)
+        assert parts._kmax == whole._kmax
+        # and the heading's curvature is numpy's own unwrap, gradient and moving average
+        dx, dy = np.gradient(whole.x), np.gradient(whole.y)
+        norm = np.hypot(dx, dy)
+        norm[norm == 0.0] = 1.0
+        heading = np.unwrap(np.arctan2(dy / norm, dx / norm))
+        curv = np.convolve(np.gradient(heading) / whole.ds, np.ones(5) / 5, mode="same")
+        assert np.array_equal(curv, whole.curvature), name

@@ -199,12 +199,16 @@ class Autopilot:
         # Cruise speed, capped by the curvature ahead so the ego can brake into a curve.
         v0 = o.cruise_speed if o.cruise_speed is not None else (
             obs.target_speed if obs.target_speed is not None else obs.speed_limit)
-        if path.max_abs_curvature > 1e-3:
+        # (only on a path with some |curvature| over 1e-3 [1/m]; the path is built as the ego
+        # goes, so that is asked of the whole path only when the window's bound cannot tell)
+        if path.may_curve(1e-3):
             b = 0.7 * o.comfort_decel
             w = path.window(s_ego, s_ego + v * v / (2 * b) + 20.0)
             # Every point's allowed speed is at least sqrt(lateral_accel / |k|max): when that
             # is no cap on v0, the points need not be looked at (the same v0 either way).
-            if math.sqrt(o.lateral_accel / max(path.max_curvature_bound(w), 1e-6)) < v0:
+            bound = path.max_curvature_bound(w)
+            if math.sqrt(o.lateral_accel / max(bound, 1e-6)) < v0 and (
+                    bound > 1e-3 or path.max_abs_curvature > 1e-3):
                 v0 = min(v0, path.curve_speed_min(w, s_ego, o.lateral_accel, b))
         accel = o.max_accel * (1.0 - (v / v0) ** o.idm_delta) if v0 > 0.1 else -o.comfort_decel
         reason = "cruise"
