@@ -201,7 +201,8 @@ class Autopilot:
             obs.target_speed if obs.target_speed is not None else obs.speed_limit)
         # (only on a path with some |curvature| over 1e-3 [1/m]; the path is built as the ego
         # goes, so that is asked of the whole path only when the window's bound cannot tell)
-        if path.may_curve(1e-3):
+        known = path.known_max_abs_curvature
+        if known is None or known > 1e-3:
             b = 0.7 * o.comfort_decel
             w = path.window(s_ego, s_ego + v * v / (2 * b) + 20.0)
             # Every point's allowed speed is at least sqrt(lateral_accel / |k|max): when that

@@ -203,7 +203,9 @@ class RoutePath:
         self._yl: list[float] = []
         self._txl: list[float] = []
         self._tyl: list[float] = []
-        self._max_abs: float | None = None
+        #: :attr:`max_abs_curvature` once the whole path is built, None until then (read per
+        #: step: a built road's straight route needs no curve look-up at all)
+        self.known_max_abs_curvature: float | None = None
         self._grow(2)
 
     # -- building ------------------------------------------------------------------------------
@@ -251,6 +253,8 @@ class RoutePath:
                 s_from = float(nxt.local_coordinates(pts[-1])[0])
             self._parts.append(tuple(part))
         self._acc, self._s_from = acc, s_from
+        if len(self._offsets) == len(route) and not isinstance(self.offsets, tuple):
+            self.offsets = tuple(self._offsets)  # all known: a plain tuple is faster to read
 
     def _sample(self, s_need: float) -> None:
         """Sample route lanes until the knots reach past ``s_need`` [m] (or the route ends,
@@ -351,10 +355,8 @@ class RoutePath:
         # tangent and heading: a central difference (one-sided at the path's two ends)
         lo, hi = self._m_t, (m if final else m - 1)
         if hi > lo:
-            a = max(lo - 1, 0)
-            top = min(hi + 1, m)
-            dx = np.gradient(b["x"][a:top])[lo - a:hi - a]
-            dy = np.gradient(b["y"][a:top])[lo - a:hi - a]
+            dx = _gradient(b["x"], lo, hi, m if final else -1)
+            dy = _gradient(b["y"], lo, hi, m if final else -1)
             norm = np.hypot(dx, dy)
             norm[norm == 0.0] = 1.0
             tx = b["tx"][lo:hi] = dx / norm
@@ -379,9 +381,7 @@ class RoutePath:
         # curvature: the heading's gradient, then a moving average
         lo, hi = self._m_c, (m if final else self._m_u - 1)
         if hi > lo:
-            a = max(lo - 1, 0)
-            top = min(hi + 1, self._m_u)
-            b["curv"][lo:hi] = np.gradient(b["up"][a:top])[lo - a:hi - a] / self.ds
+            b["curv"][lo:hi] = _gradient(b["up"], lo, hi, m if final else -1) / self.ds
             self._m_c = hi
         k = self._smooth
         lo, hi = self._ready, (m if final else self._m_c - k)
@@ -392,6 +392,8 @@ class RoutePath:
                                                 mode="same")[lo - a:hi - a]
             self._ready = hi
             self._extend(lo, hi)
+            if self.complete:
+                self.known_max_abs_curvature = float(np.max(np.abs(self.curvature)))
 
     def _extend(self, lo: int, hi: int) -> None:
         """Publish grid points [lo, hi), now final."""
@@ -437,15 +439,10 @@ class RoutePath:
     @property
     def max_abs_curvature(self) -> float:
         """Largest |curvature| [1/m] over the whole path (builds it all)."""
-        if self._max_abs is None:
+        if self.known_max_abs_curvature is None:
             self._grow(1 << 62)
-            self._max_abs = float(np.max(np.abs(self.curvature)))
-        return self._max_abs
+        return self.known_max_abs_curvature
 
-    def may_curve(self, threshold: float) -> bool:
-        """False only when the path is built whole and no |curvature| exceeds ``threshold``
-        [1/m] (a built road's straight route: nothing to look at per step)."""
-        return not self.complete or self.max_abs_curvature > threshold
 
     # -- scalar look-ups (plain Python floats: numpy scalars are slow in scalar math) ------
     def index(self, s: float) -> int:
@@ -543,6 +540,20 @@ class RoutePath:
         dx, dy = x - self._xl[j], y - self._yl[j]
         tx, ty = self._txl[j], self._tyl[j]
         return float(self.S[j]) + dx * tx + dy * ty, tx * dy - ty * dx
+
+
+def _gradient(f: np.ndarray, lo: int, hi: int, n: int) -> np.ndarray:
+    """``numpy.gradient(f[:n])[lo:hi]`` (unit spacing) for ``n`` the array's length, or
+    ``n = -1`` when ``f`` goes on past ``hi``: the same expressions (central differences
+    halved, one-sided ones at the two ends), without its per-call overhead."""
+    a, b = max(lo, 1), (hi if n < 0 or hi < n else n - 1)
+    out = np.empty(hi - lo)
+    out[a - lo:b - lo] = (f[a + 1:b + 1] - f[a - 1:b - 1]) / 2.0
+    if lo == 0:
+        out[0] = (f[1] - f[0]) / 1.0
+    if b < hi:
+        out[-1] = (f[n - 1] - f[n - 2]) / 1.0
+    return out
 
 
 def _phase_corrections(dd: np.ndarray) -> np.ndarray:
