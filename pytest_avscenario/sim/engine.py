@@ -414,8 +414,14 @@ class _Agent:
         side = self.world.lane_index.drops.get(plan[-1].index)
         if side is None:
             return None
-        d = sum(plan[j].length for j in range(self.route_index, len(plan))) - self.route_s
-        return d, side, self.route_index == len(plan) - 1
+        # the lanes' lengths from here to the route's end, summed once per lane reached (a
+        # map's default route runs on for up to 64 lanes)
+        ri = self.route_index
+        memo = self.__dict__.get("_end_memo")
+        if memo is None or memo[0] is not plan or memo[1] != ri:
+            memo = self._end_memo = (plan, ri, sum(plan[j].length for j in range(ri, len(plan))))
+        d = memo[2] - self.route_s
+        return d, side, ri == len(plan) - 1
 
     def gap_is_safe(self, to: Any, decel: float = 3.0) -> bool:
         """Whether moving into lane ``to`` ("left", "right", a number or a Lane) now is safe:
