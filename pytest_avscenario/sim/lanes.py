@@ -240,12 +240,14 @@ class LaneIndex:
     def continue_route(self, lane: Lane, limit: int = 32) -> list[Lane]:
         """``lane`` and the lanes that carry straight on from it (through intersections)."""
         route = [lane]
+        on = {lane}  # (lanes compare by identity: a set answers "already on it" at once)
         while len(route) < limit:
             nxt = self.straight_on.get(route[-1].index)
             if nxt is not None:
-                if nxt in route:
+                if nxt in on:
                     break
                 route.append(nxt)
+                on.add(nxt)
                 continue
             g = route[-1].geometry
             h_end = g.heading_at(g.length)
@@ -259,9 +261,10 @@ class LaneIndex:
                     continue
                 nxt = cand
                 break
-            if nxt is None or nxt in route:
+            if nxt is None or nxt in on:
                 break
             route.append(nxt)
+            on.add(nxt)
         return route
 
     def resolve_lane_change(self, agent: Any, to: Any) -> Lane:
