@@ -204,10 +204,9 @@ class Autopilot:
         known = path.known_max_abs_curvature
         if known is None or known > 1e-3:
             b = 0.7 * o.comfort_decel
-            w = path.window(s_ego, s_ego + v * v / (2 * b) + 20.0)
             # Every point's allowed speed is at least sqrt(lateral_accel / |k|max): when that
             # is no cap on v0, the points need not be looked at (the same v0 either way).
-            bound = path.max_curvature_bound(w)
+            w, bound = path.curve_window(s_ego, s_ego + v * v / (2 * b) + 20.0)
             if math.sqrt(o.lateral_accel / max(bound, 1e-6)) < v0 and (
                     bound > 1e-3 or path.max_abs_curvature > 1e-3):
                 v0 = min(v0, path.curve_speed_min(w, s_ego, o.lateral_accel, b))

@@ -483,6 +483,22 @@ class RoutePath:
         i1 = min(self._ready, i1)
         return slice(i0, i1)
 
+    def curve_window(self, s_from: float, s_to: float) -> tuple[slice, float]:
+        """:meth:`window` and its :meth:`max_curvature_bound` in one call (the autopilot asks
+        both every step on a curved route)."""
+        S0, ds = self.S0, self.ds
+        i0 = int((s_from - S0) / ds)
+        i1 = int((s_to - S0) / ds)
+        if i0 < 0 or i1 < 0 or i0 > self._ready - 2 or i1 > self._ready - 2:
+            w = self.window(s_from, s_to)
+        else:
+            w = slice(i0, i1 + 2)
+        b0, b1 = w.start // _KBLOCK, (max(w.stop, w.start + 1) - 1) // _KBLOCK
+        kmax = self._kmax
+        if b1 >= len(kmax):
+            self._grow((b1 + 1) * _KBLOCK)
+        return w, (kmax[b0] if b0 == b1 else max(kmax[b0:b1 + 1]))
+
     def max_curvature_bound(self, w: slice) -> float:
         """An upper bound of |curvature| [1/m] over the grid indices of ``w`` (a slice from
         :meth:`window`): the largest of the blocks it touches."""
