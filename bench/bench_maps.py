@@ -21,6 +21,13 @@ Each goal of the maps issue is printed with PASS or MISS: Town06 loaded in <= 1.
 a closest-lane query <= 0.5 ms, a case on Town06 <= 1.5x the same case on the built road.
 
     python bench/bench_maps.py --repeats 3 --queries 2000 --cases 20 --pyxodr
+
+``--callgrind N`` counts instead the instructions of N cases of each kind under valgrind's
+callgrind (machine load does not change them): three processes with ``PYTHONHASHSEED=0``
+that each make the map and run one warm-up case of each kind, then N map cases, N built-road
+cases, or nothing; a kind's count is its process's total less the last one's (~3 minutes).
+
+    python bench/bench_maps.py --callgrind 10
 """
 
 from __future__ import annotations
@@ -118,6 +125,47 @@ def _case(kind: str, k: int, lanes: list[str]) -> float:
 
 _LIMITS: dict[str, float] = {}
 
+CALLGRIND = """
+import sys
+sys.path.insert(0, sys.argv[1])
+import bench_maps as bm
+from pytest_avscenario.sim import World
+from pytest_avscenario.sim.opendrive import MapLane
+lanes = list(MapLane(bm.TOWN06, kind="driving", min_length=100).options)
+town = World(0).map(bm.TOWN06)
+bm._LIMITS.update({l: town.lane(l).speed_limit for l in lanes})
+bm._case("map", 0, lanes)
+bm._case("built", 0, lanes)
+for k in range(int(sys.argv[3]) if sys.argv[2] != "none" else 0):
+    bm._case(sys.argv[2], k + 1, lanes)
+"""
+
+
+def instructions(n: int) -> dict:
+    """Instructions [M] of ``n`` map and ``n`` built-road cases, counted by callgrind."""
+    import os
+    import re
+    import tempfile
+
+    procs = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in ("map", "built", "none"):
+            env = dict(os.environ, PYTHONHASHSEED="0", PYTHONPATH=str(ROOT))
+            procs[kind] = subprocess.Popen(
+                ["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp}/{kind}.out",
+                 sys.executable, "-c", CALLGRIND, str(Path(__file__).parent), kind, str(n)],
+                cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        total = {}
+        for kind, proc in procs.items():
+            err = proc.communicate()[1]
+            got = re.search(r"Collected : (\d+)", err)
+            if proc.returncode or got is None:
+                raise SystemExit(f"callgrind of the {kind} cases failed:\n{err[-2000:]}")
+            total[kind] = int(got.group(1))
+    out = {k: (total[k] - total["none"]) / 1e6 for k in ("map", "built")}
+    out["ratio"] = out["map"] / out["built"]
+    return out
+
 
 def cases(n: int) -> dict:
     from pytest_avscenario.sim import World
@@ -145,8 +193,16 @@ def main() -> None:
     ap.add_argument("--queries", type=int, default=2000)
     ap.add_argument("--cases", type=int, default=20)
     ap.add_argument("--pyxodr", action="store_true", help="also load with pyxodr")
+    ap.add_argument("--callgrind", type=int, metavar="N",
+                    help="only count the instructions of N cases of each kind (valgrind)")
     args = ap.parse_args()
     sys.path.insert(0, str(ROOT))
+    if args.callgrind:
+        c = instructions(args.callgrind)
+        print(f"## instructions of {args.callgrind} cases (callgrind, after one warm-up of each)")
+        print(f"Town06 lane: {c['map']:.1f} M; built straight road: {c['built']:.1f} M; "
+              f"ratio {c['ratio']:.3f} ({'PASS' if c['ratio'] <= 1.5 else 'MISS'}, goal <= 1.5)")
+        return
     maps = sorted(SHARED.glob("*.xodr")) if SHARED.is_dir() else [TOWN06]
     print("## load (fresh process, median of", args.repeats, "runs) [s]")
     print(f"{'map':44s} {'lanes':>6s} {'driving':>7s} {'cpu':>6s} {'wall':>6s}"
