@@ -319,3 +319,43 @@ def test_sensor_views_kept_between_steps_give_the_bytes_of_a_fresh_build():
     assert all(same for _, _, same in checked), [c for c in checked if not c[2]][:3]
     assert {n for _, n, _ in checked} == {2, 3}  # the car came and went
     assert len({lane for lane, _, _ in checked}) == 2  # the ego changed lanes
+
+
+def test_the_kits_motion_request_kept_between_steps_gives_the_bytes_of_a_fresh_one():
+    """The kit answers each step from the case's one MotionRequest (kit.Session.answer); the
+    bytes must be those of a message built afresh, step after step, while the command and
+    the ego's state change."""
+    answers: list[tuple[bytes, bytes]] = []
+
+    class Check:
+        def reset(self, world):
+            self.w, self.views = world, None
+
+        def act(self, obs):
+            w = self.w
+            if self.views is None:
+                ids = {a: i + 1 for i, a in enumerate(w.agents)}
+                self.views = frame.SensorViews(frame.lane_ground_truth(w.view()), ids)
+                view = w.view()
+                hello = {"dt": w.dt, "host_vehicle_id": 1,
+                         "agents": [{"id": i + 1, "name": a.name, "kind": a.kind}
+                                    for i, a in enumerate(w.agents)],
+                         "lanes": [{"id": frame.LANE_ID0 + i, "width": l.width,
+                                    "speed_limit": l.speed_limit} for i, l in enumerate(view.lanes)],
+                         "ego": {"route": [frame.LANE_ID0 + w.lane_index.code[l.index]
+                                           for l in w.agents[0].plan],
+                                 "route_index": w.agents[0].route_index}}
+                self.kept, self.fresh = kit.Session(hello, "autopilot"), kit.Session(hello, "autopilot")
+            sv = osi_sensorview_pb2.SensorView.FromString(self.views.build(w, wire.ns(w.t)))
+            self.fresh._motion = None  # a new message each step, as before it was kept
+            answers.append((self.kept.answer(sv), self.fresh.answer(sv)))
+            return 2.0 - w.t, 0.05 * math.sin(w.t)
+
+    w = World(seed=3, name="test::motion")
+    road = w.straight_road(lanes=2, length=300)
+    w.ego(road.lane(1), s=20.0, speed=8.0, driver=Check())
+    w.car(road.lane(1), s=45.0, speed=6.0)
+    w.run(seconds=3.0)
+    assert len(answers) == 30
+    assert len({kept for kept, _ in answers}) == 30  # every step's answer differs
+    assert all(kept == fresh for kept, fresh in answers)

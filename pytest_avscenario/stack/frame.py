@@ -382,9 +382,7 @@ def action_to_motion(mr: Any, t_ns: int, x: float, y: float, heading: float, spe
                      length: float, dt: float, acceleration: float, steering: float) -> None:
     """Fill ``mr`` (an ``osi3.MotionRequest``) with the desired state one step ahead that
     (acceleration, steering) would reach: :func:`motion_to_action`'s exact counterpart."""
-    from osi3 import osi_motionrequest_pb2 as M
-
-    mr.motion_request_type = M.MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
+    mr.motion_request_type = _osi()["motionrequest"].MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
     ds = mr.desired_state
     wire.set_timestamp(ds.timestamp, t_ns + wire.ns(dt))
     beta = math.atan(0.5 * math.tan(steering))

@@ -139,6 +139,7 @@ class Session:
         self.goal = ego.get("goal")
         self.sensor_range = float(ego.get("sensor_range", 80.0))
         self.route: tuple = ()
+        self._motion: Any = None  # the MotionRequest answered with, kept for the case
         self.stop_lines: dict[int, tuple] = {}
         self._limits: dict[int, float] = {}  # route index -> speed limit [m/s]
         # traffic lights: stop positions by lane OSI id -> [(s, light OSI id, signal id)]
@@ -168,14 +169,34 @@ class Session:
             route.append(cls)
         self.route = tuple(route)
 
-    def observation(self, sv: Any) -> Any:
-        """The Observation the world would have handed an in-process driver."""
+    def _state(self, oid: int, mo: Any, kind: str | None = None) -> Any:
+        """The AgentState of the ``osi3.MovingObject`` ``mo`` (OSI id ``oid``): what
+        :func:`.frame.object_state` reads, each sub-message looked up once (every lookup of
+        one through protobuf's Python wrappers costs as much as reading a number)."""
+        b = mo.base
+        p, v, d = b.position, b.velocity, b.dimension
+        yaw = b.orientation.yaw
+        vx, vy = v.x, v.y
+        speed = math.hypot(vx, vy)
+        if vx * math.cos(yaw) + vy * math.sin(yaw) < 0.0:
+            speed = -speed
+        info = self.agents.get(oid, _NO_INFO)
+        k = kind or info.get("kind", "car")
+        return _SIM["frozen"](_SIM["AgentState"], {
+            "x": p.x, "y": p.y, "heading": yaw, "speed": speed, "vx": vx, "vy": vy,
+            "length": d.length, "width": d.width, "name": info.get("name", str(oid)), "kind": k,
+            "flags": frame.object_flags(mo) if k == "bus" else {}})
+
+    def observation(self, sv: Any, t_ns: int | None = None) -> Any:
+        """The Observation the world would have handed an in-process driver (``t_ns``: the
+        SensorView's timestamp [ns], when the caller has read it already)."""
         sim = _sim()
-        frozen, AgentState = sim["frozen"], sim["AgentState"]
+        frozen = sim["frozen"]
         gt = sv.global_ground_truth
         if not self.route:
             self._build_route(gt)
-        t_ns = wire.timestamp_ns(sv.timestamp)
+        if t_ns is None:
+            t_ns = wire.timestamp_ns(sv.timestamp)
         t = int(round(t_ns / self.dt_ns)) * self.dt  # the world's k * dt, bit for bit
         states = {}
         for mo in gt.moving_object:
@@ -183,17 +204,7 @@ class Session:
         ego_mo = states.get(self.host)
         if ego_mo is None:
             raise ValueError(f"the SensorView has no host vehicle (id {self.host})")
-        agents = self.agents
-
-        def state(oid: int, mo: Any, kind: str | None = None) -> Any:
-            st = frame.object_state(mo)
-            info = agents.get(oid, _NO_INFO)
-            k = kind or info.get("kind", "car")
-            st["name"] = info.get("name", str(oid))
-            st["kind"] = k
-            st["flags"] = frame.object_flags(mo) if k == "bus" else {}
-            return frozen(AgentState, st)
-
+        state = self._state
         ego = state(self.host, ego_mo, "ego")
         x, y = ego.x, ego.y
         # route progress, as the world's lane tracker advances it
@@ -207,8 +218,9 @@ class Session:
         self.route_index = ri
         near = []
         rng2 = self.sensor_range ** 2
+        host = self.host
         for oid, mo in states.items():
-            if oid == self.host:
+            if oid == host:
                 continue
             p = mo.base.position
             dx, dy = p.x - x, p.y - y
@@ -240,26 +252,32 @@ class Session:
         return frozen(sim["Observation"], {
             "t": t, "dt": self.dt, "ego": ego, "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
-            "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
+            "agents": tuple([state(oid, mo) for _, oid, mo in near]), "stop_lines": stops,
             "speed_limit": limit, "target_speed": self.target_speed, "goal": self.goal,
             "sensor_range": self.sensor_range, "traffic_lights": lights})
 
     def answer(self, sv: Any) -> bytes:
         """The serialized MotionRequest answering one SensorView."""
-        M = frame._osi()["motionrequest"]
-        obs = self.observation(sv)
-        a, d = _sim()["action_pair"](self.driver.act(obs))
-        ego = obs.ego
-        mr = M.MotionRequest()
-        wire.set_version(mr.version)
         t_ns = wire.timestamp_ns(sv.timestamp)
-        wire.set_timestamp(mr.timestamp, t_ns)
+        obs = self.observation(sv, t_ns)
+        a, d = _SIM["action_pair"](self.driver.act(obs))
+        ego = obs.ego
         if self.answer_kind == "trajectory":
+            mr = frame._osi()["motionrequest"].MotionRequest()
+            wire.set_version(mr.version)
+            wire.set_timestamp(mr.timestamp, t_ns)
             frame.action_to_trajectory(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
                                        self.dt, a, d)
-        else:
-            frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
-                                   self.dt, a, d)
+            return mr.SerializeToString()
+        # one message for the case: a desired state sets the same fields every step, so
+        # overwriting them serializes to the bytes a fresh message would
+        mr = self._motion
+        if mr is None:
+            mr = self._motion = frame._osi()["motionrequest"].MotionRequest()
+            wire.set_version(mr.version)
+        wire.set_timestamp(mr.timestamp, t_ns)
+        frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
+                               self.dt, a, d)
         return mr.SerializeToString()
 
 

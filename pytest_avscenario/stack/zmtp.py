@@ -34,6 +34,8 @@ _MORE, _LONG, _COMMAND = 1, 2, 4
 _LONG_SIZE = struct.Struct(">Q")
 _PEERS = {b"REQ": (b"REP", b"ROUTER"), b"REP": (b"REQ", b"DEALER")}  # who may talk to whom
 _CHUNK = 1 << 16
+_WAIT_S = 0.05  # [s] the slice a requester's read waits in before it looks at its deadline
+_TIMEVAL = struct.Struct("@ll")  # struct timeval (seconds, microseconds)
 #: the largest message read [bytes]: a SensorView of a whole town map is a few MB; a length
 #: beyond this is refused before any of it is buffered (a stack's bug, or no ZeroMQ peer)
 MAX_MESSAGE_BYTES = 64 << 20
@@ -75,18 +77,21 @@ def _properties(data: bytes) -> dict[bytes, bytes]:
     return props
 
 
-def frames_bytes(frames: list[bytes], more_after: bool = False) -> bytes:
+# the header of a short frame of n bytes, without and with MORE
+_SHORT = (tuple(bytes([0, n]) for n in range(256)), tuple(bytes([_MORE, n]) for n in range(256)))
+_DELIMITER = b"\x01\x00"  # a REQ's envelope: one empty frame, MORE
+
+
+def frames_bytes(frames: list[bytes], more_after: bool = False, prefix: bytes = b"") -> bytes:
     """The bytes of one multipart message (``frames`` in order, MORE on all but the last;
-    on the last too when ``more_after``: an envelope that a message follows)."""
-    parts = []
+    on the last too when ``more_after``: an envelope that a message follows), after
+    ``prefix`` (bytes already framed: an envelope)."""
+    parts = [prefix]
     last = len(frames) - 1
     for i, f in enumerate(frames):
         more = _MORE if i < last or more_after else 0
         n = len(f)
-        if n > 255:
-            parts.append(bytes([more | _LONG]) + _LONG_SIZE.pack(n))
-        else:
-            parts.append(bytes([more, n]))
+        parts.append(_SHORT[more][n] if n < 256 else bytes([more | _LONG]) + _LONG_SIZE.pack(n))
         parts.append(f)
     return b"".join(parts)
 
@@ -130,12 +135,19 @@ class _Connection:
         self.sock = sock
         self.fd = sock.fileno()
         self.type = socket_type
-        self.buf = bytearray()
+        # what was received and not yet consumed from ``pos``: the bytes of one ``recv`` as
+        # they came (a message that arrived whole is cut out of them without a copy more),
+        # a bytearray while a message longer than one read is gathered
+        self.buf: bytes | bytearray = b""
         self.pos = 0
         self.greeted = False
         self.peer_type = b""
         self._poll = select.poll()
         self._poll.register(self.fd, select.POLLIN)
+        # a requester waits for its answer in the read itself (_recv_until): its socket
+        # then has a receive timeout, so plain reads must not block for ever on it either
+        self.kernel_wait = False
+        self._rcvtimeo = 0.0  # [s] the socket's SO_RCVTIMEO (0: none)
 
     def close(self) -> None:
         try:
@@ -149,25 +161,58 @@ class _Connection:
         None: a plain read, for a caller that polled already or may block until the rest of a
         message it has begun arrives). ``TimeoutError`` when nothing came, :class:`Closed` on
         EOF."""
-        if deadline is not None:
-            while True:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    raise TimeoutError()
-                if self._poll.poll(max(1, int(left * 1000 + 0.999))):
-                    break
-        try:
-            data = self.sock.recv(_CHUNK)
-        except BlockingIOError:
-            raise TimeoutError() from None
-        except (ConnectionResetError, BrokenPipeError) as exc:
-            raise Closed(str(exc)) from None
+        if deadline is not None and self.kernel_wait:
+            data = self._recv_until(deadline)
+        else:
+            if deadline is not None:
+                while True:
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        raise TimeoutError()
+                    if self._poll.poll(max(1, int(left * 1000 + 0.999))):
+                        break
+            try:
+                data = self.sock.recv(_CHUNK)
+            except BlockingIOError:
+                raise TimeoutError() from None
+            except (ConnectionResetError, BrokenPipeError) as exc:
+                raise Closed(str(exc)) from None
         if not data:
             raise Closed("the peer closed the connection")
-        if self.pos:
-            del self.buf[:self.pos]
-            self.pos = 0
-        self.buf += data
+        buf, pos = self.buf, self.pos
+        if pos >= len(buf):
+            self.buf, self.pos = data, 0
+            return
+        if type(buf) is bytes:
+            buf = bytearray(memoryview(buf)[pos:])
+        elif pos:
+            del buf[:pos]
+        buf += data
+        self.buf, self.pos = buf, 0
+
+    def _recv_until(self, deadline: float) -> bytes:
+        """One read that waits until ``deadline`` at most, in the kernel (``SO_RCVTIMEO``,
+        set in slices of at most ``_WAIT_S`` and seldom changed): one system call
+        where a poll and then a read would be two."""
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError()
+            wait = _WAIT_S if left >= _WAIT_S else max(left, 1e-6)
+            now = self._rcvtimeo
+            # changed only when it would overshoot the deadline by more than 1 ms or wake
+            # needlessly often: a caller that waits in slices of its own keeps it as it is
+            if not now or now > left + 1e-3 or now < 0.5 * wait:
+                sec = int(wait)
+                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO,
+                                     _TIMEVAL.pack(sec, int((wait - sec) * 1e6) or 1))
+                self._rcvtimeo = wait
+            try:
+                return self.sock.recv(_CHUNK)
+            except BlockingIOError:  # this slice is over: the deadline is looked at again
+                continue
+            except (ConnectionResetError, BrokenPipeError) as exc:
+                raise Closed(str(exc)) from None
 
     def _take(self, n: int, deadline: float | None) -> bytes:
         while len(self.buf) - self.pos < n:
@@ -229,26 +274,61 @@ class _Connection:
         return flags, self._take(n, deadline)
 
     def message(self, deadline: float | None) -> list[bytes]:
-        """The next whole multipart message; commands in between are handled here."""
-        frames: list[bytes] = []
-        start = self.pos
-        size = 0
+        """The next whole multipart message; commands in between are handled here.
+        ``TimeoutError`` at ``deadline`` when it is not whole by then (what came of it stays
+        buffered: a later call goes on)."""
+        while True:
+            frames = self._parse()
+            if frames is not None:
+                return frames
+            self._fill(deadline)
+
+    def _parse(self) -> list[bytes] | None:
+        """The buffered message's frames when it is whole (consumed), else None (nothing
+        consumed but the commands before it, which are handled)."""
+        buf, pos = self.buf, self.pos
+        end = len(buf)
+        src = buf if type(buf) is bytes else memoryview(buf)  # a bytearray: copy once, below
         try:
+            frames: list[bytes] = []
+            size = 0
             while True:
-                flags, body = self._frame(deadline)
+                if end - pos < 2:
+                    return None
+                flags = buf[pos]
+                if flags & ~(_MORE | _LONG | _COMMAND):
+                    raise ZMTPError(f"a frame with flags {flags:#04x}: not ZMTP 3")
+                if flags & _LONG:
+                    if end - pos < 9:
+                        return None
+                    (n,) = _LONG_SIZE.unpack_from(buf, pos + 1)
+                    start = pos + 9
+                else:
+                    n = buf[pos + 1]
+                    start = pos + 2
+                if size + n > MAX_MESSAGE_BYTES:  # refused before any of it is gathered
+                    if n > MAX_MESSAGE_BYTES:
+                        raise ZMTPError(f"a frame of {n:,} bytes, more than the "
+                                        f"{MAX_MESSAGE_BYTES:,} bytes a message may have")
+                    raise ZMTPError(f"a message of more than {MAX_MESSAGE_BYTES:,} bytes")
+                pos = start + n
+                if pos > end:
+                    return None
+                body = src[start:pos] if src is buf else bytes(src[start:pos])
                 if flags & _COMMAND:
+                    if frames:
+                        raise ZMTPError("a command inside a multipart message")
+                    self.pos = pos  # handled once, whatever follows
                     self._on_command(body)
-                    start = self.pos
                     continue
                 frames.append(body)
-                size += len(body)
-                if size > MAX_MESSAGE_BYTES:
-                    raise ZMTPError(f"a message of more than {MAX_MESSAGE_BYTES:,} bytes")
+                size += n
                 if not flags & _MORE:
+                    self.pos = pos
                     return frames
-        except TimeoutError:
-            self.pos = start  # a message not yet whole: read it again from its start next time
-            raise
+        finally:
+            if src is not buf:
+                src.release()
 
     def _on_command(self, body: bytes) -> None:
         n = body[0] if body else 0
@@ -281,6 +361,7 @@ class Requester:
         conn = _Connection(sock, b"REQ")
         try:
             conn.greet(deadline)
+            conn.kernel_wait = True
         except Closed:
             conn.close()
             raise ZMTPError("the peer closed the connection during ZeroMQ's handshake (is it "
@@ -311,7 +392,7 @@ class Requester:
         return True
 
     def send(self, frames: list[bytes]) -> None:
-        self.conn.send(b"\x01\x00" + frames_bytes(frames))  # the empty delimiter, then the message
+        self.conn.send(frames_bytes(frames, prefix=_DELIMITER))  # the empty delimiter, then the message
 
     def receive(self, deadline: float) -> list[bytes]:
         """The answer's frames; ``TimeoutError`` at ``deadline`` (the connection is kept: a
@@ -407,6 +488,10 @@ class Replier:
         except (Closed, ZMTPError, OSError):
             self._drop(conn)
             return None
+        if frames[0] == b"":  # a REQ peer's envelope: the delimiter alone
+            self.last, self.envelope = conn, _DELIMITER
+            del frames[0]
+            return frames
         try:
             cut = frames.index(b"")
         except ValueError:
@@ -422,7 +507,7 @@ class Replier:
         if conn is None or conn.fd not in self.conns:
             return
         try:
-            conn.send(self.envelope + frames_bytes(frames))
+            conn.send(frames_bytes(frames, prefix=self.envelope))
         except (Closed, OSError):
             self._drop(conn)
 
