@@ -22,7 +22,10 @@ and its traceback, which the plugin shows as the case's error.
 
 Lanes are rebuilt from the OSI centre lines: a straight lane exactly (two points), a curved
 one as a polyline of its one-metre samples (a driver on a curve sees it to within
-millimetres, not bit for bit).
+millimetres, not bit for bit). A lane's width along it (``width_at(s)``) is read from its
+two boundaries, which the plugin places half the width at each centre-line point to either
+side: on a map whose lanes widen and narrow, the driver sees the width where the ego is,
+not the Reset's ``width`` (the width at s = 0).
 """
 
 from __future__ import annotations
@@ -40,12 +43,29 @@ from . import frame, wire
 __all__ = ["serve", "Session", "StraightLine", "Polyline"]
 
 
+class _Widths:
+    """A lane's width [m] along it from its widths at points ``ss`` [m] (ascending): linear
+    between them, the end's beyond an end."""
+
+    def __init__(self, ss: Any, widths: Any) -> None:
+        self._s = [float(v) for v in ss]
+        self._w = [float(v) for v in widths]
+
+    def at(self, s: float) -> float:
+        k = min(max(bisect.bisect_right(self._s, s) - 1, 0), len(self._s) - 2)
+        s0, s1 = self._s[k], self._s[k + 1]
+        f = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
+        return self._w[k] + f * (self._w[k + 1] - self._w[k])
+
+
 class StraightLine:
     """A straight lane from two centre-line points, with the lanes' small vocabulary
     (``position``, ``heading_at``, ``local_coordinates``, ``length``, ``width_at``) computed
-    as the simulator's straight lanes compute it."""
+    as the simulator's straight lanes compute it. ``width`` [m] is its width at its start;
+    ``widths``, when given, its width at each of the two points (``width_at`` follows it)."""
 
-    def __init__(self, start: Any, end: Any, width: float, speed_limit: float) -> None:
+    def __init__(self, start: Any, end: Any, width: float, speed_limit: float,
+                 widths: Any = None) -> None:
         self.start = np.array(start[:2], dtype=float)
         self.end = np.array(end[:2], dtype=float)
         self.length = float(np.linalg.norm(self.end - self.start))
@@ -56,6 +76,7 @@ class StraightLine:
         self.width = float(width)
         self.speed_limit = float(speed_limit)
         self.radius = math.inf
+        self._widths = None if widths is None else _Widths((0.0, self.length), widths)
 
     def position(self, longitudinal: float, lateral: float) -> np.ndarray:
         return np.array([self._sx + longitudinal * self._dx - lateral * self._dy,
@@ -70,16 +91,19 @@ class StraightLine:
         return self.heading
 
     def width_at(self, longitudinal: float) -> float:
-        return self.width
+        return self.width if self._widths is None else self._widths.at(longitudinal)
 
 
 class Polyline:
-    """A curved lane as the polyline of its centre-line samples (same vocabulary)."""
+    """A curved lane as the polyline of its centre-line samples (same vocabulary; ``widths``
+    as :class:`StraightLine`'s, one a point)."""
 
-    def __init__(self, points: Any, width: float, speed_limit: float) -> None:
+    def __init__(self, points: Any, width: float, speed_limit: float, widths: Any = None) -> None:
         p = np.asarray(points, dtype=float)[:, :2]
         seg = np.diff(p, axis=0)
         seglen = np.hypot(seg[:, 0], seg[:, 1])
+        self._widths = None if widths is None else \
+            _Widths(np.concatenate([[0.0], np.cumsum(seglen)]), widths)
         keep = seglen > 1e-9
         self._p0, self._seg, self._len = p[:-1][keep], seg[keep], seglen[keep]
         self._cum = np.concatenate([[0.0], np.cumsum(self._len)])
@@ -111,7 +135,24 @@ class Polyline:
         return float(self._cum[i] + ex * dx + ey * dy), float(ey * dx - ex * dy)
 
     def width_at(self, longitudinal: float) -> float:
-        return self.width
+        return self.width if self._widths is None else self._widths.at(longitudinal)
+
+
+def _widths(lane: Any, bounds: dict, n: int) -> list[float] | None:
+    """A lane's width [m] at each of its ``n`` centre-line points, read from its boundaries
+    (the plugin sends one boundary point a centre-line point, half the width at that point
+    to each side), or None when it is one width all along (the Reset's ``width``, the width
+    at s = 0) or the boundaries are not there."""
+    cl = lane.classification
+    if not cl.left_lane_boundary_id or not cl.right_lane_boundary_id:
+        return None
+    left = bounds.get(cl.left_lane_boundary_id[0].value)
+    right = bounds.get(cl.right_lane_boundary_id[0].value)
+    if left is None or right is None or not len(left.boundary_line) == len(right.boundary_line) == n:
+        return None
+    out = [math.hypot(a.position.x - b.position.x, a.position.y - b.position.y)
+           for a, b in zip(left.boundary_line, right.boundary_line)]
+    return out if max(out) - min(out) > 1e-6 else None
 
 
 def _number(value: Any) -> float:
@@ -159,13 +200,16 @@ class Session:
 
     def _build_route(self, gt: Any) -> None:
         by_id = {lane.id.value: lane for lane in gt.lane}
+        bounds = {b.id.value: b for b in gt.lane_boundary}
         route = []
         for lid in self.route_ids:
-            pts = [(p.x, p.y) for p in by_id[lid].classification.centerline]
+            lane = by_id[lid]
+            pts = [(p.x, p.y) for p in lane.classification.centerline]
             info = self.lanes[lid]
             limit = _number(info.get("speed_limit"))
-            cls = StraightLine(pts[0], pts[1], info["width"], limit) if len(pts) == 2 \
-                else Polyline(pts, info["width"], limit)
+            widths = _widths(lane, bounds, len(pts))
+            cls = StraightLine(pts[0], pts[1], info["width"], limit, widths) if len(pts) == 2 \
+                else Polyline(pts, info["width"], limit, widths)
             route.append(cls)
         self.route = tuple(route)
 
