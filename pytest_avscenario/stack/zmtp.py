@@ -87,12 +87,16 @@ def frames_bytes(frames: list[bytes], more_after: bool = False, prefix: bytes = 
     on the last too when ``more_after``: an envelope that a message follows), after
     ``prefix`` (bytes already framed: an envelope)."""
     parts = [prefix]
+    append = parts.append
+    more = _SHORT[_MORE]
     last = len(frames) - 1
     for i, f in enumerate(frames):
-        more = _MORE if i < last or more_after else 0
         n = len(f)
-        parts.append(_SHORT[more][n] if n < 256 else bytes([more | _LONG]) + _LONG_SIZE.pack(n))
-        parts.append(f)
+        if i == last and not more_after:
+            append(_SHORT[0][n] if n < 256 else b"\x02" + _LONG_SIZE.pack(n))
+        else:
+            append(more[n] if n < 256 else b"\x03" + _LONG_SIZE.pack(n))
+        append(f)
     return b"".join(parts)
 
 
@@ -278,14 +282,44 @@ class _Connection:
         ``TimeoutError`` at ``deadline`` when it is not whole by then (what came of it stays
         buffered: a later call goes on)."""
         while True:
-            frames = self._parse()
-            if frames is not None:
-                return frames
+            if self.pos < len(self.buf):  # nothing to parse while nothing is buffered
+                frames = self._parse()
+                if frames is not None:
+                    return frames
             self._fill(deadline)
 
     def _parse(self) -> list[bytes] | None:
         """The buffered message's frames when it is whole (consumed), else None (nothing
         consumed but the commands before it, which are handled)."""
+        buf, pos = self.buf, self.pos
+        if type(buf) is not bytes:
+            return self._parse_gathered()
+        end = len(buf)
+        frames: list[bytes] = []
+        append = frames.append
+        while True:  # the common case: data frames in the bytes of one read
+            if end - pos < 2:
+                return None
+            flags = buf[pos]
+            if flags <= _MORE:
+                start = pos + 2
+                pos = start + buf[pos + 1]
+            elif flags <= _MORE | _LONG and end - pos >= 9:
+                start = pos + 9
+                pos = start + _LONG_SIZE.unpack_from(buf, pos + 1)[0]
+                if pos - start > MAX_MESSAGE_BYTES:
+                    return self._parse_gathered()  # which says why it is refused
+            else:
+                return self._parse_gathered()  # a command, a cut header, a broken frame
+            if pos > end:
+                return None
+            append(buf[start:pos])
+            if not flags & _MORE:
+                self.pos = pos
+                return frames
+
+    def _parse_gathered(self) -> list[bytes] | None:
+        """:meth:`_parse` for any frame, in bytes or in a bytearray being gathered."""
         buf, pos = self.buf, self.pos
         end = len(buf)
         src = buf if type(buf) is bytes else memoryview(buf)  # a bytearray: copy once, below
@@ -436,8 +470,9 @@ class Replier:
         else:
             raise ValueError(f"address {address!r}: use tcp://HOST:PORT or ipc://PATH")
         self.listener.listen(16)
+        self._listen_fd = self.listener.fileno()
         self.poller = select.poll()
-        self.poller.register(self.listener.fileno(), select.POLLIN)
+        self.poller.register(self._listen_fd, select.POLLIN)
         self.conns: dict[int, _Connection] = {}
         self.last: _Connection | None = None  # where the request being answered came from
         self.envelope = b""
@@ -451,15 +486,16 @@ class Replier:
                 got = self._message(conn)
                 if got is not None:
                     return got
+        poll, listen_fd = self.poller.poll, self._listen_fd
         while True:
             ms = -1 if deadline is None else max(0, int((deadline - time.monotonic()) * 1000 + 0.999))
-            events = self.poller.poll(ms)
+            events = poll(ms)
             if not events:
                 if deadline is not None and time.monotonic() >= deadline:
                     return None
                 continue
             for fd, _ in events:
-                if fd == self.listener.fileno():
+                if fd == listen_fd:
                     conn = self._accept()
                     if conn is not None and len(conn.buf) > conn.pos:  # sent with its READY
                         got = self._message(conn)
