@@ -34,8 +34,6 @@ _MORE, _LONG, _COMMAND = 1, 2, 4
 _LONG_SIZE = struct.Struct(">Q")
 _PEERS = {b"REQ": (b"REP", b"ROUTER"), b"REP": (b"REQ", b"DEALER")}  # who may talk to whom
 _CHUNK = 1 << 16
-_WAIT_S = 0.05  # [s] the slice a requester's read waits in before it looks at its deadline
-_TIMEVAL = struct.Struct("@ll")  # struct timeval (seconds, microseconds)
 #: the largest message read [bytes]: a SensorView of a whole town map is a few MB; a length
 #: beyond this is refused before any of it is buffered (a stack's bug, or no ZeroMQ peer)
 MAX_MESSAGE_BYTES = 64 << 20
@@ -148,10 +146,6 @@ class _Connection:
         self.peer_type = b""
         self._poll = select.poll()
         self._poll.register(self.fd, select.POLLIN)
-        # a requester waits for its answer in the read itself (_recv_until): its socket
-        # then has a receive timeout, so plain reads must not block for ever on it either
-        self.kernel_wait = False
-        self._rcvtimeo = 0.0  # [s] the socket's SO_RCVTIMEO (0: none)
 
     def close(self) -> None:
         try:
@@ -165,22 +159,19 @@ class _Connection:
         None: a plain read, for a caller that polled already or may block until the rest of a
         message it has begun arrives). ``TimeoutError`` when nothing came, :class:`Closed` on
         EOF."""
-        if deadline is not None and self.kernel_wait:
-            data = self._recv_until(deadline)
-        else:
-            if deadline is not None:
-                while True:
-                    left = deadline - time.monotonic()
-                    if left <= 0:
-                        raise TimeoutError()
-                    if self._poll.poll(max(1, int(left * 1000 + 0.999))):
-                        break
-            try:
-                data = self.sock.recv(_CHUNK)
-            except BlockingIOError:
-                raise TimeoutError() from None
-            except (ConnectionResetError, BrokenPipeError) as exc:
-                raise Closed(str(exc)) from None
+        if deadline is not None:
+            while True:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError()
+                if self._poll.poll(max(1, int(left * 1000 + 0.999))):
+                    break
+        try:
+            data = self.sock.recv(_CHUNK)
+        except BlockingIOError:
+            raise TimeoutError() from None
+        except (ConnectionResetError, BrokenPipeError) as exc:
+            raise Closed(str(exc)) from None
         if not data:
             raise Closed("the peer closed the connection")
         buf, pos = self.buf, self.pos
@@ -193,30 +184,6 @@ class _Connection:
             del buf[:pos]
         buf += data
         self.buf, self.pos = buf, 0
-
-    def _recv_until(self, deadline: float) -> bytes:
-        """One read that waits until ``deadline`` at most, in the kernel (``SO_RCVTIMEO``,
-        set in slices of at most ``_WAIT_S`` and seldom changed): one system call
-        where a poll and then a read would be two."""
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise TimeoutError()
-            wait = _WAIT_S if left >= _WAIT_S else max(left, 1e-6)
-            now = self._rcvtimeo
-            # changed only when it would overshoot the deadline by more than 1 ms or wake
-            # needlessly often: a caller that waits in slices of its own keeps it as it is
-            if not now or now > left + 1e-3 or now < 0.5 * wait:
-                sec = int(wait)
-                self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO,
-                                     _TIMEVAL.pack(sec, int((wait - sec) * 1e6) or 1))
-                self._rcvtimeo = wait
-            try:
-                return self.sock.recv(_CHUNK)
-            except BlockingIOError:  # this slice is over: the deadline is looked at again
-                continue
-            except (ConnectionResetError, BrokenPipeError) as exc:
-                raise Closed(str(exc)) from None
 
     def _take(self, n: int, deadline: float | None) -> bytes:
         while len(self.buf) - self.pos < n:
@@ -395,7 +362,6 @@ class Requester:
         conn = _Connection(sock, b"REQ")
         try:
             conn.greet(deadline)
-            conn.kernel_wait = True
         except Closed:
             conn.close()
             raise ZMTPError("the peer closed the connection during ZeroMQ's handshake (is it "
