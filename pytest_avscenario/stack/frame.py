@@ -378,24 +378,34 @@ def motion_to_action(ds: Any, t_ns: int, heading: float, speed: float, length: f
     return acc, steering
 
 
-def action_to_motion(mr: Any, t_ns: int, x: float, y: float, heading: float, speed: float,
-                     length: float, dt: float, acceleration: float, steering: float) -> None:
-    """Fill ``mr`` (an ``osi3.MotionRequest``) with the desired state one step ahead that
-    (acceleration, steering) would reach: :func:`motion_to_action`'s exact counterpart."""
-    mr.motion_request_type = _osi()["motionrequest"].MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
+def desired_state_slots(mr: Any) -> tuple:
+    """The sub-messages of ``mr.desired_state`` that :func:`action_to_motion` writes
+    (timestamp, orientation, position, velocity, acceleration), for a caller that keeps one
+    MotionRequest and fills it each step."""
     ds = mr.desired_state
-    wire.set_timestamp(ds.timestamp, t_ns + wire.ns(dt))
+    return ds.timestamp, ds.orientation, ds.position, ds.velocity, ds.acceleration
+
+
+def action_to_motion(mr: Any, t_ns: int, x: float, y: float, heading: float, speed: float,
+                     length: float, dt: float, acceleration: float, steering: float,
+                     slots: tuple | None = None) -> None:
+    """Fill ``mr`` (an ``osi3.MotionRequest``) with the desired state one step ahead that
+    (acceleration, steering) would reach: :func:`motion_to_action`'s exact counterpart.
+    ``slots``: :func:`desired_state_slots` of ``mr``, when the caller keeps them."""
+    mr.motion_request_type = _osi()["motionrequest"].MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
+    ts, ori, pos, vel, acc = slots if slots is not None else desired_state_slots(mr)
+    ts.seconds, ts.nanos = divmod(t_ns + wire.ns(dt), 1_000_000_000)
     beta = math.atan(0.5 * math.tan(steering))
     v_ref = speed if abs(speed) >= MIN_TURN_SPEED else math.copysign(MIN_TURN_SPEED, speed or 1.0)
     yaw = heading + v_ref * math.sin(beta) / (0.5 * length) * dt
-    ds.orientation.yaw = yaw if -math.pi <= yaw <= math.pi and -math.pi <= heading <= math.pi \
+    ori.yaw = yaw if -math.pi <= yaw <= math.pi and -math.pi <= heading <= math.pi \
         else wrap_yaw(yaw)
-    ds.position.x = x + speed * math.cos(heading + beta) * dt
-    ds.position.y = y + speed * math.sin(heading + beta) * dt
+    pos.x = x + speed * math.cos(heading + beta) * dt
+    pos.y = y + speed * math.sin(heading + beta) * dt
     v1 = speed + acceleration * dt
-    ds.velocity.x, ds.velocity.y = v1 * math.cos(yaw), v1 * math.sin(yaw)
+    vel.x, vel.y = v1 * math.cos(yaw), v1 * math.sin(yaw)
     c, s = math.cos(heading), math.sin(heading)
-    ds.acceleration.x, ds.acceleration.y = acceleration * c, acceleration * s
+    acc.x, acc.y = acceleration * c, acceleration * s
 
 
 # -- desired trajectories ---------------------------------------------------------------------

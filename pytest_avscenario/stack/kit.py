@@ -181,6 +181,7 @@ class Session:
         self.sensor_range = float(ego.get("sensor_range", 80.0))
         self.route: tuple = ()
         self._motion: Any = None  # the MotionRequest answered with, kept for the case
+        self._slots: tuple = ()  # its timestamp and desired state's sub-messages
         self.stop_lines: dict[int, tuple] = {}
         self._limits: dict[int, float] = {}  # route index -> speed limit [m/s]
         # traffic lights: stop positions by lane OSI id -> [(s, light OSI id, signal id)]
@@ -319,9 +320,11 @@ class Session:
         if mr is None:
             mr = self._motion = frame._osi()["motionrequest"].MotionRequest()
             wire.set_version(mr.version)
-        wire.set_timestamp(mr.timestamp, t_ns)
+            self._slots = (mr.timestamp, frame.desired_state_slots(mr))
+        stamp, slots = self._slots
+        stamp.seconds, stamp.nanos = divmod(t_ns, 1_000_000_000)
         frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
-                               self.dt, a, d)
+                               self.dt, a, d, slots)
         return mr.SerializeToString()
 
 
