@@ -172,7 +172,8 @@ class Meter:
 
     def __exit__(self, *exc: object) -> None:
         self.wall = time.perf_counter() - self.t0
-        self.cpu = own_cpu() - self.c0 + ((cpu_of(self.pid) - self.k0) if self.pid else 0.0)
+        self.own = own_cpu() - self.c0  # this process's part of ``cpu``
+        self.cpu = self.own + ((cpu_of(self.pid) - self.k0) if self.pid else 0.0)
         self.sleeps = sum(map(sleeps_of, self.pids)) - self.s0
 
 
@@ -379,7 +380,7 @@ def bench_step(steps: int) -> dict:
             for i in range(100):
                 stack.exchange(ego)
             runs.append({"kind": kind, "proc": proc, "stack": stack, "pinned": pinned,
-                         "channel": client._CHANNELS[address], "wall": 0.0, "cpu": 0.0,
+                         "channel": client._CHANNELS[address], "wall": 0.0, "cpu": 0.0, "own": 0.0,
                          "sleeps": 0, "build": 0.0, "round trip": 0.0, "decode": 0.0})
         chunks = 8  # the variants take turns, so a change of the machine's load hits them all
         for k in range(chunks):
@@ -404,7 +405,7 @@ def bench_step(steps: int) -> dict:
                         r["build"] += b - a; r["round trip"] += c - b; r["decode"] += d - c
                 if r["pinned"]:
                     pin(os.getpid(), everywhere)
-                r["wall"] += m.wall; r["cpu"] += m.cpu; r["sleeps"] += m.sleeps
+                r["wall"] += m.wall; r["cpu"] += m.cpu; r["own"] += m.own; r["sleeps"] += m.sleeps
     finally:
         for r in runs:
             r["proc"].kill(); r["proc"].wait()
@@ -415,7 +416,8 @@ def bench_step(steps: int) -> dict:
         parts = ", ".join(f"{k} {r[k] / n * 1e6:.1f}" for k in ("build", "round trip", "decode"))
         out[r["kind"]] = (total, r["cpu"] / n * 1e6)
         print(f"   {r['kind']}: {total:6.1f} µs wall ({parts}; the round trip includes the kit's "
-              f"Observation and the autopilot), {r['cpu'] / n * 1e6:5.1f} µs CPU, "
+              f"Observation and the autopilot), {r['cpu'] / n * 1e6:5.1f} µs CPU (plugin "
+              f"{r['own'] / n * 1e6:.1f}, stack {(r['cpu'] - r['own']) / n * 1e6:.1f}), "
               f"{r['sleeps'] / n:.1f} sleeps")
     return out
 
