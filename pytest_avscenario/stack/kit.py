@@ -214,12 +214,16 @@ class Session:
             route.append(cls)
         self.route = tuple(route)
 
-    def _state(self, oid: int, mo: Any, kind: str | None = None) -> Any:
+    def _state(self, oid: int, mo: Any, kind: str | None = None, b: Any = None,
+               p: Any = None) -> Any:
         """The AgentState of the ``osi3.MovingObject`` ``mo`` (OSI id ``oid``): what
         :func:`.frame.object_state` reads, each sub-message looked up once (every lookup of
-        one through protobuf's Python wrappers costs as much as reading a number)."""
-        b = mo.base
-        p, v, d = b.position, b.velocity, b.dimension
+        one through protobuf's Python wrappers costs as much as reading a number; ``b`` and
+        ``p``: its ``base`` and ``base.position`` when the caller has them)."""
+        if b is None:
+            b = mo.base
+            p = b.position
+        v, d = b.velocity, b.dimension
         yaw = b.orientation.yaw
         vx, vy = v.x, v.y
         speed = math.hypot(vx, vy)
@@ -243,14 +247,19 @@ class Session:
         if t_ns is None:
             t_ns = wire.timestamp_ns(sv.timestamp)
         t = int(round(t_ns / self.dt_ns)) * self.dt  # the world's k * dt, bit for bit
-        states = {}
+        host = self.host
+        ego_mo = None
+        others = {}  # by OSI id: the last of a repeated id counts, in the order first seen
         for mo in gt.moving_object:
-            states[mo.id.value] = mo
-        ego_mo = states.get(self.host)
+            oid = mo.id.value
+            if oid == host:
+                ego_mo = mo
+            else:
+                others[oid] = mo
         if ego_mo is None:
             raise ValueError(f"the SensorView has no host vehicle (id {self.host})")
         state = self._state
-        ego = state(self.host, ego_mo, "ego")
+        ego = state(host, ego_mo, "ego")
         x, y = ego.x, ego.y
         # route progress, as the world's lane tracker advances it
         ri = self.route_index
@@ -263,15 +272,13 @@ class Session:
         self.route_index = ri
         near = []
         rng2 = self.sensor_range ** 2
-        host = self.host
-        for oid, mo in states.items():
-            if oid == host:
-                continue
-            p = mo.base.position
+        for oid, mo in others.items():
+            b = mo.base
+            p = b.position
             dx, dy = p.x - x, p.y - y
             d2 = dx * dx + dy * dy
             if d2 <= rng2:
-                near.append((d2, oid, mo))
+                near.append((d2, oid, mo, b, p))
         near.sort(key=lambda q: (q[0], q[1]))
 
         stops = self.stop_lines.get(ri)
@@ -297,7 +304,8 @@ class Session:
         return frozen(sim["Observation"], {
             "t": t, "dt": self.dt, "ego": ego, "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
-            "agents": tuple([state(oid, mo) for _, oid, mo in near]), "stop_lines": stops,
+            "agents": tuple([state(oid, mo, None, b, p) for _, oid, mo, b, p in near]),
+            "stop_lines": stops,
             "speed_limit": limit, "target_speed": self.target_speed, "goal": self.goal,
             "sensor_range": self.sensor_range, "traffic_lights": lights})
 
