@@ -27,7 +27,8 @@ per transport, default 2000). All in one run, each against a process of its own:
    median per case over repeats after a warm-up.
 3. The protocol's own work in this process, CPU per call in a hot loop: the SensorView built
    afresh and kept (``frame.SensorViews``), the kit's answer, the decode, against observe +
-   autopilot in process.
+   autopilot in process; and ZMTP's framing of a request and its answer on both sides (a
+   ``zmtp.Requester`` and ``zmtp.Replier`` connected in this process).
 
 Every figure is given as wall time and as CPU time. CPU time is that of both processes,
 all their threads (ZeroMQ's I/O threads included): this process's from
@@ -503,12 +504,37 @@ def bench_pieces(steps: int) -> None:
               ("kit: parse + Observation + autopilot + MotionRequest", lambda: kit.handle(request, session, "autopilot")),
               ("plugin: MotionRequest decoded into (a, steering)", decode),
               ("in process: world.observe + autopilot", lambda: session.driver.act(w.observe(ego)))]
+    # ZMTP's framing on both sides, a connected pair in this process: the protocol's three
+    # frames out, an answer's three back (no other process, so no wake-up: Python and calls)
+    address = _addresses("pieces")["ipc"]
+    rep = zmtp.Replier(address)
+    req = zmtp.Requester(address)
+    import threading
+
+    t = threading.Thread(target=lambda: req.connect(time.monotonic() + 10))
+    t.start()
+    while t.is_alive():
+        rep.receive(0.01)  # greets the requester
+    t.join()
+    sv_frames = wire.pack(wire.SENSOR_VIEW, request[2])
+    mr_frames = wire.pack(wire.MOTION_REQUEST, answer[2])
+
+    def framing() -> None:
+        req.usable()
+        req.send(sv_frames)
+        rep.receive(1.0)
+        rep.send(mr_frames)
+        req.receive(time.monotonic() + 1.0)
+
+    pieces.append(("ZMTP: a request and its answer framed, sent and parsed, both sides", framing))
     for label, call in pieces:
         call()
         c0 = time.process_time()
         for _ in range(steps):
             call()
         print(f"   {label}: {(time.process_time() - c0) / steps * 1e6:6.1f} µs CPU")
+    req.close()
+    rep.close()
 
 
 def verdict(ok: bool) -> str:
