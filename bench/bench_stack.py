@@ -27,7 +27,8 @@ per transport, default 2000). All in one run, each against a process of its own:
    median per case over repeats after a warm-up.
 3. The protocol's own work in this process, CPU per call in a hot loop: the SensorView built
    afresh and kept (``frame.SensorViews``), the kit's answer, the decode, against observe +
-   autopilot in process.
+   autopilot in process; and ZMTP's framing of a request and its answer on both sides (a
+   ``zmtp.Requester`` and ``zmtp.Replier`` connected in this process).
 
 Every figure is given as wall time and as CPU time. CPU time is that of both processes,
 all their threads (ZeroMQ's I/O threads included): this process's from
@@ -172,7 +173,8 @@ class Meter:
 
     def __exit__(self, *exc: object) -> None:
         self.wall = time.perf_counter() - self.t0
-        self.cpu = own_cpu() - self.c0 + ((cpu_of(self.pid) - self.k0) if self.pid else 0.0)
+        self.own = own_cpu() - self.c0  # this process's part of ``cpu``
+        self.cpu = self.own + ((cpu_of(self.pid) - self.k0) if self.pid else 0.0)
         self.sleeps = sum(map(sleeps_of, self.pids)) - self.s0
 
 
@@ -379,7 +381,7 @@ def bench_step(steps: int) -> dict:
             for i in range(100):
                 stack.exchange(ego)
             runs.append({"kind": kind, "proc": proc, "stack": stack, "pinned": pinned,
-                         "channel": client._CHANNELS[address], "wall": 0.0, "cpu": 0.0,
+                         "channel": client._CHANNELS[address], "wall": 0.0, "cpu": 0.0, "own": 0.0,
                          "sleeps": 0, "build": 0.0, "round trip": 0.0, "decode": 0.0})
         chunks = 8  # the variants take turns, so a change of the machine's load hits them all
         for k in range(chunks):
@@ -404,7 +406,7 @@ def bench_step(steps: int) -> dict:
                         r["build"] += b - a; r["round trip"] += c - b; r["decode"] += d - c
                 if r["pinned"]:
                     pin(os.getpid(), everywhere)
-                r["wall"] += m.wall; r["cpu"] += m.cpu; r["sleeps"] += m.sleeps
+                r["wall"] += m.wall; r["cpu"] += m.cpu; r["own"] += m.own; r["sleeps"] += m.sleeps
     finally:
         for r in runs:
             r["proc"].kill(); r["proc"].wait()
@@ -415,7 +417,8 @@ def bench_step(steps: int) -> dict:
         parts = ", ".join(f"{k} {r[k] / n * 1e6:.1f}" for k in ("build", "round trip", "decode"))
         out[r["kind"]] = (total, r["cpu"] / n * 1e6)
         print(f"   {r['kind']}: {total:6.1f} µs wall ({parts}; the round trip includes the kit's "
-              f"Observation and the autopilot), {r['cpu'] / n * 1e6:5.1f} µs CPU, "
+              f"Observation and the autopilot), {r['cpu'] / n * 1e6:5.1f} µs CPU (plugin "
+              f"{r['own'] / n * 1e6:.1f}, stack {(r['cpu'] - r['own']) / n * 1e6:.1f}), "
               f"{r['sleeps'] / n:.1f} sleeps")
     return out
 
@@ -501,12 +504,37 @@ def bench_pieces(steps: int) -> None:
               ("kit: parse + Observation + autopilot + MotionRequest", lambda: kit.handle(request, session, "autopilot")),
               ("plugin: MotionRequest decoded into (a, steering)", decode),
               ("in process: world.observe + autopilot", lambda: session.driver.act(w.observe(ego)))]
+    # ZMTP's framing on both sides, a connected pair in this process: the protocol's three
+    # frames out, an answer's three back (no other process, so no wake-up: Python and calls)
+    address = _addresses("pieces")["ipc"]
+    rep = zmtp.Replier(address)
+    req = zmtp.Requester(address)
+    import threading
+
+    t = threading.Thread(target=lambda: req.connect(time.monotonic() + 10))
+    t.start()
+    while t.is_alive():
+        rep.receive(0.01)  # greets the requester
+    t.join()
+    sv_frames = wire.pack(wire.SENSOR_VIEW, request[2])
+    mr_frames = wire.pack(wire.MOTION_REQUEST, answer[2])
+
+    def framing() -> None:
+        req.usable()
+        req.send(sv_frames)
+        rep.receive(1.0)
+        rep.send(mr_frames)
+        req.receive(time.monotonic() + 1.0)
+
+    pieces.append(("ZMTP: a request and its answer framed, sent and parsed, both sides", framing))
     for label, call in pieces:
         call()
         c0 = time.process_time()
         for _ in range(steps):
             call()
         print(f"   {label}: {(time.process_time() - c0) / steps * 1e6:6.1f} µs CPU")
+    req.close()
+    rep.close()
 
 
 def verdict(ok: bool) -> str:

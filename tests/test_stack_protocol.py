@@ -319,3 +319,101 @@ def test_sensor_views_kept_between_steps_give_the_bytes_of_a_fresh_build():
     assert all(same for _, _, same in checked), [c for c in checked if not c[2]][:3]
     assert {n for _, n, _ in checked} == {2, 3}  # the car came and went
     assert len({lane for lane, _, _ in checked}) == 2  # the ego changed lanes
+
+
+def test_the_kits_motion_request_kept_between_steps_gives_the_bytes_of_a_fresh_one():
+    """The kit answers each step from the case's one MotionRequest (kit.Session.answer); the
+    bytes must be those of a message built afresh, step after step, while the command and
+    the ego's state change."""
+    answers: list[tuple[bytes, bytes]] = []
+
+    class Check:
+        def reset(self, world):
+            self.w, self.views = world, None
+
+        def act(self, obs):
+            w = self.w
+            if self.views is None:
+                ids = {a: i + 1 for i, a in enumerate(w.agents)}
+                self.views = frame.SensorViews(frame.lane_ground_truth(w.view()), ids)
+                view = w.view()
+                hello = {"dt": w.dt, "host_vehicle_id": 1,
+                         "agents": [{"id": i + 1, "name": a.name, "kind": a.kind}
+                                    for i, a in enumerate(w.agents)],
+                         "lanes": [{"id": frame.LANE_ID0 + i, "width": l.width,
+                                    "speed_limit": l.speed_limit} for i, l in enumerate(view.lanes)],
+                         "ego": {"route": [frame.LANE_ID0 + w.lane_index.code[l.index]
+                                           for l in w.agents[0].plan],
+                                 "route_index": w.agents[0].route_index}}
+                self.kept, self.fresh = kit.Session(hello, "autopilot"), kit.Session(hello, "autopilot")
+            sv = osi_sensorview_pb2.SensorView.FromString(self.views.build(w, wire.ns(w.t)))
+            self.fresh._motion = None  # a new message each step, as before it was kept
+            answers.append((self.kept.answer(sv), self.fresh.answer(sv)))
+            return 2.0 - w.t, 0.05 * math.sin(w.t)
+
+    w = World(seed=3, name="test::motion")
+    road = w.straight_road(lanes=2, length=300)
+    w.ego(road.lane(1), s=20.0, speed=8.0, driver=Check())
+    w.car(road.lane(1), s=45.0, speed=6.0)
+    w.run(seconds=3.0)
+    assert len(answers) == 30
+    assert len({kept for kept, _ in answers}) == 30  # every step's answer differs
+    assert all(kept == fresh for kept, fresh in answers)
+
+
+def test_the_kit_sees_a_map_lane_s_width_where_the_ego_is():
+    """lane_width_and_offset.xodr: lane 4/0/-1 widens as its s (0 at its start). The
+    SensorView's boundaries are half the width at each centre-line point to either side, and
+    the kit's route lanes give the width along the lane from them: at the ego's s the width
+    the driver sees in process, not the Reset's width at s = 0."""
+    seen: list[tuple[float, float, float]] = []
+    sent: list[bytes] = []
+
+    class Check:
+        def reset(self, world):
+            self.w, self.views = world, None
+            from pytest_avscenario.sim.drivers import resolve
+            self.auto = resolve("autopilot")
+
+        def act(self, obs):
+            w = self.w
+            if self.views is None:
+                ids = {a: i + 1 for i, a in enumerate(w.agents)}
+                view = w.view()
+                self.views = frame.SensorViews(frame.lane_ground_truth(view), ids)
+                lane_ids = {l.id: frame.LANE_ID0 + i for i, l in enumerate(view.lanes)}
+                hello = {"dt": w.dt, "host_vehicle_id": 1,
+                         "agents": [{"id": 1, "name": "ego", "kind": "ego"}],
+                         "lanes": [{"id": lane_ids[l.id], "width": l.width,
+                                    "speed_limit": l.speed_limit} for l in view.lanes],
+                         "ego": {"route": [lane_ids[l.id] for l in w.agents[0].plan],
+                                 "route_index": w.agents[0].route_index}}
+                self.session = kit.Session(hello, "autopilot")
+            msg = self.views.build(w, wire.ns(w.t))
+            sent.append(msg)
+            served = self.session.observation(osi_sensorview_pb2.SensorView.FromString(msg))
+            lane = served.route[served.route_index]
+            here = obs.route[obs.route_index]
+            seen.append((obs.s, here.width_at(obs.s), lane.width_at(served.s)))
+            return self.auto.act(obs)
+
+    w = World(0, name="t::widths")
+    road = w.map(Path(__file__).parent / "data" / "maps" / "lane_width_and_offset.xodr")
+    w.ego(road.lane("4/0/-1"), s=3.0, speed=2.0, driver=Check())
+    w.run(4)
+    # the boundaries: half the width at each centre-line point, to either side
+    sv = osi_sensorview_pb2.SensorView.FromString(sent[0])
+    view = w.view()
+    i = next(k for k, l in enumerate(view.lanes) if l.id == "4/0/-1")
+    lane, gt = view.lanes[i], sv.global_ground_truth
+    bounds = {b.id.value: b for b in gt.lane_boundary}
+    left, right = bounds[frame.BOUNDARY_ID0 + 2 * i + 1], bounds[frame.BOUNDARY_ID0 + 2 * i]
+    n = len(lane.centre_line)
+    gaps = [math.hypot(a.position.x - b.position.x, a.position.y - b.position.y)
+            for a, b in zip(left.boundary_line, right.boundary_line)]
+    assert len(gaps) == n and lane.width == 0.0
+    assert np.allclose(gaps, [lane.width_at(lane.length * k / (n - 1)) for k in range(n)], atol=1e-9)
+    # the width the served driver sees is the in-process one at the ego's s (it widens by 3 m)
+    s, here, served = np.array(seen).T
+    assert here[-1] > here[0] + 3.0
+    assert np.abs(served - here).max() < 1e-3

@@ -253,3 +253,57 @@ def test_a_stack_that_hangs_up_on_a_request_is_an_error_at_once_not_a_timeout(tm
             w.run(seconds=1)
     finally:
         client.stop_all()
+
+
+def _raw_req(path: str) -> socket.socket:
+    """A socket that has greeted a Replier as a REQ, by hand: the test writes its frames."""
+    raw = socket.socket(socket.AF_UNIX)
+    raw.connect(path)
+    raw.sendall(zmtp.GREETING + zmtp._ready(b"REQ"))
+    return raw
+
+
+def test_a_request_that_arrives_in_pieces_is_whole_when_it_is_answered(tmp_path):
+    # a message cut anywhere (mid header, mid length, mid body; a long frame among short
+    # ones; a PING before it) is gathered across reads and answered once, whole
+    address = f"ipc://{tmp_path}/s.sock"
+    rep = zmtp.Replier(address)
+    raw = _raw_req(f"{tmp_path}/s.sock")
+    try:
+        body = bytes(range(256)) * 3
+        ping = bytes([zmtp._COMMAND, 7]) + b"\x04PING\x00\x0a"
+        wire_bytes = ping + zmtp.frames_bytes([b"avs", b"", body], prefix=zmtp._DELIMITER)
+        got: list = []
+        t = threading.Thread(target=lambda: got.append(rep.receive(5.0)))
+        t.start()
+        for i in range(0, len(wire_bytes), 5):
+            raw.sendall(wire_bytes[i:i + 5])
+            time.sleep(0.001)
+        t.join(5)
+        assert got == [[b"avs", b"", body]]
+        rep.send([b"ok"])
+        answer = b""
+        while not answer.endswith(b"ok"):
+            answer += raw.recv(4096)
+        # after the REP's greeting: the PING's one PONG, then the answer behind its envelope
+        pong = bytes([zmtp._COMMAND, 5]) + b"\x04PONG"
+        assert answer.count(pong) == 1
+        assert answer.endswith(pong + zmtp._DELIMITER + b"\x00\x02ok")
+    finally:
+        raw.close()
+        rep.close()
+
+
+def test_a_command_inside_a_multipart_message_drops_the_peer(tmp_path):
+    # ZMTP 3.1: commands come between messages, never between the frames of one
+    address = f"ipc://{tmp_path}/s.sock"
+    rep = zmtp.Replier(address)
+    raw = _raw_req(f"{tmp_path}/s.sock")
+    try:
+        raw.sendall(zmtp._DELIMITER + bytes([zmtp._MORE, 1]) + b"a"
+                    + bytes([zmtp._COMMAND, 5]) + b"\x04PING" + bytes([0, 1]) + b"b")
+        assert rep.receive(0.5) is None
+        assert not rep.conns  # dropped, as a broken peer
+    finally:
+        raw.close()
+        rep.close()

@@ -260,10 +260,21 @@ def sensor_view(world: Any, t_ns: int, static: bytes, ids: dict) -> bytes:
 
 def _mover_key(a: Any, lanes: Any, code: Any) -> tuple:
     """What of a mover is set only when its ``MovingObject`` is made: the agent, its lane
-    (OSI id or None) and its flags."""
+    (OSI id or None) and its flags; and the lane index it was read from."""
     li = a.lane_index
     return (a, LANE_ID0 + code[li] if li in lanes else None,
-            bool(a.stop_arm) if a.kind == "bus" else None)
+            bool(a.stop_arm) if a.kind == "bus" else None, li)
+
+
+def _same_movers(movers: list, keys: list) -> bool:
+    """True when ``movers`` are those of ``keys`` in the same lanes (the very lane index
+    objects the lane tracker keeps: no lookup) with the same flags."""
+    if len(movers) != len(keys):
+        return False
+    for a, (k, _, arm, li) in zip(movers, keys):
+        if a is not k or a.lane_index is not li or (arm is not None and bool(a.stop_arm) != arm):
+            return False
+    return True
 
 
 class SensorViews:
@@ -281,6 +292,7 @@ class SensorViews:
         self.static = static
         self.ids = ids
         self._keys: list = []
+        self._index: Any = None  # the world's lane index the keys were read with
         self._sv: Any = None
         self._stamps: tuple = ()
         self._slots: list = []  # per mover: (position, orientation, velocity, acceleration)
@@ -291,10 +303,16 @@ class SensorViews:
         index = world.lane_index
         lanes, code = index.lanes, index.code
         movers = world.movers
-        keys = [_mover_key(a, lanes, code) for a in movers]
-        if keys != self._keys or self._sv is None:
-            self._fresh(keys, t_ns)
-        else:
+        fresh = False
+        if self._sv is None or index is not self._index or not _same_movers(movers, self._keys):
+            keys = [_mover_key(a, lanes, code) for a in movers]
+            self._index = index
+            if self._sv is None or keys != self._keys:
+                self._fresh(keys, t_ns)
+                fresh = True
+            else:
+                self._keys = keys
+        if not fresh:
             sec, nanos = divmod(int(t_ns), 1_000_000_000)
             for ts in self._stamps:
                 ts.seconds, ts.nanos = sec, nanos
@@ -323,7 +341,7 @@ class SensorViews:
     def _fresh(self, keys: list, t_ns: int) -> None:
         sv, gt = new_sensor_view(t_ns)
         slots = []
-        for a, lane_id, stop_arm in keys:
+        for a, lane_id, stop_arm, _ in keys:
             mo = gt.moving_object.add()
             set_object(mo, self.ids[a], a.name, a.kind, 0.0, 0.0, 0.0, 0.0, float(a.LENGTH),
                        float(a.WIDTH), 0.0, lane_id,
@@ -378,26 +396,34 @@ def motion_to_action(ds: Any, t_ns: int, heading: float, speed: float, length: f
     return acc, steering
 
 
-def action_to_motion(mr: Any, t_ns: int, x: float, y: float, heading: float, speed: float,
-                     length: float, dt: float, acceleration: float, steering: float) -> None:
-    """Fill ``mr`` (an ``osi3.MotionRequest``) with the desired state one step ahead that
-    (acceleration, steering) would reach: :func:`motion_to_action`'s exact counterpart."""
-    from osi3 import osi_motionrequest_pb2 as M
-
-    mr.motion_request_type = M.MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
+def desired_state_slots(mr: Any) -> tuple:
+    """The sub-messages of ``mr.desired_state`` that :func:`action_to_motion` writes
+    (timestamp, orientation, position, velocity, acceleration), for a caller that keeps one
+    MotionRequest and fills it each step."""
     ds = mr.desired_state
-    wire.set_timestamp(ds.timestamp, t_ns + wire.ns(dt))
+    return ds.timestamp, ds.orientation, ds.position, ds.velocity, ds.acceleration
+
+
+def action_to_motion(mr: Any, t_ns: int, x: float, y: float, heading: float, speed: float,
+                     length: float, dt: float, acceleration: float, steering: float,
+                     slots: tuple | None = None) -> None:
+    """Fill ``mr`` (an ``osi3.MotionRequest``) with the desired state one step ahead that
+    (acceleration, steering) would reach: :func:`motion_to_action`'s exact counterpart.
+    ``slots``: :func:`desired_state_slots` of ``mr``, when the caller keeps them."""
+    mr.motion_request_type = _osi()["motionrequest"].MotionRequest.MOTION_REQUEST_TYPE_DESIRED_STATE
+    ts, ori, pos, vel, acc = slots if slots is not None else desired_state_slots(mr)
+    ts.seconds, ts.nanos = divmod(t_ns + wire.ns(dt), 1_000_000_000)
     beta = math.atan(0.5 * math.tan(steering))
     v_ref = speed if abs(speed) >= MIN_TURN_SPEED else math.copysign(MIN_TURN_SPEED, speed or 1.0)
     yaw = heading + v_ref * math.sin(beta) / (0.5 * length) * dt
-    ds.orientation.yaw = yaw if -math.pi <= yaw <= math.pi and -math.pi <= heading <= math.pi \
+    ori.yaw = yaw if -math.pi <= yaw <= math.pi and -math.pi <= heading <= math.pi \
         else wrap_yaw(yaw)
-    ds.position.x = x + speed * math.cos(heading + beta) * dt
-    ds.position.y = y + speed * math.sin(heading + beta) * dt
+    pos.x = x + speed * math.cos(heading + beta) * dt
+    pos.y = y + speed * math.sin(heading + beta) * dt
     v1 = speed + acceleration * dt
-    ds.velocity.x, ds.velocity.y = v1 * math.cos(yaw), v1 * math.sin(yaw)
+    vel.x, vel.y = v1 * math.cos(yaw), v1 * math.sin(yaw)
     c, s = math.cos(heading), math.sin(heading)
-    ds.acceleration.x, ds.acceleration.y = acceleration * c, acceleration * s
+    acc.x, acc.y = acceleration * c, acceleration * s
 
 
 # -- desired trajectories ---------------------------------------------------------------------

@@ -22,7 +22,10 @@ and its traceback, which the plugin shows as the case's error.
 
 Lanes are rebuilt from the OSI centre lines: a straight lane exactly (two points), a curved
 one as a polyline of its one-metre samples (a driver on a curve sees it to within
-millimetres, not bit for bit).
+millimetres, not bit for bit). A lane's width along it (``width_at(s)``) is read from its
+two boundaries, which the plugin places half the width at each centre-line point to either
+side: on a map whose lanes widen and narrow, the driver sees the width where the ego is,
+not the Reset's ``width`` (the width at s = 0).
 """
 
 from __future__ import annotations
@@ -40,12 +43,29 @@ from . import frame, wire
 __all__ = ["serve", "Session", "StraightLine", "Polyline"]
 
 
+class _Widths:
+    """A lane's width [m] along it from its widths at points ``ss`` [m] (ascending): linear
+    between them, the end's beyond an end."""
+
+    def __init__(self, ss: Any, widths: Any) -> None:
+        self._s = [float(v) for v in ss]
+        self._w = [float(v) for v in widths]
+
+    def at(self, s: float) -> float:
+        k = min(max(bisect.bisect_right(self._s, s) - 1, 0), len(self._s) - 2)
+        s0, s1 = self._s[k], self._s[k + 1]
+        f = min(max((s - s0) / (s1 - s0), 0.0), 1.0) if s1 > s0 else 0.0
+        return self._w[k] + f * (self._w[k + 1] - self._w[k])
+
+
 class StraightLine:
     """A straight lane from two centre-line points, with the lanes' small vocabulary
     (``position``, ``heading_at``, ``local_coordinates``, ``length``, ``width_at``) computed
-    as the simulator's straight lanes compute it."""
+    as the simulator's straight lanes compute it. ``width`` [m] is its width at its start;
+    ``widths``, when given, its width at each of the two points (``width_at`` follows it)."""
 
-    def __init__(self, start: Any, end: Any, width: float, speed_limit: float) -> None:
+    def __init__(self, start: Any, end: Any, width: float, speed_limit: float,
+                 widths: Any = None) -> None:
         self.start = np.array(start[:2], dtype=float)
         self.end = np.array(end[:2], dtype=float)
         self.length = float(np.linalg.norm(self.end - self.start))
@@ -56,6 +76,7 @@ class StraightLine:
         self.width = float(width)
         self.speed_limit = float(speed_limit)
         self.radius = math.inf
+        self._widths = None if widths is None else _Widths((0.0, self.length), widths)
 
     def position(self, longitudinal: float, lateral: float) -> np.ndarray:
         return np.array([self._sx + longitudinal * self._dx - lateral * self._dy,
@@ -70,16 +91,19 @@ class StraightLine:
         return self.heading
 
     def width_at(self, longitudinal: float) -> float:
-        return self.width
+        return self.width if self._widths is None else self._widths.at(longitudinal)
 
 
 class Polyline:
-    """A curved lane as the polyline of its centre-line samples (same vocabulary)."""
+    """A curved lane as the polyline of its centre-line samples (same vocabulary; ``widths``
+    as :class:`StraightLine`'s, one a point)."""
 
-    def __init__(self, points: Any, width: float, speed_limit: float) -> None:
+    def __init__(self, points: Any, width: float, speed_limit: float, widths: Any = None) -> None:
         p = np.asarray(points, dtype=float)[:, :2]
         seg = np.diff(p, axis=0)
         seglen = np.hypot(seg[:, 0], seg[:, 1])
+        self._widths = None if widths is None else \
+            _Widths(np.concatenate([[0.0], np.cumsum(seglen)]), widths)
         keep = seglen > 1e-9
         self._p0, self._seg, self._len = p[:-1][keep], seg[keep], seglen[keep]
         self._cum = np.concatenate([[0.0], np.cumsum(self._len)])
@@ -111,7 +135,24 @@ class Polyline:
         return float(self._cum[i] + ex * dx + ey * dy), float(ey * dx - ex * dy)
 
     def width_at(self, longitudinal: float) -> float:
-        return self.width
+        return self.width if self._widths is None else self._widths.at(longitudinal)
+
+
+def _widths(lane: Any, bounds: dict, n: int) -> list[float] | None:
+    """A lane's width [m] at each of its ``n`` centre-line points, read from its boundaries
+    (the plugin sends one boundary point a centre-line point, half the width at that point
+    to each side), or None when it is one width all along (the Reset's ``width``, the width
+    at s = 0) or the boundaries are not there."""
+    cl = lane.classification
+    if not cl.left_lane_boundary_id or not cl.right_lane_boundary_id:
+        return None
+    left = bounds.get(cl.left_lane_boundary_id[0].value)
+    right = bounds.get(cl.right_lane_boundary_id[0].value)
+    if left is None or right is None or not len(left.boundary_line) == len(right.boundary_line) == n:
+        return None
+    out = [math.hypot(a.position.x - b.position.x, a.position.y - b.position.y)
+           for a, b in zip(left.boundary_line, right.boundary_line)]
+    return out if max(out) - min(out) > 1e-6 else None
 
 
 def _number(value: Any) -> float:
@@ -139,6 +180,8 @@ class Session:
         self.goal = ego.get("goal")
         self.sensor_range = float(ego.get("sensor_range", 80.0))
         self.route: tuple = ()
+        self._motion: Any = None  # the MotionRequest answered with, kept for the case
+        self._slots: tuple = ()  # its timestamp and desired state's sub-messages
         self.stop_lines: dict[int, tuple] = {}
         self._limits: dict[int, float] = {}  # route index -> speed limit [m/s]
         # traffic lights: stop positions by lane OSI id -> [(s, light OSI id, signal id)]
@@ -158,43 +201,65 @@ class Session:
 
     def _build_route(self, gt: Any) -> None:
         by_id = {lane.id.value: lane for lane in gt.lane}
+        bounds = {b.id.value: b for b in gt.lane_boundary}
         route = []
         for lid in self.route_ids:
-            pts = [(p.x, p.y) for p in by_id[lid].classification.centerline]
+            lane = by_id[lid]
+            pts = [(p.x, p.y) for p in lane.classification.centerline]
             info = self.lanes[lid]
             limit = _number(info.get("speed_limit"))
-            cls = StraightLine(pts[0], pts[1], info["width"], limit) if len(pts) == 2 \
-                else Polyline(pts, info["width"], limit)
+            widths = _widths(lane, bounds, len(pts))
+            cls = StraightLine(pts[0], pts[1], info["width"], limit, widths) if len(pts) == 2 \
+                else Polyline(pts, info["width"], limit, widths)
             route.append(cls)
         self.route = tuple(route)
 
-    def observation(self, sv: Any) -> Any:
-        """The Observation the world would have handed an in-process driver."""
+    def _state(self, oid: int, mo: Any, kind: str | None = None, b: Any = None,
+               p: Any = None) -> Any:
+        """The AgentState of the ``osi3.MovingObject`` ``mo`` (OSI id ``oid``): what
+        :func:`.frame.object_state` reads, each sub-message looked up once (every lookup of
+        one through protobuf's Python wrappers costs as much as reading a number; ``b`` and
+        ``p``: its ``base`` and ``base.position`` when the caller has them)."""
+        if b is None:
+            b = mo.base
+            p = b.position
+        v, d = b.velocity, b.dimension
+        yaw = b.orientation.yaw
+        vx, vy = v.x, v.y
+        speed = math.hypot(vx, vy)
+        if vx * math.cos(yaw) + vy * math.sin(yaw) < 0.0:
+            speed = -speed
+        info = self.agents.get(oid, _NO_INFO)
+        k = kind or info.get("kind", "car")
+        return _SIM["frozen"](_SIM["AgentState"], {
+            "x": p.x, "y": p.y, "heading": yaw, "speed": speed, "vx": vx, "vy": vy,
+            "length": d.length, "width": d.width, "name": info.get("name", str(oid)), "kind": k,
+            "flags": frame.object_flags(mo) if k == "bus" else {}})
+
+    def observation(self, sv: Any, t_ns: int | None = None) -> Any:
+        """The Observation the world would have handed an in-process driver (``t_ns``: the
+        SensorView's timestamp [ns], when the caller has read it already)."""
         sim = _sim()
-        frozen, AgentState = sim["frozen"], sim["AgentState"]
+        frozen = sim["frozen"]
         gt = sv.global_ground_truth
         if not self.route:
             self._build_route(gt)
-        t_ns = wire.timestamp_ns(sv.timestamp)
+        if t_ns is None:
+            t_ns = wire.timestamp_ns(sv.timestamp)
         t = int(round(t_ns / self.dt_ns)) * self.dt  # the world's k * dt, bit for bit
-        states = {}
+        host = self.host
+        ego_mo = None
+        others = {}  # by OSI id: the last of a repeated id counts, in the order first seen
         for mo in gt.moving_object:
-            states[mo.id.value] = mo
-        ego_mo = states.get(self.host)
+            oid = mo.id.value
+            if oid == host:
+                ego_mo = mo
+            else:
+                others[oid] = mo
         if ego_mo is None:
             raise ValueError(f"the SensorView has no host vehicle (id {self.host})")
-        agents = self.agents
-
-        def state(oid: int, mo: Any, kind: str | None = None) -> Any:
-            st = frame.object_state(mo)
-            info = agents.get(oid, _NO_INFO)
-            k = kind or info.get("kind", "car")
-            st["name"] = info.get("name", str(oid))
-            st["kind"] = k
-            st["flags"] = frame.object_flags(mo) if k == "bus" else {}
-            return frozen(AgentState, st)
-
-        ego = state(self.host, ego_mo, "ego")
+        state = self._state
+        ego = state(host, ego_mo, "ego")
         x, y = ego.x, ego.y
         # route progress, as the world's lane tracker advances it
         ri = self.route_index
@@ -207,14 +272,13 @@ class Session:
         self.route_index = ri
         near = []
         rng2 = self.sensor_range ** 2
-        for oid, mo in states.items():
-            if oid == self.host:
-                continue
-            p = mo.base.position
+        for oid, mo in others.items():
+            b = mo.base
+            p = b.position
             dx, dy = p.x - x, p.y - y
             d2 = dx * dx + dy * dy
             if d2 <= rng2:
-                near.append((d2, oid, mo))
+                near.append((d2, oid, mo, b, p))
         near.sort(key=lambda q: (q[0], q[1]))
 
         stops = self.stop_lines.get(ri)
@@ -240,26 +304,35 @@ class Session:
         return frozen(sim["Observation"], {
             "t": t, "dt": self.dt, "ego": ego, "route": self.route,
             "route_index": ri, "s": float(s), "r": float(r),
-            "agents": tuple(state(oid, mo) for _, oid, mo in near), "stop_lines": stops,
+            "agents": tuple([state(oid, mo, None, b, p) for _, oid, mo, b, p in near]),
+            "stop_lines": stops,
             "speed_limit": limit, "target_speed": self.target_speed, "goal": self.goal,
             "sensor_range": self.sensor_range, "traffic_lights": lights})
 
     def answer(self, sv: Any) -> bytes:
         """The serialized MotionRequest answering one SensorView."""
-        M = frame._osi()["motionrequest"]
-        obs = self.observation(sv)
-        a, d = _sim()["action_pair"](self.driver.act(obs))
-        ego = obs.ego
-        mr = M.MotionRequest()
-        wire.set_version(mr.version)
         t_ns = wire.timestamp_ns(sv.timestamp)
-        wire.set_timestamp(mr.timestamp, t_ns)
+        obs = self.observation(sv, t_ns)
+        a, d = _SIM["action_pair"](self.driver.act(obs))
+        ego = obs.ego
         if self.answer_kind == "trajectory":
+            mr = frame._osi()["motionrequest"].MotionRequest()
+            wire.set_version(mr.version)
+            wire.set_timestamp(mr.timestamp, t_ns)
             frame.action_to_trajectory(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
                                        self.dt, a, d)
-        else:
-            frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
-                                   self.dt, a, d)
+            return mr.SerializeToString()
+        # one message for the case: a desired state sets the same fields every step, so
+        # overwriting them serializes to the bytes a fresh message would
+        mr = self._motion
+        if mr is None:
+            mr = self._motion = frame._osi()["motionrequest"].MotionRequest()
+            wire.set_version(mr.version)
+            self._slots = (mr.timestamp, frame.desired_state_slots(mr))
+        stamp, slots = self._slots
+        stamp.seconds, stamp.nanos = divmod(t_ns, 1_000_000_000)
+        frame.action_to_motion(mr, t_ns, ego.x, ego.y, ego.heading, ego.speed, ego.length,
+                               self.dt, a, d, slots)
         return mr.SerializeToString()
 
 

@@ -95,7 +95,9 @@ def unpack(frames: list[bytes], expected: tuple[bytes, ...]) -> tuple[bytes, byt
     if len(frames) != 3:
         shown = [bytes(f[:24]) for f in frames[:4]]
         raise ProtocolError(f"expected 3 frames [b'avs-osi/1', kind, body], got {len(frames)}: {shown}")
-    proto, kind, body = (bytes(f) for f in frames)
+    proto, kind, body = frames
+    if type(body) is not bytes or type(kind) is not bytes or type(proto) is not bytes:
+        proto, kind, body = bytes(proto), bytes(kind), bytes(body)  # e.g. pyzmq's Frames
     if proto != PROTOCOL:
         raise ProtocolError(f"first frame must be {PROTOCOL!r}, got {proto[:40]!r}")
     if kind not in expected:

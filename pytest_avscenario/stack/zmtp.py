@@ -75,19 +75,26 @@ def _properties(data: bytes) -> dict[bytes, bytes]:
     return props
 
 
-def frames_bytes(frames: list[bytes], more_after: bool = False) -> bytes:
+# the header of a short frame of n bytes, without and with MORE
+_SHORT = (tuple(bytes([0, n]) for n in range(256)), tuple(bytes([_MORE, n]) for n in range(256)))
+_DELIMITER = b"\x01\x00"  # a REQ's envelope: one empty frame, MORE
+
+
+def frames_bytes(frames: list[bytes], more_after: bool = False, prefix: bytes = b"") -> bytes:
     """The bytes of one multipart message (``frames`` in order, MORE on all but the last;
-    on the last too when ``more_after``: an envelope that a message follows)."""
-    parts = []
+    on the last too when ``more_after``: an envelope that a message follows), after
+    ``prefix`` (bytes already framed: an envelope)."""
+    parts = [prefix]
+    append = parts.append
+    more = _SHORT[_MORE]
     last = len(frames) - 1
     for i, f in enumerate(frames):
-        more = _MORE if i < last or more_after else 0
         n = len(f)
-        if n > 255:
-            parts.append(bytes([more | _LONG]) + _LONG_SIZE.pack(n))
+        if i == last and not more_after:
+            append(_SHORT[0][n] if n < 256 else b"\x02" + _LONG_SIZE.pack(n))
         else:
-            parts.append(bytes([more, n]))
-        parts.append(f)
+            append(more[n] if n < 256 else b"\x03" + _LONG_SIZE.pack(n))
+        append(f)
     return b"".join(parts)
 
 
@@ -130,10 +137,14 @@ class _Connection:
         self.sock = sock
         self.fd = sock.fileno()
         self.type = socket_type
-        self.buf = bytearray()
+        # what was received and not yet consumed from ``pos``: the bytes of one ``recv`` as
+        # they came (a message that arrived whole is cut out of them without a copy more),
+        # a bytearray while a message longer than one read is gathered
+        self.buf: bytes | bytearray = b""
         self.pos = 0
         self.greeted = False
         self.peer_type = b""
+        self.local = sock.family == socket.AF_UNIX  # ipc://
         self._poll = select.poll()
         self._poll.register(self.fd, select.POLLIN)
 
@@ -164,10 +175,16 @@ class _Connection:
             raise Closed(str(exc)) from None
         if not data:
             raise Closed("the peer closed the connection")
-        if self.pos:
-            del self.buf[:self.pos]
-            self.pos = 0
-        self.buf += data
+        buf, pos = self.buf, self.pos
+        if pos >= len(buf):
+            self.buf, self.pos = data, 0
+            return
+        if type(buf) is bytes:
+            buf = bytearray(memoryview(buf)[pos:])
+        elif pos:
+            del buf[:pos]
+        buf += data
+        self.buf, self.pos = buf, 0
 
     def _take(self, n: int, deadline: float | None) -> bytes:
         while len(self.buf) - self.pos < n:
@@ -229,26 +246,91 @@ class _Connection:
         return flags, self._take(n, deadline)
 
     def message(self, deadline: float | None) -> list[bytes]:
-        """The next whole multipart message; commands in between are handled here."""
+        """The next whole multipart message; commands in between are handled here.
+        ``TimeoutError`` at ``deadline`` when it is not whole by then (what came of it stays
+        buffered: a later call goes on)."""
+        while True:
+            if self.pos < len(self.buf):  # nothing to parse while nothing is buffered
+                frames = self._parse()
+                if frames is not None:
+                    return frames
+            self._fill(deadline)
+
+    def _parse(self) -> list[bytes] | None:
+        """The buffered message's frames when it is whole (consumed), else None (nothing
+        consumed but the commands before it, which are handled)."""
+        buf, pos = self.buf, self.pos
+        if type(buf) is not bytes:
+            return self._parse_gathered()
+        end = len(buf)
         frames: list[bytes] = []
-        start = self.pos
-        size = 0
+        append = frames.append
+        while True:  # the common case: data frames in the bytes of one read
+            if end - pos < 2:
+                return None
+            flags = buf[pos]
+            if flags <= _MORE:
+                start = pos + 2
+                pos = start + buf[pos + 1]
+            elif flags <= _MORE | _LONG and end - pos >= 9:
+                start = pos + 9
+                pos = start + _LONG_SIZE.unpack_from(buf, pos + 1)[0]
+                if pos - start > MAX_MESSAGE_BYTES:
+                    return self._parse_gathered()  # which says why it is refused
+            else:
+                return self._parse_gathered()  # a command, a cut header, a broken frame
+            if pos > end:
+                return None
+            append(buf[start:pos])
+            if not flags & _MORE:
+                self.pos = pos
+                return frames
+
+    def _parse_gathered(self) -> list[bytes] | None:
+        """:meth:`_parse` for any frame, in bytes or in a bytearray being gathered."""
+        buf, pos = self.buf, self.pos
+        end = len(buf)
+        src = buf if type(buf) is bytes else memoryview(buf)  # a bytearray: copy once, below
         try:
+            frames: list[bytes] = []
+            size = 0
             while True:
-                flags, body = self._frame(deadline)
+                if end - pos < 2:
+                    return None
+                flags = buf[pos]
+                if flags & ~(_MORE | _LONG | _COMMAND):
+                    raise ZMTPError(f"a frame with flags {flags:#04x}: not ZMTP 3")
+                if flags & _LONG:
+                    if end - pos < 9:
+                        return None
+                    (n,) = _LONG_SIZE.unpack_from(buf, pos + 1)
+                    start = pos + 9
+                else:
+                    n = buf[pos + 1]
+                    start = pos + 2
+                if size + n > MAX_MESSAGE_BYTES:  # refused before any of it is gathered
+                    if n > MAX_MESSAGE_BYTES:
+                        raise ZMTPError(f"a frame of {n:,} bytes, more than the "
+                                        f"{MAX_MESSAGE_BYTES:,} bytes a message may have")
+                    raise ZMTPError(f"a message of more than {MAX_MESSAGE_BYTES:,} bytes")
+                pos = start + n
+                if pos > end:
+                    return None
+                body = src[start:pos] if src is buf else bytes(src[start:pos])
                 if flags & _COMMAND:
+                    if frames:
+                        raise ZMTPError("a command inside a multipart message")
+                    self.pos = pos  # handled once, whatever follows
                     self._on_command(body)
-                    start = self.pos
                     continue
                 frames.append(body)
-                size += len(body)
-                if size > MAX_MESSAGE_BYTES:
-                    raise ZMTPError(f"a message of more than {MAX_MESSAGE_BYTES:,} bytes")
+                size += n
                 if not flags & _MORE:
+                    self.pos = pos
                     return frames
-        except TimeoutError:
-            self.pos = start  # a message not yet whole: read it again from its start next time
-            raise
+        finally:
+            if src is not buf:
+                src.release()
 
     def _on_command(self, body: bytes) -> None:
         n = body[0] if body else 0
@@ -294,10 +376,16 @@ class Requester:
     def usable(self) -> bool:
         """False when the peer closed the connection while no answer was owed (a stack
         restarted, or one that drops peers silent past its heartbeat timeout: its PINGs are
-        answered only while an answer is awaited); what it sent meanwhile is handled."""
+        answered only while an answer is awaited); what it sent meanwhile is handled.
+
+        Over ``ipc://`` it is not looked at (a system call a step saved): sending to a Unix
+        socket whose peer closed fails at once (EPIPE), and the caller connects afresh then;
+        over tcp the first send to a closed peer succeeds, so it is asked before."""
         conn = self.conn
         if conn is None:
             return False
+        if conn.local:
+            return True
         try:
             while conn._poll.poll(0):
                 conn._fill(None)
@@ -311,7 +399,7 @@ class Requester:
         return True
 
     def send(self, frames: list[bytes]) -> None:
-        self.conn.send(b"\x01\x00" + frames_bytes(frames))  # the empty delimiter, then the message
+        self.conn.send(frames_bytes(frames, prefix=_DELIMITER))  # the empty delimiter, then the message
 
     def receive(self, deadline: float) -> list[bytes]:
         """The answer's frames; ``TimeoutError`` at ``deadline`` (the connection is kept: a
@@ -355,8 +443,9 @@ class Replier:
         else:
             raise ValueError(f"address {address!r}: use tcp://HOST:PORT or ipc://PATH")
         self.listener.listen(16)
+        self._listen_fd = self.listener.fileno()
         self.poller = select.poll()
-        self.poller.register(self.listener.fileno(), select.POLLIN)
+        self.poller.register(self._listen_fd, select.POLLIN)
         self.conns: dict[int, _Connection] = {}
         self.last: _Connection | None = None  # where the request being answered came from
         self.envelope = b""
@@ -370,15 +459,16 @@ class Replier:
                 got = self._message(conn)
                 if got is not None:
                     return got
+        poll, listen_fd = self.poller.poll, self._listen_fd
         while True:
             ms = -1 if deadline is None else max(0, int((deadline - time.monotonic()) * 1000 + 0.999))
-            events = self.poller.poll(ms)
+            events = poll(ms)
             if not events:
                 if deadline is not None and time.monotonic() >= deadline:
                     return None
                 continue
             for fd, _ in events:
-                if fd == self.listener.fileno():
+                if fd == listen_fd:
                     conn = self._accept()
                     if conn is not None and len(conn.buf) > conn.pos:  # sent with its READY
                         got = self._message(conn)
@@ -407,6 +497,10 @@ class Replier:
         except (Closed, ZMTPError, OSError):
             self._drop(conn)
             return None
+        if frames[0] == b"":  # a REQ peer's envelope: the delimiter alone
+            self.last, self.envelope = conn, _DELIMITER
+            del frames[0]
+            return frames
         try:
             cut = frames.index(b"")
         except ValueError:
@@ -422,7 +516,7 @@ class Replier:
         if conn is None or conn.fd not in self.conns:
             return
         try:
-            conn.send(self.envelope + frames_bytes(frames))
+            conn.send(frames_bytes(frames, prefix=self.envelope))
         except (Closed, OSError):
             self._drop(conn)
 
