@@ -77,3 +77,34 @@ def slim_report(report: Any) -> None:
             setattr(report, name, ())  # read (iterated) later, never extended
     if getattr(report, "extras", True) == []:
         del report.extras  # pytest-html's, read while it handles the report
+
+
+#: one empty set of extra keywords for every finished item (``frozenset()`` makes a new one)
+_NO_MATCHES: frozenset[str] = frozenset()
+
+
+def slim_item(item: Any) -> None:
+    """A scenario case's item once its protocol has ended (setup, call, teardown and their
+    reports handled): what pytest left on it for that run, which nothing reads any more, goes
+    (issue #35: ~0.6 KB an item of a 100,000-item run, kept to its end by ``session.items``).
+    Its stash (pytest's skip and xfail marks evaluated for the run, tmp_path's outcome per
+    phase, our ``sent`` flag) becomes an empty dict; its empty ``extra_keyword_matches`` set
+    (read by ``-k`` at collection) the empty frozenset; its empty ``_report_sections`` and
+    ``user_properties`` lists (filled while it runs) empty tuples; its case's slot (the
+    sampler, index, seed and parameter values the case was made from, held in its
+    ``callspec``: ~0.3 KB) None, as the row holds them now. Its node id, name, location,
+    keywords, marks and parameter id stay: a plugin's end-of-run summary may read those."""
+    storage = getattr(item.stash, "_storage", None)
+    if type(storage) is dict and storage:
+        item.stash._storage = {}
+    d = getattr(item, "__dict__", None)
+    if d is None:
+        return
+    if type(d.get("extra_keyword_matches")) is set and not d["extra_keyword_matches"]:
+        item.extra_keyword_matches = _NO_MATCHES
+    for name in ("_report_sections", "user_properties"):
+        if type(d.get(name)) is list and not d[name]:
+            setattr(item, name, ())
+    params = getattr(d.get("callspec"), "params", None)
+    if type(params) is dict and type(params.get("case")).__name__ == "CaseSlot":
+        params["case"] = None
