@@ -257,10 +257,19 @@ import os
 import pytest
 
 
+_collected = {}
+
+
+def pytest_collection_finish(session):
+    for item in session.items:
+        _collected[item.nodeid] = sorted((k, repr(v)) for k, v in item.keywords.items())
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_terminal_summary(terminalreporter, config):
     items = terminalreporter._session.items
-    out = {}
+    out = {"keywords_same": all(sorted((k, repr(v)) for k, v in item.keywords.items()) == _collected[item.nodeid]
+                                for item in items)}
     for item in items:
         out[item.name] = {
             "stash": len(item.stash._storage),
@@ -268,6 +277,7 @@ def pytest_terminal_summary(terminalreporter, config):
             "lists": [type(item._report_sections).__name__, type(item.user_properties).__name__],
             "slot": None if not hasattr(item, "callspec") else repr(item.callspec.params.get("case")),
             "keywords": sorted(item.keywords)[:2],
+            "keywords_kind": type(item.keywords).__name__,
             "location": list(item.location),
         }
     with open(os.environ["AVS_ITEMS_LOG"], "w") as f:
@@ -288,10 +298,11 @@ def test_a_finished_cases_item_keeps_nothing_of_its_run(pytester, monkeypatch):
                                 "--avs-shrink-budget=0", "--avs-seed=3")
     result.assert_outcomes(passed=30, failed=11)
     items = json.loads(log.read_text())
+    assert items.pop("keywords_same")
     cases = [v for k, v in items.items() if k.startswith("test_many[")]
     assert len(cases) == 40
     assert all(c["stash"] == 0 and c["extra"] == 0 and c["slot"] == "None" and c["lists"][1] == "tuple"
-               for c in cases), cases[0]
+               and c["keywords_kind"] != "NodeKeywords" for c in cases), cases[0]
     # a passed case printed nothing: no section list either (a failure's sections stay)
     assert sum(c["lists"][0] == "tuple" for c in cases) >= 29
     assert items["test_many[halton-005]"]["location"][2] == "test_many[halton-005]"
@@ -299,6 +310,7 @@ def test_a_finished_cases_item_keeps_nothing_of_its_run(pytester, monkeypatch):
         "halton-005" in str(items["test_many[halton-005]"])
     plain = items["test_plain"]
     assert plain["slot"] is None and plain["lists"] == ["list", "list"] and plain["stash"] > 0
+    assert plain["keywords_kind"] == "NodeKeywords"
     # a re-run of the failed cases (pytest's cache, written at the end) and -k still select them
     again = pytester.runpytest("--lf", "--avs-report=none", "--avs-db=none", "--avs-shrink-budget=0",
                                "--avs-seed=3", "-q")
