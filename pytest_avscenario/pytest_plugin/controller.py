@@ -616,6 +616,16 @@ def compact_stash(item: Any) -> None:
         item.stash._storage = {key: value for key, value in storage.items()}
 
 
+def empty_stash(item: Any) -> None:
+    """The item's stash emptied once its protocol has ended (:func:`.kept.slim_item`): what
+    pytest's plugins and ours kept there for its run is read by nothing any more. Here,
+    beside :func:`compact_stash`: the plugin's reads of pytest's private attributes stay in
+    three modules."""
+    storage = getattr(item.stash, "_storage", None)
+    if type(storage) is dict and storage:
+        item.stash._storage = {}
+
+
 def _space_of(description: Any) -> Any:
     from ..space import FeatureSpace  # numpy: only once there are scenario rows
 

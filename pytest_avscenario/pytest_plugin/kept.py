@@ -106,9 +106,9 @@ def slim_item(item: Any) -> None:
     sampler, index, seed and parameter values the case was made from, held in its
     ``callspec``: ~0.3 KB) None, as the row holds them now. Its node id, name, location,
     keywords, marks and parameter id stay: a plugin's end-of-run summary may read those."""
-    storage = getattr(item.stash, "_storage", None)
-    if type(storage) is dict and storage:
-        item.stash._storage = {}
+    from .controller import empty_stash
+
+    empty_stash(item)
     d = getattr(item, "__dict__", None)
     if d is None:
         return
