@@ -371,6 +371,9 @@ def _write():
     if hasattr(_config, "workerinput") or not _seen["n"]:
         return
     _seen["cpu_atexit"] = _cpu()
+    # the pytest process's own peak, and its helpers' (the report's, a serial run's too)
+    _seen["rss_self_kb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    _seen["rss_helpers_kb"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     with open(os.environ["AVS_BENCH_TIMING"], "w") as f:
         json.dump(_seen, f)
 
@@ -437,6 +440,10 @@ def bench_memory(tmp: Path, sizes: list[int], parallel: list[str], pytest_args: 
             print(f"{n:>8} {mode:<8} {rss:>12.0f} {after:>13.1f} {after_cpu:>8.1f} "
                   f"{cases:>8.1f} {1e3 * cases / n:>8.2f} {1e3 * per_case_cpu:>9.2f} {wall:>8.1f}  {load()}",
                   flush=True)
+            if "rss_self_kb" in span:
+                print(f"{'':>10}peak RSS of the pytest process {span['rss_self_kb'] / 1024:.0f} MB, "
+                      f"of its largest helper process {span['rss_helpers_kb'] / 1024:.0f} MB "
+                      f"(helpers still running at its exit not counted)")
             if progress.exists():
                 for line in progress.read_text().splitlines():
                     print(f"{'':>10}{line}")

@@ -138,6 +138,44 @@ def pytest_sessionfinish(session):
     assert (report / "index.html").exists() and junit_cases(pytester.path / "out.xml") == 4
 
 
+def test_ctrl_c_while_the_report_helper_draws_finishes_the_report(pytester):
+    # a large serial run (here: from one row on) draws its plots in a helper process; a
+    # Ctrl-C while the pytest process writes the cards ends the run as it ends one that draws
+    # in process: status 2, no traceback, the report and JUnit written, the plot the helper drew
+    pytester.makeconftest("""
+import os
+import signal
+import sys
+
+from pytest_avscenario.pytest_plugin import controller
+
+controller.SERIAL_AHEAD_MIN_ROWS = 1
+_sent = []
+
+
+def pytest_avscenario_card_sections(config, row):
+    if not _sent:  # Ctrl-C while the report is written, the helper at work
+        _sent.append(1)
+        os.kill(os.getpid(), signal.SIGINT)
+    return []
+
+
+def pytest_unconfigure(config):
+    with open("modules.txt", "w") as fh:
+        fh.write(" ".join(m for m in ("matplotlib", "scipy") if m in sys.modules))
+""")
+    pytester.makepyfile(FOUR.format(body="assert case.x < 0.6"))
+    result = pytester.runpytest_subprocess("--avs-db=none", "-p", "no:cacheprovider", "-p", "no:xdist",
+                                           "--junitxml=out.xml", timeout=120)
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert "Traceback" not in result.stdout.str() + result.stderr.str()
+    assert (pytester.path / "modules.txt").read_text() == ""  # drawn by the helper
+    report = pytester.path / "avs-report"
+    assert json.loads((report / "summary.json").read_text())["tests"][0]["samples"] == 4
+    assert (report / "index.html").exists() and junit_cases(pytester.path / "out.xml") == 4
+    assert len(list((report / "plots").glob("*.space.png"))) == 1
+
+
 def test_an_interrupted_run_says_so_and_never_exits_0(pytester):
     # a run stopped after its first case (pytest.exit with status 0, as a CI step might)
     # wrote "accepted" and no mark that most cases never ran

@@ -248,3 +248,73 @@ def test_what_stays_of_a_case_is_small_and_reads_the_same(pytester, monkeypatch)
     again = pytester.runpytest("--lf", "--avs-report=none", "--avs-db=none", "--avs-shrink-budget=0",
                                "--avs-seed=3", "-q")
     again.assert_outcomes(failed=11)
+
+
+ITEMS_PROBE = """
+import json
+import os
+
+import pytest
+
+
+_collected = {}
+
+
+def pytest_collection_finish(session):
+    for item in session.items:
+        _collected[item.nodeid] = sorted((k, repr(v)) for k, v in item.keywords.items())
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_terminal_summary(terminalreporter, config):
+    items = terminalreporter._session.items
+    out = {"keywords_same": all(sorted((k, repr(v)) for k, v in item.keywords.items()) == _collected[item.nodeid]
+                                for item in items)}
+    for item in items:
+        out[item.name] = {
+            "stash": len(item.stash._storage),
+            "extra": len(item.extra_keyword_matches),
+            "lists": [type(item._report_sections).__name__, type(item.user_properties).__name__],
+            "slot": None if not hasattr(item, "callspec") else repr(item.callspec.params.get("case")),
+            "keywords": sorted(item.keywords)[:2],
+            "keywords_kind": type(item.keywords).__name__,
+            "location": list(item.location),
+        }
+    with open(os.environ["AVS_ITEMS_LOG"], "w") as f:
+        json.dump(out, f)
+"""
+
+
+def test_a_finished_cases_item_keeps_nothing_of_its_run(pytester, monkeypatch):
+    """``session.items`` holds every item to the end of the run: once a scenario case's
+    protocol has ended, its item keeps no stash entries, no case slot (the row holds its
+    parameters) and no lists of its own; its name, keywords and location read the same.
+    A plain test's item is left as pytest made it."""
+    log = pytester.path / "items.json"
+    monkeypatch.setenv("AVS_ITEMS_LOG", str(log))
+    pytester.makepyfile(avs_items_probe=ITEMS_PROBE, test_many=MANY)
+    monkeypatch.syspath_prepend(pytester.path)
+    result = pytester.runpytest("-p", "avs_items_probe", "--avs-report=none", "--avs-db=none",
+                                "--avs-shrink-budget=0", "--avs-seed=3")
+    result.assert_outcomes(passed=30, failed=11)
+    items = json.loads(log.read_text())
+    assert items.pop("keywords_same")
+    cases = [v for k, v in items.items() if k.startswith("test_many[")]
+    assert len(cases) == 40
+    assert all(c["stash"] == 0 and c["extra"] == 0 and c["slot"] == "None" and c["lists"][1] == "tuple"
+               and c["keywords_kind"] != "NodeKeywords" for c in cases), cases[0]
+    # a passed case printed nothing: no section list either (a failure's sections stay)
+    assert sum(c["lists"][0] == "tuple" for c in cases) >= 29
+    assert items["test_many[halton-005]"]["location"][2] == "test_many[halton-005]"
+    assert "halton-005" in items["test_many[halton-005]"]["keywords"] or \
+        "halton-005" in str(items["test_many[halton-005]"])
+    plain = items["test_plain"]
+    assert plain["slot"] is None and plain["lists"] == ["list", "list"] and plain["stash"] > 0
+    assert plain["keywords_kind"] == "NodeKeywords"
+    # a re-run of the failed cases (pytest's cache, written at the end) and -k still select them
+    again = pytester.runpytest("--lf", "--avs-report=none", "--avs-db=none", "--avs-shrink-budget=0",
+                               "--avs-seed=3", "-q")
+    again.assert_outcomes(failed=11)
+    picked = pytester.runpytest("-k", "halton-005", "--avs-report=none", "--avs-db=none",
+                                "--avs-shrink-budget=0", "--avs-seed=3", "-q")
+    picked.assert_outcomes(passed=1)

@@ -39,6 +39,14 @@ RERUN_DIR = "rerun"
 #: the prefix of a worker's temporary picture folder (the controller moves what is inside)
 STAGING_PREFIX = "avs-cases-"
 
+#: a serial run with at least this many rows makes its plots and ε-coverage at its end in a
+#: helper process (:mod:`..report.ahead`), as an xdist controller does: the pytest process
+#: then never imports matplotlib and scipy (~110 MB, issue #35: a 100,000-case campaign
+#: within 500 MB) nor holds the plots' per-case arrays, and the helper draws while this
+#: process writes the summary and the cards. Below it, starting a helper (an interpreter
+#: and its imports, ~1-2 s of CPU) costs more than drawing here.
+SERIAL_AHEAD_MIN_ROWS = 5000
+
 
 class RunState:
     """The controller's view of the run: the error table and what the summary needs."""
@@ -276,7 +284,13 @@ class RunState:
         settings = self.config.stash[settings_key]
         if self.folder is not None and self.table is not None:
             self.guarded("the error table (closing it)", None, self.table.close)
-            if self._left is not None and not self.hurry:
+            if self._left is None and not self.hurry and self.ahead is None \
+                    and len(self.rows) >= SERIAL_AHEAD_MIN_ROWS:
+                # a large serial run: its plots and ε made by a helper from the error table
+                self._workers = 1
+                for test in self.tests:
+                    self.guarded("the plots and ε-coverage made ahead", test, lambda test=test: self.make_ahead(test))
+            elif self._left is not None and not self.hurry:
                 # an xdist controller: the tests not handed to the helpers yet have their plots
                 # and ε made there (the workers are done: their cores are free) while this
                 # process makes the rest of the summary and the cards
@@ -600,6 +614,16 @@ def compact_stash(item: Any) -> None:
     if type(storage) is dict:
         # key by key: dict(storage) would copy its table, at the size it grew to
         item.stash._storage = {key: value for key, value in storage.items()}
+
+
+def empty_stash(item: Any) -> None:
+    """The item's stash emptied once its protocol has ended (:func:`.kept.slim_item`): what
+    pytest's plugins and ours kept there for its run is read by nothing any more. Here,
+    beside :func:`compact_stash`: the plugin's reads of pytest's private attributes stay in
+    three modules."""
+    storage = getattr(item.stash, "_storage", None)
+    if type(storage) is dict and storage:
+        item.stash._storage = {}
 
 
 def _space_of(description: Any) -> Any:

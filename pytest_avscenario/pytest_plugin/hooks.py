@@ -419,6 +419,16 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     return report
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Any:
+    ran = yield
+    if item.stash.get(sent_key, False):  # a scenario case, done: its item made small
+        from .kept import slim_item
+
+        slim_item(item)
+    return ran
+
+
 def _release(item: pytest.Item) -> None:
     """The item is done: nothing of its case outlives it but its row, which the controller
     holds. Its outcome (the simulated world, the trajectory, the body's exception and its

@@ -12,24 +12,35 @@ the same declaration that the end of the run holds, and only if it was made with
 anything else is made again at the end, as a run without helpers makes it. The pictures and
 numbers are the same either way: the same functions on the same data.
 
-Rows cross to the helpers as their JSON data (:meth:`~pytest_avscenario.outcome.CaseRow.
-to_json`), as they crossed from the xdist workers. The helpers ignore SIGINT (a Ctrl-C
-reaches the whole process group): the controller ends them itself (:meth:`ReportAhead.
-cancel`).
+Rows do not cross to the helpers: a helper reads the test's rows back from the run's error
+table (``errors.jsonl``, written and flushed row by row as cases end), as their JSON data
+(:meth:`~pytest_avscenario.outcome.CaseRow.to_json`) — a copy of 100,000 rows handed over as
+data was ~100 MB more in the controller at the end of the run. Each helper's result names
+the rows it used (a digest of their items, in order), and it is taken only if those are the
+rows the end of the run holds. The helpers ignore SIGINT (a Ctrl-C reaches the whole process
+group): the controller ends them itself (:meth:`ReportAhead.cancel`).
+
+A serial run of many cases makes its plots and ε at its end the same way
+(:data:`~pytest_avscenario.pytest_plugin.controller.SERIAL_AHEAD_MIN_ROWS`): the pytest
+process then never imports matplotlib or scipy (~110 MB) nor holds the plots' per-case
+arrays, and the helper draws while it writes the summary and the cards.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import os
 from pathlib import Path
-from typing import Any, Iterator, Mapping, Sequence
+from typing import Any, Iterable, Iterator, Mapping, Sequence
 
 from ..outcome import CaseRow
 from .coverage import DEFAULT_TOL
 from .plots import PLOT_KINDS, plot_paths
+from .table import MAIN_JSONL
 
-__all__ = ["ReportAhead"]
+__all__ = ["ReportAhead", "items_digest", "table_rows"]
 
 
 class _Submitted:
@@ -78,26 +89,28 @@ class ReportAhead:
         ``info()``). Returns the paths the plots may be written to (for the report folder's
         manifest, before they are written). Raises when no helper can be started."""
         self.start()
-        data = [row.to_json() for row in rows]
+        table = str(self.directory / MAIN_JSONL)
         with _sigint_blocked():  # a submit may start a helper
             # first: the end of the run waits for it before the summary, for the plots after the cards
-            cover = self._pool.submit(_coverage_job, info, data, self.tol, self.within_radius)
-            plots = {kind: self._pool.submit(_plot_job, str(self.directory), test, data, kind, info)
+            cover = self._pool.submit(_coverage_job, info, table, test, self.tol, self.within_radius)
+            plots = {kind: self._pool.submit(_plot_job, str(self.directory), test, table, kind, info)
                      for kind in PLOT_KINDS}
-        self._jobs[test] = _Submitted(tuple(row.item for row in rows), info, cover, plots)
+        self._jobs[test] = _Submitted(items_digest(row.item for row in rows), info, cover, plots)
         return list(plot_paths(self.directory, test).values())
 
     def plots(self, test: str, rows: Sequence[CaseRow], info: Mapping[str, Any] | None) -> dict[str, Path] | None:
         """``{kind: path}`` of ``test``'s plots made ahead from these ``rows`` and ``info``
         (waiting for them), or None: to be drawn here."""
         job = self._jobs.get(test)
-        if job is None or job.info is not info or job.items != tuple(row.item for row in rows):
+        if job is None or job.info is not info or job.items != items_digest(row.item for row in rows):
             return None
         out = {}
         for kind, future in job.plots.items():
             try:
-                path = future.result()
+                used, path = future.result()
             except Exception:  # noqa: BLE001 - drawn again here, where its error is reported
+                return None
+            if used != job.items:  # the table held other rows than this process (a row lost)
                 return None
             if path is not None:
                 out[kind] = Path(path)
@@ -114,7 +127,7 @@ class ReportAhead:
             found = job.coverage.result().get(sampler)
         except Exception:  # noqa: BLE001 - computed again here, where its error is reported
             return None
-        if found is None or found[0] != tuple(row.item for row in sampled):
+        if found is None or found[0] != items_digest(row.item for row in sampled):
             return None
         return tuple(found[1])
 
@@ -217,30 +230,58 @@ def _space(info: Mapping[str, Any]) -> Any:
         return None
 
 
-def _plot_job(directory: str, test: str, data: list[dict[str, Any]], kind: str,
-              info: Mapping[str, Any]) -> str | None:
-    """One plot of a test, drawn as :func:`.build.finish_report` draws it."""
+def items_digest(items: Iterable[str]) -> bytes:
+    """Which rows, in which order: a digest of their item ids (what a helper used and what
+    the end of the run holds are compared by it, not by 100,000 ids sent back)."""
+    h = hashlib.blake2b(digest_size=16)
+    for item in items:
+        h.update(item.encode("utf-8", "surrogatepass"))
+        h.update(b"\0")
+    return h.digest()
+
+
+def table_rows(table: str | os.PathLike, test: str) -> list[dict[str, Any]]:
+    """The JSON data of ``test``'s rows in the error table ``table``, in its order. A line
+    still being written (no newline yet) is not read: it is a later case's, of another test
+    (a test is handed over once all of its cases have ended)."""
+    needle = json.dumps(test, ensure_ascii=False)  # the test's id as each of its lines holds it
+    out = []
+    with open(table, encoding="utf-8") as fh:
+        for line in fh:
+            if needle in line and line.endswith("\n"):
+                data = json.loads(line)
+                if data.get("test") == test and data.get("origin") != "shrink":
+                    out.append(data)
+    return out
+
+
+def _plot_job(directory: str, test: str, table: str, kind: str,
+              info: Mapping[str, Any]) -> tuple[bytes, str | None]:
+    """One plot of a test, drawn as :func:`.build.finish_report` draws it; with the digest
+    of the rows it was drawn from."""
     from .cards import unit_of
     from .plots import plot_kind
 
+    data = table_rows(table, test)
     space = _space(info)
     units = {n: unit_of(space, n) for n in getattr(space, "parameters", {}) or {}}
     metrics = tuple(info.get("metrics") or ())
     path = plot_kind(directory, test, data, kind, metrics=metrics or None,
                      units={n: u for n, u in units.items() if u})
-    return None if path is None else str(path)
+    return items_digest(str(d.get("item") or d["test"]) for d in data), None if path is None else str(path)
 
 
-def _coverage_job(info: Mapping[str, Any], data: list[dict[str, Any]], tol: float,
-                  within_radius: float | None) -> dict[str, tuple[tuple[str, ...], tuple]]:
-    """{sampler: (its sampled items, (ε, covering radius, fraction within))} of a test."""
+def _coverage_job(info: Mapping[str, Any], table: str, test: str, tol: float,
+                  within_radius: float | None) -> dict[str, tuple[bytes, tuple]]:
+    """{sampler: (the digest of its sampled items, (ε, covering radius, fraction within))}
+    of a test."""
     from .summary import campaign_coverage
 
     space = _space(info)
     campaigns: dict[str, list[CaseRow]] = {}
-    for row in map(CaseRow.from_json, data):
+    for row in map(CaseRow.from_json, table_rows(table, test)):
         if row.origin == "sampled":
             campaigns.setdefault(row.sampler, []).append(row)
-    return {sampler: (tuple(r.item for r in rows),
+    return {sampler: (items_digest(r.item for r in rows),
                       campaign_coverage(rows, space, tol=tol, within_radius=within_radius))
             for sampler, rows in campaigns.items()}
