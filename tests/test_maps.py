@@ -409,3 +409,34 @@ def test_town06_lanes_meet_the_lanes_their_links_name():
     dead = [l.id for l in data.lanes.values()
             if l.kind in od.DRIVABLE and od.default_successor(l, data.lanes) is None]
     assert dead == ["48/0/-3"], [od.why_no_successor(data, i) for i in dead]
+
+
+def test_recordings_on_one_map_share_each_lane_s_points_with_the_same_values(tmp_path):
+    """A map's lanes never change: two runs on it record each lane's centre points, widths
+    and sidewalks as the same list objects (made once per process, not ~2,000 lists a case),
+    holding the values the lane's own record gives, and the saved trajectory reads back
+    equal."""
+    from pytest_avscenario.sim.places import Spot
+    from pytest_avscenario.sim.recording import _lane_record
+    from pytest_avscenario.trajectory import Trajectory
+
+    path = _narrowing_road(tmp_path / "walk.xodr")
+    runs = []
+    for seed, speed in ((0, 10.0), (1, 12.0)):
+        w = World(seed, name="t")
+        road = w.map(path)
+        w.ego(Spot(road.lane("1/0/-1"), 5.5, -1.25), speed=speed, driver=lambda obs: (0.0, 0.0))
+        runs.append((w, w.run(3)))
+    (w, a), (_, b) = runs
+    lane, walk = a.meta["lanes"]["1/0/-1"], a.meta["lanes"]["1/0/-2"]
+    assert walk["kind"] == "sidewalk" and "widths" in lane and "widths" in walk
+    for k in ("1/0/-1", "1/0/-2"):
+        for field in ("xy", "widths"):
+            assert b.meta["lanes"][k][field] is a.meta["lanes"][k][field]
+        assert b.meta["lanes"][k] is not a.meta["lanes"][k]
+    kind, group, width, xy, widths = _lane_record(w.lane_index.lanes[w.lane_index.order[0].index])
+    assert (lane["kind"], lane["width"]) == (kind, width)
+    assert lane["xy"] == xy.tolist() and lane["widths"] == widths.tolist()
+    assert type(lane["xy"]) is list and type(lane["xy"][0]) is list
+    a.save(tmp_path / "a.npz")
+    assert Trajectory.load(tmp_path / "a.npz").meta["lanes"] == a.meta["lanes"]

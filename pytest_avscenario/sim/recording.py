@@ -150,15 +150,21 @@ def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
 
     Any lane geometry with ``position(s, r)``, ``heading_at(s)``, ``length`` and
     ``width_at(s)`` is written the same way (a straight lane as its two ends, anything else
-    as points every :data:`LANE_POINT_SPACING_M`), so lanes of a map need nothing more."""
+    as points every :data:`LANE_POINT_SPACING_M`), so lanes of a map need nothing more.
+    A map lane's ``xy`` and ``widths`` lists are the same objects in every recording on the
+    map in a process: read them, do not change them in place."""
     lanes: dict[str, Any] = {}
     stops: list[dict[str, Any]] = []
     # a map's lanes are shared by every world that loads the map and never change: their
     # entries are computed once per process, all at the first recording on the map
-    # (``MapLaneIndex.lane_records``; ~25 ms for Town06's 467 lanes, a tenth of its load)
+    # (``MapLaneIndex.lane_records``; ~25 ms for Town06's 467 lanes, a tenth of its load),
+    # and kept as the recording holds them (lists of [x, y] and of widths: 1.7 MB for
+    # Town06's 12,652 points), so every recording that names a lane shares its lists: the
+    # same values without ~2,000 new lists a case on a map's default route of ~50 lanes (they
+    # were most of the garbage collector's work on a map). Readers take them as read-only.
     memo = getattr(index, "lane_records", None)
     if memo is not None and not memo:
-        memo.update((lane.id, _lane_record(lane)) for lane in index.order)
+        memo.update((lane.id, _listed(_lane_record(lane))) for lane in index.order)
     order = index.order
     codes = getattr(index, "id_code", None)  # a map's: lane id -> place in order, made once
     if codes is not None:  # the few lanes named, in the index's order, not a scan of all
@@ -170,14 +176,20 @@ def road_meta(index: Any, ids: set[str]) -> dict[str, Any]:
             stops.append({"lane": lane.id, "s": round(float(s), 6), "kind": kind})
         got = memo.get(lane.id) if memo is not None else None
         if got is None:
-            got = _lane_record(lane)
+            got = _listed(_lane_record(lane))
             if memo is not None:
                 memo[lane.id] = got
         kind, group, width, xy, widths = got
-        lanes[lane.id] = {"kind": kind, "group": group, "width": width, "xy": xy.tolist()}
+        lanes[lane.id] = {"kind": kind, "group": group, "width": width, "xy": xy}
         if widths is not None:
-            lanes[lane.id]["widths"] = widths.tolist()
+            lanes[lane.id]["widths"] = widths
     return {"lanes": lanes, "stops": stops}
+
+
+def _listed(record: tuple) -> tuple[str, str, float, list, list | None]:
+    """A :func:`_lane_record` with its points and widths as the recording's lists."""
+    kind, group, width, xy, widths = record
+    return kind, group, width, xy.tolist(), None if widths is None else widths.tolist()
 
 
 def _lane_record(lane: Any) -> tuple[str, str, float, np.ndarray, np.ndarray | None]:
@@ -221,19 +233,23 @@ def map_sidewalks(data: Any, lanes: dict[str, Any]) -> dict[str, Any]:
     narrowest along it, and ``widths`` the width at each point where it varies)."""
     every = _SIDEWALKS.get(id(data))
     if every is None or every[0] is not data:  # once per map and process: its lanes never change
-        every = (data, _sidewalks(data))
+        every = (data, _sidewalks(data), {})
         _SIDEWALKS[id(data)] = every
+    listed = every[2]  # a sidewalk's points as lists, made at its first recording and shared
     sections = {(l.road, l.section) for l in (data.lanes.get(k) for k in lanes) if l is not None}
     out: dict[str, Any] = {}
-    for k, section, width, xy, widths in every[1]:
+    for i, (k, section, width, xy, widths) in enumerate(every[1]):
         if section in sections and k not in lanes:
-            out[k] = {"kind": "sidewalk", "group": "", "width": width, "xy": xy.tolist()}
-            if widths is not None:
-                out[k]["widths"] = widths.tolist()
+            pts = listed.get(i)
+            if pts is None:
+                pts = listed[i] = (xy.tolist(), None if widths is None else widths.tolist())
+            out[k] = {"kind": "sidewalk", "group": "", "width": width, "xy": pts[0]}
+            if pts[1] is not None:
+                out[k]["widths"] = pts[1]
     return out
 
 
-_SIDEWALKS: dict[int, tuple[Any, list]] = {}
+_SIDEWALKS: dict[int, tuple[Any, list, dict]] = {}
 
 
 def _sidewalks(data: Any) -> list[tuple[str, tuple, float, np.ndarray, np.ndarray | None]]:
