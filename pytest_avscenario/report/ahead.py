@@ -256,19 +256,20 @@ def items_digest(items: Iterable[str]) -> bytes:
     return h.digest()
 
 
-#: the rows a helper read last, ``((table, test), their JSON data)``: a test's ε and
-#: failure modes and each of its plots are jobs of their own, and a serial run's one helper
-#: makes them one after the other from the same rows (read once, not once a job: 100,000
-#: rows are ~3 s of parsing). A test's rows are all in the table when it is handed over,
-#: and it is handed over once.
+#: the rows a helper read last, ``((table, test), rows)``: a test's ε and failure modes and
+#: each of its plots are jobs of their own, and a serial run's one helper makes them one
+#: after the other from the same rows (read once, not once a job: 100,000 rows are ~3 s of
+#: parsing). A test's rows are all in the table when it is handed over, and it is handed
+#: over once. Rows, not their JSON data: the plots and ε take rows, and a line's data is
+#: let go as soon as its row is made (100,000 rows' data held beside them was ~150 MB).
 _READ: list[Any] = []
 
 
-def _rows_of(table: str, test: str) -> list[dict[str, Any]]:
+def _rows_of(table: str, test: str) -> list[CaseRow]:
     key = (str(table), test)
     if not _READ or _READ[0][0] != key:
         _READ.clear()  # the rows of the test before are not held beside these
-        _READ.append((key, table_rows(table, test)))
+        _READ.append((key, [CaseRow.from_json(d) for d in _table_data(table, test)]))
     return _READ[0][1]
 
 
@@ -276,15 +277,17 @@ def table_rows(table: str | os.PathLike, test: str) -> list[dict[str, Any]]:
     """The JSON data of ``test``'s rows in the error table ``table``, in its order. A line
     still being written (no newline yet) is not read: it is a later case's, of another test
     (a test is handed over once all of its cases have ended)."""
+    return list(_table_data(table, test))
+
+
+def _table_data(table: str | os.PathLike, test: str) -> Iterator[dict[str, Any]]:
     needle = json.dumps(test, ensure_ascii=False)  # the test's id as each of its lines holds it
-    out = []
     with open(table, encoding="utf-8") as fh:
         for line in fh:
             if needle in line and line.endswith("\n"):
                 data = json.loads(line)
                 if data.get("test") == test and data.get("origin") != "shrink":
-                    out.append(data)
-    return out
+                    yield data
 
 
 def _plot_job(directory: str, test: str, table: str, kind: str,
@@ -294,13 +297,13 @@ def _plot_job(directory: str, test: str, table: str, kind: str,
     from .cards import unit_of
     from .plots import plot_kind
 
-    data = _rows_of(table, test)
+    rows = _rows_of(table, test)
     space = _space(info)
     units = {n: unit_of(space, n) for n in getattr(space, "parameters", {}) or {}}
     metrics = tuple(info.get("metrics") or ())
-    path = plot_kind(directory, test, data, kind, metrics=metrics or None,
+    path = plot_kind(directory, test, rows, kind, metrics=metrics or None,
                      units={n: u for n, u in units.items() if u})
-    return items_digest(str(d.get("item") or d["test"]) for d in data), None if path is None else str(path)
+    return items_digest(r.item for r in rows), None if path is None else str(path)
 
 
 def _coverage_job(info: Mapping[str, Any], table: str, test: str, tol: float,
@@ -315,7 +318,7 @@ def _coverage_job(info: Mapping[str, Any], table: str, test: str, tol: float,
 
     space = _space(info)
     campaigns: dict[str, list[CaseRow]] = {}
-    for row in map(CaseRow.from_json, _rows_of(table, test)):
+    for row in _rows_of(table, test):
         campaigns.setdefault(row.sampler, []).append(row)
     coverage: dict[str, tuple[bytes, tuple]] = {}
     modes: dict[str, tuple] = {}
