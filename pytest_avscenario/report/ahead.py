@@ -1,8 +1,9 @@
 """The parts of the report that one test's rows decide, made ahead: as soon as the test's last
 case has ended, in helper processes, while the cases of other tests still run.
 
-A test's two plots (:mod:`.plots`) and its campaigns' ε-coverage (:func:`.summary.
-campaign_coverage`) depend on its own rows and declaration only. Built after the last case
+A test's two plots (:mod:`.plots`), its campaigns' ε-coverage (:func:`.summary.
+campaign_coverage`) and their failure modes (:func:`.modes.failure_modes`) depend on its own
+rows and declaration only. Built after the last case
 they were most of the end of the run (the example suite: 19 tests, ~30 s of the ~34 s after
 the last case, in a serial run and under ``-n 2`` alike), which no number of xdist workers
 shortened. An xdist controller runs no case itself; it hands each finished test's parts to
