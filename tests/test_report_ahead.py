@@ -120,6 +120,34 @@ def test_the_helpers_plots_and_coverage_are_those_made_here_and_taken_for_the_sa
         ahead.close()
 
 
+def test_the_helpers_failure_modes_are_those_made_here_and_taken_for_the_same_rows_and_order_only(tmp_path):
+    # a campaign's failure modes are the largest part of the end of a run of many
+    # counterexamples: the helper makes them with the campaign's ε, from the error table
+    from pytest_avscenario import Uniform
+    from pytest_avscenario.report.ahead import ReportAhead
+    from pytest_avscenario.report.modes import failure_modes
+    from pytest_avscenario.space import FeatureSpace
+
+    space = FeatureSpace({"gap": Uniform(0.0, 30.0, unit="m"), "speed": Uniform(0.0, 10.0)})
+    info = {"metrics": ["distance"], "space": space.describe()}
+    rows = _rows(60)
+    _table(tmp_path, rows[:10] + _rows(5, test="t.py::test_other") + rows[10:])
+    ahead = ReportAhead(tmp_path, 1)
+    try:
+        ahead.submit("t.py::test_x", rows, info)
+        made = ahead.modes("t.py::test_x", "halton", rows, ("distance",), info)
+        here = tuple(failure_modes(rows, space, ["distance"]))
+        assert made == here and len(here) >= 1 and sum(m.count for m in here) == sum(r.verdict == "fail" for r in rows)
+        # not the rows, the metric order or the declaration it was made from: made again at the end
+        assert ahead.modes("t.py::test_x", "halton", rows[::-1], ("distance",), info) is None
+        assert ahead.modes("t.py::test_x", "halton", rows[:-1], ("distance",), info) is None
+        assert ahead.modes("t.py::test_x", "halton", rows, ("other", "distance"), info) is None
+        assert ahead.modes("t.py::test_x", "halton", rows, ("distance",), dict(info)) is None
+        assert ahead.modes("t.py::test_x", "random", rows, ("distance",), info) is None
+    finally:
+        ahead.close()
+
+
 def test_what_the_helpers_made_from_other_rows_than_this_process_holds_is_made_again(tmp_path):
     # the error table lost a row (a full disk) or holds one this process does not (a row
     # written from outside it): the helper's plots and ε are not those of these rows

@@ -201,6 +201,9 @@ class RunState:
     def coverage_ahead(self, test: str, sampler: str, sampled: list[CaseRow]) -> Any:
         return self.ahead.coverage(test, sampler, sampled, self.tests.get(test)) if self.ahead is not None else None
 
+    def modes_ahead(self, test: str, sampler: str, main: list[CaseRow], order: tuple[str, ...]) -> Any:
+        return self.ahead.modes(test, sampler, main, order, self.tests.get(test)) if self.ahead is not None else None
+
     def end_ahead(self, cancel: bool = False) -> None:
         """The helpers' end: after the report, or at once (``cancel``: an interrupted run,
         whose report has no pictures — those they drew go too)."""
@@ -308,7 +311,7 @@ class RunState:
                                      baseline=settings.baseline, driver=session_driver(self.config),
                                      card_sections=self.card_sections, interrupted=self.stopped,
                                      pictures=not self.hurry, drawn=self.drawn_ahead,
-                                     known_coverage=self.coverage_ahead)
+                                     known_coverage=self.coverage_ahead, known_modes=self.modes_ahead)
 
             self.summary_rows = self.guarded("the report", None, report)
         self.guarded("ending the helpers of the report", None, lambda: self.end_ahead(cancel=self.hurry))

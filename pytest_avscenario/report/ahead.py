@@ -1,8 +1,9 @@
 """The parts of the report that one test's rows decide, made ahead: as soon as the test's last
 case has ended, in helper processes, while the cases of other tests still run.
 
-A test's two plots (:mod:`.plots`) and its campaigns' ε-coverage (:func:`.summary.
-campaign_coverage`) depend on its own rows and declaration only. Built after the last case
+A test's two plots (:mod:`.plots`), its campaigns' ε-coverage (:func:`.summary.
+campaign_coverage`) and their failure modes (:func:`.modes.failure_modes`) depend on its own
+rows and declaration only. Built after the last case
 they were most of the end of the run (the example suite: 19 tests, ~30 s of the ~34 s after
 the last case, in a serial run and under ``-n 2`` alike), which no number of xdist workers
 shortened. An xdist controller runs no case itself; it hands each finished test's parts to
@@ -124,12 +125,28 @@ class ReportAhead:
         if job is None or job.info is not info:
             return None
         try:
-            found = job.coverage.result().get(sampler)
+            found = job.coverage.result()[0].get(sampler)
         except Exception:  # noqa: BLE001 - computed again here, where its error is reported
             return None
         if found is None or found[0] != items_digest(row.item for row in sampled):
             return None
         return tuple(found[1])
+
+    def modes(self, test: str, sampler: str, main: Sequence[CaseRow], order: Sequence[str],
+              info: Mapping[str, Any] | None) -> tuple | None:
+        """The failure modes (:func:`.modes.failure_modes`) of the campaign ``(test, sampler)``
+        made ahead from these ``main`` rows, ``info`` and metric ``order`` (waiting for
+        them), or None."""
+        job = self._jobs.get(test)
+        if job is None or job.info is not info:
+            return None
+        try:
+            found = job.coverage.result()[1].get(sampler)
+        except Exception:  # noqa: BLE001 - made again here, where its error is reported
+            return None
+        if found is None or tuple(found[1]) != tuple(order) or found[0] != items_digest(row.item for row in main):
+            return None
+        return tuple(found[2])
 
     def cancel(self) -> list[Path]:
         """The run was interrupted: end the helpers now, whatever they were making. Returns
@@ -240,19 +257,38 @@ def items_digest(items: Iterable[str]) -> bytes:
     return h.digest()
 
 
+#: the rows a helper read last, ``((table, test), rows)``: a test's ε and failure modes and
+#: each of its plots are jobs of their own, and a serial run's one helper makes them one
+#: after the other from the same rows (read once, not once a job: 100,000 rows are ~3 s of
+#: parsing). A test's rows are all in the table when it is handed over, and it is handed
+#: over once. Rows, not their JSON data: the plots and ε take rows, and a line's data is
+#: let go as soon as its row is made (100,000 rows' data held beside them was ~150 MB).
+_READ: list[Any] = []
+
+
+def _rows_of(table: str, test: str) -> list[CaseRow]:
+    key = (str(table), test)
+    if not _READ or _READ[0][0] != key:
+        _READ.clear()  # the rows of the test before are not held beside these
+        _READ.append((key, [CaseRow.from_json(d) for d in _table_data(table, test)]))
+    return _READ[0][1]
+
+
 def table_rows(table: str | os.PathLike, test: str) -> list[dict[str, Any]]:
     """The JSON data of ``test``'s rows in the error table ``table``, in its order. A line
     still being written (no newline yet) is not read: it is a later case's, of another test
     (a test is handed over once all of its cases have ended)."""
+    return list(_table_data(table, test))
+
+
+def _table_data(table: str | os.PathLike, test: str) -> Iterator[dict[str, Any]]:
     needle = json.dumps(test, ensure_ascii=False)  # the test's id as each of its lines holds it
-    out = []
     with open(table, encoding="utf-8") as fh:
         for line in fh:
             if needle in line and line.endswith("\n"):
                 data = json.loads(line)
                 if data.get("test") == test and data.get("origin") != "shrink":
-                    out.append(data)
-    return out
+                    yield data
 
 
 def _plot_job(directory: str, test: str, table: str, kind: str,
@@ -262,26 +298,48 @@ def _plot_job(directory: str, test: str, table: str, kind: str,
     from .cards import unit_of
     from .plots import plot_kind
 
-    data = table_rows(table, test)
+    rows = _rows_of(table, test)
     space = _space(info)
     units = {n: unit_of(space, n) for n in getattr(space, "parameters", {}) or {}}
     metrics = tuple(info.get("metrics") or ())
-    path = plot_kind(directory, test, data, kind, metrics=metrics or None,
+    path = plot_kind(directory, test, rows, kind, metrics=metrics or None,
                      units={n: u for n, u in units.items() if u})
-    return items_digest(str(d.get("item") or d["test"]) for d in data), None if path is None else str(path)
+    return items_digest(r.item for r in rows), None if path is None else str(path)
 
 
 def _coverage_job(info: Mapping[str, Any], table: str, test: str, tol: float,
-                  within_radius: float | None) -> dict[str, tuple[bytes, tuple]]:
-    """{sampler: (the digest of its sampled items, (ε, covering radius, fraction within))}
-    of a test."""
+                  within_radius: float | None) -> tuple[dict[str, tuple[bytes, tuple]], dict[str, tuple]]:
+    """({sampler: (the digest of its sampled items, (ε, covering radius, fraction within))},
+    {sampler: (the digest of its main-table items, the metric order, its failure modes)})
+    of a test: its campaigns' ε-coverage and failure modes, as :func:`.summary.summarize`
+    makes them. A campaign whose failure modes fail here is left out (made again at the
+    end, where the error is reported)."""
+    from .modes import failure_modes
     from .summary import campaign_coverage
 
     space = _space(info)
     campaigns: dict[str, list[CaseRow]] = {}
-    for row in map(CaseRow.from_json, table_rows(table, test)):
-        if row.origin == "sampled":
-            campaigns.setdefault(row.sampler, []).append(row)
-    return {sampler: (items_digest(r.item for r in rows),
-                      campaign_coverage(rows, space, tol=tol, within_radius=within_radius))
-            for sampler, rows in campaigns.items()}
+    for row in _rows_of(table, test):
+        campaigns.setdefault(row.sampler, []).append(row)
+    coverage: dict[str, tuple[bytes, tuple]] = {}
+    modes: dict[str, tuple] = {}
+    for sampler, main in campaigns.items():
+        sampled = [r for r in main if r.origin == "sampled"]
+        if sampled:
+            coverage[sampler] = (items_digest(r.item for r in sampled),
+                                 campaign_coverage(sampled, space, tol=tol, within_radius=within_radius))
+        if space is None or not any(r.verdict == "fail" for r in main):
+            continue
+        # the metric order summarize uses: the declared ones, then those the rows add
+        metrics = list(info.get("metrics") or ())
+        for r in main:
+            for m in r.rho:
+                if m not in metrics:
+                    metrics.append(m)
+        order = tuple(info.get("priority") or ()) or tuple(metrics)
+        try:
+            found = tuple(failure_modes(main, space, list(order)))
+        except Exception:  # noqa: BLE001 - made again at the end, where its error is reported
+            continue
+        modes[sampler] = (items_digest(r.item for r in main), order, found)
+    return coverage, modes

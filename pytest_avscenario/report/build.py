@@ -62,6 +62,7 @@ def finish_report(
     interrupted: str | None = None,
     drawn: Callable[[str, list[CaseRow]], Mapping[str, Path] | None] | None = None,
     known_coverage: Callable[[str, str, list[CaseRow]], tuple | None] | None = None,
+    known_modes: Callable[[str, str, list[CaseRow], tuple[str, ...]], tuple | None] | None = None,
 ) -> list[SummaryRow]:
     """Summarize the run and write the rest of the report under ``directory``.
 
@@ -89,8 +90,8 @@ def finish_report(
     driver, the run's when no row names one; ``summary.json`` holds the run's driver as
     ``"driver"`` and each campaign's as its ``"driver"``, the index names it (see
     :mod:`.drivers`). ``drawn(test, rows)``: the plots of ``test`` already drawn from these
-    main-table rows (``{kind: path}``), or None to draw them here; ``known_coverage``: see
-    :func:`.summary.summarize` (both: :mod:`.ahead`). Returns the summary rows.
+    main-table rows (``{kind: path}``), or None to draw them here; ``known_coverage``,
+    ``known_modes``: see :func:`.summary.summarize` (both: :mod:`.ahead`). Returns the summary rows.
     """
     from .folder import ReportFolder
 
@@ -113,7 +114,7 @@ def finish_report(
 
     summary = part("the summary", None, lambda: summarize(
         rows, tests, tol=tol, within_radius=within_radius, verdicts=verdicts, on_error=on_error,
-        known_coverage=known_coverage)) or []
+        known_coverage=known_coverage, known_modes=known_modes)) or []
 
     comparison = None
     if baseline is not None and not partial:  # some cases of a campaign: no rate to compare

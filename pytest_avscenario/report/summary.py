@@ -164,6 +164,7 @@ def summarize(
     on_error: Callable[[str, str | None, Exception], None] | None = None,
     modes: bool = True,
     known_coverage: Callable[[str, str, list[CaseRow]], tuple | None] | None = None,
+    known_modes: Callable[[str, str, list[CaseRow], tuple[str, ...]], tuple | None] | None = None,
 ) -> list[SummaryRow]:
     """Summary rows per (test, sampler), tests in the order of ``tests`` (collection order),
     then any others in order of first appearance; samplers in order of first appearance.
@@ -177,7 +178,9 @@ def summarize(
     without it the exception propagates. ``modes``: group each campaign's counterexamples
     into failure modes (:mod:`.modes`; False leaves ``SummaryRow.modes`` empty).
     ``known_coverage(test, sampler, sampled rows)``: the campaign's :func:`campaign_coverage`
-    when it was computed already from those rows (:mod:`.ahead`), else None.
+    when it was computed already from those rows (:mod:`.ahead`), else None;
+    ``known_modes(test, sampler, main-table rows, metric order)`` the same for its failure
+    modes.
     """
     from ..monitors.score import campaign_score
 
@@ -232,11 +235,16 @@ def summarize(
                 eps = cover = frac = None
         found: tuple[Any, ...] = ()
         modes_failed = False
-        if modes and failing:
+        priority = tuple(info.priority) or tuple(metrics)
+        known_found = None if not (modes and failing) or known_modes is None or space is None else \
+            known_modes(test, sampler, main, priority)
+        if known_found is not None:  # made ahead, from these very rows (.ahead)
+            found = known_found
+        elif modes and failing:
             try:
                 from .modes import failure_modes
 
-                found = tuple(failure_modes(main, space, list(info.priority) or metrics))
+                found = tuple(failure_modes(main, space, list(priority)))
             except Exception as exc:
                 if on_error is None:
                     raise
