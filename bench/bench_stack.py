@@ -470,24 +470,14 @@ def bench_case(repeats: int) -> dict:
 def bench_pieces(steps: int) -> None:
     print("3. the protocol's own work, in this process (CPU per call, hot loop)")
     from pytest_avscenario.stack import kit
+    from stack_instructions import kit_session
 
     w = following("autopilot")
     w.run(seconds=0.1)
-    ego = w.agents[0]
-    ids = {a: i + 1 for i, a in enumerate(w.agents)}
-    static = frame.lane_ground_truth(w.view())
+    ego, ids, static, session = kit_session(w)
     t_ns = wire.ns(w.t)
     views = frame.SensorViews(static, ids)
     views.build(w, t_ns)  # the first, with the lanes
-    view = w.view()
-    hello = {"protocol": wire.PROTOCOL.decode(), "revision": wire.REVISION, "dt": w.dt,
-             "host_vehicle_id": 1,
-             "agents": [{"id": i + 1, "name": a.name, "kind": a.kind} for i, a in enumerate(w.agents)],
-             "lanes": [{"id": frame.LANE_ID0 + i, "width": l.width, "speed_limit": l.speed_limit}
-                       for i, l in enumerate(view.lanes)],
-             "ego": {"route": [frame.LANE_ID0 + w.lane_index.code[l.index] for l in ego.plan],
-                     "route_index": ego.route_index}}
-    _, session = kit.handle(wire.pack(wire.RESET, hello), None, "autopilot")
     request = wire.pack(wire.SENSOR_VIEW, frame.sensor_view(w, t_ns, static, ids))
     kit.handle(request, session, "autopilot")  # the route, from the lanes
     request = wire.pack(wire.SENSOR_VIEW, views.build(w, t_ns))

@@ -33,6 +33,26 @@ import time
 ROOT = os.environ.get("AVS_TREE") or __file__.rsplit("/bench/", 1)[0]
 
 
+def kit_session(w):
+    """The scene ``w``'s ego served by the kit's autopilot, reset as the plugin resets a stack:
+    (ego, OSI ids of the agents, the lanes' ground truth, the kit's session). Shared with
+    ``bench_stack.py``'s section 3 (this script imports the modules of the tree it measures)."""
+    from pytest_avscenario.stack import frame, kit, wire
+
+    ego = w.agents[0]
+    ids = {a: i + 1 for i, a in enumerate(w.agents)}
+    view = w.view()
+    hello = {"protocol": wire.PROTOCOL.decode(), "revision": wire.REVISION, "dt": w.dt,
+             "host_vehicle_id": 1,
+             "agents": [{"id": i + 1, "name": a.name, "kind": a.kind} for i, a in enumerate(w.agents)],
+             "lanes": [{"id": frame.LANE_ID0 + i, "width": l.width, "speed_limit": l.speed_limit}
+                       for i, l in enumerate(view.lanes)],
+             "ego": {"route": [frame.LANE_ID0 + w.lane_index.code[l.index] for l in ego.plan],
+                     "route_index": ego.route_index}}
+    _, session = kit.handle(wire.pack(wire.RESET, hello), None, "autopilot")
+    return ego, ids, frame.lane_ground_truth(view), session
+
+
 def piece(what: str):
     """The call to count, after its set-up."""
     sys.path.insert(0, ROOT)
@@ -43,20 +63,10 @@ def piece(what: str):
 
     w = B.following("autopilot")
     w.run(seconds=0.1)
-    ego = w.agents[0]
-    ids = {a: i + 1 for i, a in enumerate(w.agents)}
-    views = frame.SensorViews(frame.lane_ground_truth(w.view()), ids)
+    ego, ids, static, session = kit_session(w)
+    views = frame.SensorViews(static, ids)
     t_ns = wire.ns(w.t)
     first = views.build(w, t_ns)
-    view = w.view()
-    hello = {"protocol": wire.PROTOCOL.decode(), "revision": wire.REVISION, "dt": w.dt,
-             "host_vehicle_id": 1,
-             "agents": [{"id": i + 1, "name": a.name, "kind": a.kind} for i, a in enumerate(w.agents)],
-             "lanes": [{"id": frame.LANE_ID0 + i, "width": l.width, "speed_limit": l.speed_limit}
-                       for i, l in enumerate(view.lanes)],
-             "ego": {"route": [frame.LANE_ID0 + w.lane_index.code[l.index] for l in ego.plan],
-                     "route_index": ego.route_index}}
-    _, session = kit.handle(wire.pack(wire.RESET, hello), None, "autopilot")
     kit.handle(wire.pack(wire.SENSOR_VIEW, first), session, "autopilot")
     request = wire.pack(wire.SENSOR_VIEW, views.build(w, t_ns))
     answer = kit.handle(request, session, "autopilot")[0]

@@ -117,17 +117,23 @@ class ReportAhead:
                 out[kind] = Path(path)
         return out
 
-    def coverage(self, test: str, sampler: str, sampled: Sequence[CaseRow],
-                 info: Mapping[str, Any] | None) -> tuple | None:
-        """(ε, covering radius, fraction within) of the campaign ``(test, sampler)`` made
-        ahead from these ``sampled`` rows and ``info`` (waiting for it), or None."""
+    def _made_ahead(self, test: str, info: Mapping[str, Any] | None, part: int, sampler: str) -> Any:
+        """What the helper's ε-and-modes job of ``test`` made for ``sampler`` (part 0: the
+        ε-coverage, 1: the failure modes; waiting for it), or None: not handed this
+        declaration, failed (made again here, where its error is reported), or no such campaign."""
         job = self._jobs.get(test)
         if job is None or job.info is not info:
             return None
         try:
-            found = job.coverage.result()[0].get(sampler)
-        except Exception:  # noqa: BLE001 - computed again here, where its error is reported
+            return job.coverage.result()[part].get(sampler)
+        except Exception:  # noqa: BLE001 - made again here, where its error is reported
             return None
+
+    def coverage(self, test: str, sampler: str, sampled: Sequence[CaseRow],
+                 info: Mapping[str, Any] | None) -> tuple | None:
+        """(ε, covering radius, fraction within) of the campaign ``(test, sampler)`` made
+        ahead from these ``sampled`` rows and ``info`` (waiting for it), or None."""
+        found = self._made_ahead(test, info, 0, sampler)
         if found is None or found[0] != items_digest(row.item for row in sampled):
             return None
         return tuple(found[1])
@@ -137,13 +143,7 @@ class ReportAhead:
         """The failure modes (:func:`.modes.failure_modes`) of the campaign ``(test, sampler)``
         made ahead from these ``main`` rows, ``info`` and metric ``order`` (waiting for
         them), or None."""
-        job = self._jobs.get(test)
-        if job is None or job.info is not info:
-            return None
-        try:
-            found = job.coverage.result()[1].get(sampler)
-        except Exception:  # noqa: BLE001 - made again here, where its error is reported
-            return None
+        found = self._made_ahead(test, info, 1, sampler)
         if found is None or tuple(found[1]) != tuple(order) or found[0] != items_digest(row.item for row in main):
             return None
         return tuple(found[2])
