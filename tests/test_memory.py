@@ -318,3 +318,50 @@ def test_a_finished_cases_item_keeps_nothing_of_its_run(pytester, monkeypatch):
     picked = pytester.runpytest("-k", "halton-005", "--avs-report=none", "--avs-db=none",
                                 "--avs-shrink-budget=0", "--avs-seed=3", "-q")
     picked.assert_outcomes(passed=1)
+
+
+WORKER_PROBE = """
+import json
+import os
+
+import pytest
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session):
+    worker = getattr(session.config, "workerinput", None)
+    if worker is None:
+        return
+    tr = session.config.pluginmanager.get_plugin("terminalreporter")
+    kept = [r for reports in tr.stats.values() for r in reports
+            if getattr(r, "when", None) == "call" and "test_many[" in r.nodeid]
+    out = {"kept": len(kept),
+           "with_row": sum(getattr(r, "avs_row", None) is not None for r in kept),
+           "with_avs_properties": sum(any(str(n).startswith("avs.") for n, _ in r.user_properties)
+                                      for r in kept),
+           "keywords_kinds": sorted({type(r.keywords).__name__ for r in kept})}
+    with open(os.path.join(os.environ["AVS_WORKER_LOG"], worker["workerid"] + ".json"), "w") as f:
+        json.dump(out, f)
+"""
+
+
+def test_an_xdist_workers_kept_reports_are_made_small_after_they_are_sent(pytester, monkeypatch):
+    """An xdist worker's terminal reporter keeps every report of its cases to the end of the
+    run too (100,000 cases under ``-n 2``: ~3.5 KB a case, each worker 594 MB): once xdist has
+    sent a report, the worker's copy keeps no row and no case properties and its keywords are
+    the shared view. What crossed to the controller is whole: its JUnit has the cases'
+    ``avs.*`` properties, its summary and ``-rA`` the outcomes."""
+    monkeypatch.setenv("AVS_WORKER_LOG", str(pytester.path))
+    pytester.makepyfile(avs_worker_probe=WORKER_PROBE, test_many=MANY)
+    monkeypatch.syspath_prepend(pytester.path)
+    result = pytester.runpytest_subprocess("-p", "avs_worker_probe", "-n", "2", "--avs-report=rep",
+                                           "--avs-db=none", "--avs-shrink-budget=0", "--avs-seed=3",
+                                           "-rA", "--junitxml=j.xml")
+    result.assert_outcomes(passed=30, failed=11)
+    logs = [json.loads((pytester.path / f"gw{i}.json").read_text()) for i in range(2)]
+    assert sum(log["kept"] for log in logs) == 40, logs
+    assert all(log["with_row"] == 0 and log["with_avs_properties"] == 0 for log in logs), logs
+    assert all(log["keywords_kinds"] == ["CaseKeywords"] for log in logs if log["kept"]), logs
+    assert result.stdout.str().count("FAILED test_many.py::test_many[halton-") == 11
+    xml = (pytester.path / "j.xml").read_text()
+    assert xml.count('<property name="avs.') >= 40, xml[:2000]

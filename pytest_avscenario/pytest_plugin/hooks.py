@@ -456,23 +456,23 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> Any:
     """Once every plugin has handled a report (tryfirst: around the others' implementations
     and wrappers), the JSON copy of its row that travelled with it goes (the controller keeps
     the row itself), and so do the case's JUnit properties: pytest's terminal reporter keeps
-    every report to the end of the run, each made small (:mod:`.kept`). Not on an xdist
-    worker, whose reports are still to be sent."""
+    every report to the end of the run, each made small (:mod:`.kept`). On an xdist worker
+    too: its terminal reporter keeps every report of its cases as well (~3.5 KB a case, made
+    small here), and xdist has sent the report (serialized while handling it) by now."""
     try:
         return (yield)
     finally:
-        if "PYTEST_XDIST_WORKER" not in os.environ:
-            if getattr(report, "avs_row", None) is not None:
-                for name in ("avs_row", "avs_shrink_rows", "avs_test"):
-                    report.__dict__.pop(name, None)
-            if "scenario" in getattr(report, "keywords", ()):
-                # pytest's JUnit writer took them (from the teardown report) as every other
-                # plugin did while handling it; the terminal reporter keeps the report
-                _drop_own_properties(report)
-                if report.when == "call" or not report.passed:
-                    from .kept import slim_report
+        if getattr(report, "avs_row", None) is not None:
+            for name in ("avs_row", "avs_shrink_rows", "avs_test"):
+                report.__dict__.pop(name, None)
+        if "scenario" in getattr(report, "keywords", ()):
+            # pytest's JUnit writer took them (from the teardown report) as every other
+            # plugin did while handling it; the terminal reporter keeps the report
+            _drop_own_properties(report)
+            if report.when == "call" or not report.passed:
+                from .kept import slim_report
 
-                    slim_report(report)  # kept by the terminal reporter to the end
+                slim_report(report)  # kept by the terminal reporter to the end
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
