@@ -270,8 +270,10 @@ def plot_feature_space(
         label_axis(ax, "y", names[0])
         ax.legend(loc="best", fontsize=8)
     else:
+        # the title on the top line, the legend's row(s) under it, the panels below both
+        top = 0.45 if k > 2 else 0.75
         grid = fig.add_gridspec(n_panels, n_panels, left=0.9 / fig.get_figwidth(), right=0.98,
-                                bottom=0.7 / fig.get_figheight(), top=1 - 0.45 / fig.get_figheight(),
+                                bottom=0.7 / fig.get_figheight(), top=1 - top / fig.get_figheight(),
                                 wspace=0.08, hspace=0.08)
         first = None
         for row_i in range(n_panels):
@@ -293,7 +295,8 @@ def plot_feature_space(
         handles, labels = first.get_legend_handles_labels()
         unique = dict(zip(labels, handles))
         fig.legend(list(unique.values()), list(unique.keys()), loc="upper right", fontsize=8,
-                   frameon=False, ncol=1 if k > 2 else 2)
+                   frameon=False, ncol=1 if k > 2 else 2,
+                   bbox_to_anchor=(0.99, 1 - 0.3 / fig.get_figheight()))
     fig.suptitle(title or "sampled feature space", fontsize=10)
     return _save(fig, path)
 
