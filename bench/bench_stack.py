@@ -24,7 +24,11 @@ per transport, default 2000). All in one run, each against a process of its own:
 2. Per case: the vehicle-following case of example_tests/test_02 (nominal parameters, 12 s
    at 0.1 s = 120 steps, the lead's wobble included) with the autopilot in process and
    served through the kit (the same variants as 1, cases interleaved across variants);
-   median per case over repeats after a warm-up.
+   median per case over repeats after a warm-up. And the least a second process costs
+   whatever the stack: the same case with a constant command (-1 m/s², straight), in
+   process and served over ipc by a minimal stack (the SensorView parsed, the host's state
+   read, one kept MotionRequest overwritten; no Observation, no driver); the two
+   trajectories are identical.
 3. The protocol's own work in this process, CPU per call in a hot loop: the SensorView built
    afresh and kept (``frame.SensorViews``), the kit's answer, the decode, against observe +
    autopilot in process; and ZMTP's framing of a request and its answer on both sides (a
@@ -100,6 +104,38 @@ while True:
     reply, session = kit.handle(s.recv_multipart(), session, "autopilot")
     s.send_multipart(reply)
 """
+# the least a stack can do: it answers every SensorView with one constant command (the
+# Reset through the kit, the rest by hand: the SensorView parsed, the host's state read, the
+# case's one MotionRequest overwritten); against the same constant command in process it is
+# the least the second process costs a case here, whatever the stack
+MINIMAL_STACK = """
+import sys
+from pytest_avscenario.stack import frame, kit, wire
+from pytest_avscenario.stack.zmtp import Replier
+A, D = %r
+r = Replier(sys.argv[1])
+SV = frame._osi()["sensorview"].SensorView
+session = mr = None
+while True:
+    frames = r.receive()
+    if frames[1] == wire.RESET:
+        reply, session = kit.handle(frames, session, "autopilot")
+        r.send(reply)
+        mr = frame._osi()["motionrequest"].MotionRequest(); wire.set_version(mr.version)
+        slots = frame.desired_state_slots(mr)
+        length = session.agents[session.host]["length"]
+        continue
+    sv = SV.FromString(frames[2])
+    t_ns = wire.timestamp_ns(sv.timestamp)
+    base = sv.global_ground_truth.moving_object[0].base
+    pos, vel = base.position, base.velocity
+    mr.timestamp.seconds, mr.timestamp.nanos = divmod(t_ns, 1_000_000_000)
+    frame.action_to_motion(mr, t_ns, pos.x, pos.y, base.orientation.yaw,
+                           (vel.x * vel.x + vel.y * vel.y) ** 0.5, length, session.dt, A, D, slots)
+    r.send([wire.PROTOCOL, wire.MOTION_REQUEST, mr.SerializeToString()])
+"""
+CONSTANT = (-1.0, 0.0)  # [m/s², rad] the minimal stack's command
+MINIMAL = "ipc by a minimal stack (the constant command)"
 SPIN_S = 200e-6  # [s] the bounded spin of section 0
 
 
@@ -438,6 +474,15 @@ def bench_case(repeats: int) -> dict:
             channel_for(address, sides)
             runs.append({"kind": kind, "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
                          "pid": proc.pid, "pinned": pinned, "walls": [], "cpus": []})
+        runs.append({"kind": "constant command in process", "driver": lambda: (lambda obs: CONSTANT),
+                     "pid": None, "pinned": False, "walls": [], "cpus": []})
+        address = _addresses("case-minimal")["ipc"]
+        proc = _start(["-c", MINIMAL_STACK % (CONSTANT,), address])
+        procs.append(proc)
+        channel_for(address, "zmtp")
+        runs.append({"kind": MINIMAL,
+                     "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
+                     "pid": proc.pid, "pinned": False, "walls": [], "cpus": []})
         for i in range(repeats + 2):
             for r in runs[i % len(runs):] + runs[:i % len(runs)]:  # rotated, as in bench_step
                 if r["pinned"]:
@@ -450,20 +495,28 @@ def bench_case(repeats: int) -> dict:
                 if i >= 2:
                     r["walls"].append(m.wall)
                     r["cpus"].append(m.cpu)
+                    r.setdefault("owns", []).append(m.own)
     finally:
         for proc in procs:
             proc.kill(); proc.wait()
         client.stop_all(); pin(os.getpid(), everywhere)
     out = {r["kind"]: (statistics.median(r["walls"]), statistics.median(r["cpus"])) for r in runs}
+    own = {r["kind"]: statistics.median(r["owns"]) for r in runs}
     here, here_cpu = out["in process"]
     print(f"   in process: {here * 1e3:6.1f} ms wall, {here_cpu * 1e3:.1f} ms CPU per case")
     for kind, (there, there_cpu) in out.items():
-        if kind == "in process":
+        if kind == MINIMAL:
+            here, here_cpu = out["constant command in process"]
+        if kind in ("in process", "constant command in process"):
+            if kind != "in process":
+                print(f"   {kind}: {here * 1e3:6.1f} ms wall, {here_cpu * 1e3:.1f} ms CPU per case")
             continue
         print(f"   served over {kind}: {there * 1e3:6.1f} ms wall = {there / here:.2f}x in process "
               f"(+{(there - here) / 120 * 1e6:.0f} µs a step); CPU of both processes "
               f"{there_cpu * 1e3:.1f} ms = {there_cpu / here_cpu:.2f}x "
-              f"(+{(there_cpu - here_cpu) / 120 * 1e6:.0f} µs a step)")
+              f"(+{(there_cpu - here_cpu) / 120 * 1e6:.0f} µs a step; this process "
+              f"{own[kind] / 120 * 1e6:.0f}, the stack {(there_cpu - own[kind]) / 120 * 1e6:.0f} "
+              f"µs a step against {here_cpu / 120 * 1e6:.0f} in process)")
     return out
 
 
@@ -558,6 +611,10 @@ def main() -> None:
     print(f"     (with every thread of both processes on one CPU: a step {wall:.1f} µs wall "
           f"{verdict(wall <= GOAL_STEP_US)}, {cpu:.1f} µs CPU; the case {there / here:.2f}x wall "
           f"{verdict(there / here <= GOAL_CASE_RATIO)}, {there_cpu / here_cpu:.2f}x CPU)")
+    (here, here_cpu), (there, there_cpu) = case["constant command in process"], case[MINIMAL]
+    print(f"     (the least a second process costs, whatever the stack: a constant command served "
+          f"by a minimal stack {there / here:.2f}x wall, {there_cpu / here_cpu:.2f}x CPU the "
+          f"same command in process)")
 
 
 if __name__ == "__main__":
