@@ -24,7 +24,9 @@ from osi3 import (osi_lane_pb2, osi_motionrequest_pb2, osi_object_pb2,  # noqa: 
                   osi_sensorview_pb2, osi_trafficupdate_pb2, osi_version_pb2)
 import google.protobuf.message  # noqa: E402,F401
 from pytest_avscenario.stack import client, frame, kit, vehicle, wire  # noqa: E402,F401
+from pytest_avscenario.sim.errors import SimError  # noqa: E402
 from pytest_avscenario.sim.world import World  # noqa: E402
+from pytest_avscenario.stack import OSIStack  # noqa: E402
 
 RAW = Path(__file__).resolve().parent / "data" / "osi_raw_stack.py"
 
@@ -98,6 +100,24 @@ def test_the_driver_spec_is_checked_at_start_up(pytester):
     result = pytester.runpytest("--avs-driver", "osi:udp://127.0.0.1:5", "-p", "no:xdist")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--avs-driver*use tcp://HOST:PORT or ipc://PATH*"])
+
+
+@pytest.mark.parametrize("command, said", [
+    ("no_such_stack_program {address}", "*--avs-driver*no program 'no_such_stack_program' on PATH*"),
+    ("./no/such/stack {address}", "*--avs-driver*'./no/such/stack' is not an executable file*"),
+    ("python -m 'mystack {address}", "*--avs-driver*stack command*No closing quotation*"),
+])
+def test_a_spawn_command_that_cannot_start_is_refused_at_start_up(pytester, command, said):
+    """Not one error per case: the run stops before any case, naming the option and why."""
+    pytester.makepyfile(test_raw=SCENARIO)
+    result = pytester.runpytest("--avs-driver", f"osi+spawn:{command}", "-p", "no:xdist")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines([said])
+
+
+def test_an_osi_stack_object_with_a_command_that_cannot_start_is_refused_when_made():
+    with pytest.raises(SimError, match="OSIStack: stack command .*no program 'no_such_stack_program'"):
+        OSIStack(spawn="no_such_stack_program --bind {address}")
 
 
 def _world() -> World:

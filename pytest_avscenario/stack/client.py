@@ -23,6 +23,7 @@ import atexit
 import math
 import os
 import shlex
+import shutil
 import signal
 import subprocess
 import tempfile
@@ -69,6 +70,7 @@ def parse_spec(spec: str) -> tuple[str | None, str | None]:
         command = text[len("osi+spawn:"):].strip()
         if not command:
             raise ValueError(f"{spec!r}: give the command that starts the stack after 'osi+spawn:'")
+        check_command(command)
         return None, command
     if text.startswith("osi:"):
         address = text[len("osi:"):].strip()
@@ -82,6 +84,24 @@ def check_address(address: str) -> None:
         raise ValueError(f"OSI stack address {address!r}: use tcp://HOST:PORT or ipc://PATH")
     if address.startswith("tcp://") and ":" not in address[len("tcp://"):]:
         raise ValueError(f"OSI stack address {address!r} has no port (tcp://127.0.0.1:5555)")
+
+
+def check_command(command: str) -> None:
+    """``ValueError`` when ``osi+spawn:``'s command cannot be started: its quoting does not
+    close, or its program is neither on ``PATH`` nor an executable file (found at start-up,
+    not once per case)."""
+    try:
+        args = shlex.split(command)
+    except ValueError as exc:
+        raise ValueError(f"stack command {command!r}: {exc}") from None
+    if not args:
+        raise ValueError("give the command that starts the stack after 'osi+spawn:'")
+    program = args[0]
+    if os.sep in program:
+        if not (os.path.isfile(program) and os.access(program, os.X_OK)):
+            raise ValueError(f"stack command {command!r}: {program!r} is not an executable file")
+    elif shutil.which(program) is None:
+        raise ValueError(f"stack command {command!r}: no program {program!r} on PATH")
 
 
 class _Timeout(Exception):
@@ -276,11 +296,13 @@ class OSIStack:
                  limits: Limits = Limits()) -> None:
         if (address is None) == (spawn is None):
             raise SimError("OSIStack: give an address (tcp://… or ipc://…) or spawn='COMMAND'")
-        if address is not None:
-            try:
+        try:
+            if address is not None:
                 check_address(address)
-            except ValueError as exc:
-                raise SimError(str(exc)) from None
+            else:
+                check_command(spawn)
+        except ValueError as exc:
+            raise SimError(f"OSIStack: {exc}") from None
         self.address = address
         self.spawn = spawn
         self.timeout_s = timeout_s
