@@ -17,10 +17,12 @@ per transport, default 2000). All in one run, each against a process of its own:
    pytest_avscenario.stack``, run as a spawned stack is) turns it into the Observation,
    asks the autopilot and answers a MotionRequest, the plugin decodes it into (acceleration,
    steering). Against the same observe + autopilot in process. Variants, interleaved in
-   chunks: ipc and tcp as the plugin runs them (ZMTP on the socket both sides), ipc with
-   libzmq on both sides (the plugin's and the kit's sockets before ``zmtp``: the A/B anchor),
-   ipc to a kit on a libzmq REP (what a stack written with libzmq costs), and ipc with every
-   thread of both processes on CPU 0.
+   chunks: ipc and tcp as the plugin runs them serially here (ZMTP on the socket both sides,
+   each wait spinning as ``--avs-stack-spin auto`` decides for one process on this machine),
+   ipc with both sides blocking at once (``--avs-stack-spin 0``: as under ``-n 2`` on two
+   CPUs), ipc with libzmq on both sides (the plugin's and the kit's sockets before ``zmtp``:
+   the A/B anchor), ipc to a kit on a libzmq REP (what a stack written with libzmq costs),
+   and ipc with every thread of both processes on CPU 0 (no spin: ``auto`` on one CPU).
 2. Per case: the vehicle-following case of example_tests/test_02 (nominal parameters, 12 s
    at 0.1 s = 120 steps, the lead's wobble included) with the autopilot in process and
    served through the kit (the same variants as 1, cases interleaved across variants);
@@ -109,11 +111,11 @@ while True:
 # case's one MotionRequest overwritten); against the same constant command in process it is
 # the least the second process costs a case here, whatever the stack
 MINIMAL_STACK = """
-import sys
+import os, sys
 from pytest_avscenario.stack import frame, kit, wire
 from pytest_avscenario.stack.zmtp import Replier
 A, D = %r
-r = Replier(sys.argv[1])
+r = Replier(sys.argv[1], spin_s=float(os.environ[wire.SPIN_ENV]) * 1e-6)
 SV = frame._osi()["sensorview"].SensorView
 session = mr = None
 while True:
@@ -237,21 +239,28 @@ def pin(pid: int, cpus: set[int]) -> None:
             pass  # a thread that ended
 
 
-def variants(tag: str) -> list[tuple[str, str, str, bool]]:
-    """(label, address, sides, pinned) of sections 1 and 2: ``sides`` is "zmtp" (the plugin
-    and the kit as they run), "libzmq" (both on libzmq REQ/REP: before stack/zmtp.py) or
-    "libzmq stack" (the plugin's ZMTP to the kit's loop on a libzmq REP)."""
+def variants(tag: str) -> list[tuple[str, str, str, bool, float]]:
+    """(label, address, sides, pinned, spin) of sections 1 and 2: ``sides`` is "zmtp" (the
+    plugin and the kit as they run), "libzmq" (both on libzmq REQ/REP: before stack/zmtp.py)
+    or "libzmq stack" (the plugin's ZMTP to the kit's loop on a libzmq REP); ``spin`` [s] is
+    the wait's spin on both sides (``--avs-stack-spin``): what ``auto`` gives on this machine
+    for a serial run (the plugin's default), or none."""
     a = _addresses(tag)
-    return [("ipc", a["ipc"], "zmtp", False), ("tcp", a["tcp"], "zmtp", False),
-            ("ipc, libzmq both sides (before)", _addresses(tag + "-libzmq")["ipc"], "libzmq", False),
-            ("ipc, libzmq stack", _addresses(tag + "-mixed")["ipc"], "libzmq stack", False),
-            ("ipc, one CPU", _addresses(tag + "-pinned")["ipc"], "zmtp", True)]
+    auto = client.auto_spin_s(1)
+    return [("ipc", a["ipc"], "zmtp", False, auto), ("tcp", a["tcp"], "zmtp", False, auto),
+            ("ipc, no spin", _addresses(tag + "-block")["ipc"], "zmtp", False, 0.0),
+            ("ipc, libzmq both sides (before)", _addresses(tag + "-libzmq")["ipc"], "libzmq", False, 0.0),
+            ("ipc, libzmq stack", _addresses(tag + "-mixed")["ipc"], "libzmq stack", False, auto),
+            ("ipc, one CPU", _addresses(tag + "-pinned")["ipc"], "zmtp", True, 0.0)]
 
 
-def start_kit(address: str, sides: str, module: str = "pytest_avscenario.stack") -> subprocess.Popen:
-    """The kit serving the autopilot at ``address``, run as a spawned stack is."""
+def start_kit(address: str, sides: str, module: str = "pytest_avscenario.stack",
+              spin: float = 0.0) -> subprocess.Popen:
+    """The kit serving the autopilot at ``address``, run as a spawned stack is (handed the
+    spin [s] as ``osi+spawn:`` hands it)."""
     if sides == "zmtp":
-        return _start(["-m", module, address], {"AVS_OSI_ADDRESS": address})
+        return _start(["-m", module, address], {"AVS_OSI_ADDRESS": address,
+                                                wire.SPIN_ENV: f"{spin * 1e6:g}"})
     return _start(["-c", LIBZMQ_KIT, address])
 
 
@@ -407,10 +416,11 @@ def bench_step(steps: int) -> dict:
     everywhere = os.sched_getaffinity(0)
     runs = []
     try:
-        for kind, address, sides, pinned in variants("kit"):
-            proc = start_kit(address, sides)
+        for kind, address, sides, pinned, spin in variants("kit"):
+            proc = start_kit(address, sides, spin=spin)
             if pinned:
                 pin(proc.pid, {0})
+            client.configure(spin_s=spin)  # the channel's connection takes it
             channel_for(address, sides)
             stack = OSIStack(address, timeout_s=60)
             stack.reset(w)
@@ -466,27 +476,30 @@ def bench_case(repeats: int) -> dict:
              "walls": [], "cpus": []}]
     procs = []
     try:
-        for kind, address, sides, pinned in variants("case"):
-            proc = start_kit(address, sides, "pytest_avscenario.stack.autopilot")
+        for kind, address, sides, pinned, spin in variants("case"):
+            proc = start_kit(address, sides, "pytest_avscenario.stack.autopilot", spin)
             procs.append(proc)
             if pinned:
                 pin(proc.pid, {0})
             channel_for(address, sides)
             runs.append({"kind": kind, "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
-                         "pid": proc.pid, "pinned": pinned, "walls": [], "cpus": []})
+                         "pid": proc.pid, "pinned": pinned, "walls": [], "cpus": [], "spin": spin})
         runs.append({"kind": "constant command in process", "driver": lambda: (lambda obs: CONSTANT),
                      "pid": None, "pinned": False, "walls": [], "cpus": []})
         address = _addresses("case-minimal")["ipc"]
-        proc = _start(["-c", MINIMAL_STACK % (CONSTANT,), address])
+        proc = _start(["-c", MINIMAL_STACK % (CONSTANT,), address],
+                      {wire.SPIN_ENV: f"{client.auto_spin_s(1) * 1e6:g}"})
         procs.append(proc)
         channel_for(address, "zmtp")
         runs.append({"kind": MINIMAL,
                      "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
-                     "pid": proc.pid, "pinned": False, "walls": [], "cpus": []})
+                     "pid": proc.pid, "pinned": False, "walls": [], "cpus": [],
+                     "spin": client.auto_spin_s(1)})
         for i in range(repeats + 2):
             for r in runs[i % len(runs):] + runs[:i % len(runs)]:  # rotated, as in bench_step
                 if r["pinned"]:
                     pin(os.getpid(), {0})
+                client.configure(spin_s=r.get("spin", 0.0))  # a new connection takes it
                 w = following(r["driver"]())
                 with Meter(r["pid"]) as m:
                     w.run(seconds=12)
@@ -602,6 +615,11 @@ def main() -> None:
     print(f"GOAL the following case over ipc <= {GOAL_CASE_RATIO:g}x in process: "
           f"{there / here:.2f}x wall {verdict(there / here <= GOAL_CASE_RATIO)}; "
           f"{there_cpu / here_cpu:.2f}x CPU {verdict(there_cpu / here_cpu <= GOAL_CASE_RATIO)}")
+    wall, cpu = step["ipc, no spin"]
+    there, there_cpu = case["ipc, no spin"]
+    print(f"     (without the spin, both sides blocking at once: a step {wall:.1f} µs wall "
+          f"{verdict(wall <= GOAL_STEP_US)}, {cpu:.1f} µs CPU; the case {there / here:.2f}x wall "
+          f"{verdict(there / here <= GOAL_CASE_RATIO)}, {there_cpu / here_cpu:.2f}x CPU)")
     wall, cpu = step["ipc, libzmq both sides (before)"]
     there, there_cpu = case["ipc, libzmq both sides (before)"]
     print(f"     (libzmq on both sides, as before stack/zmtp.py: a step {wall:.1f} µs wall, "

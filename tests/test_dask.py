@@ -455,3 +455,20 @@ def test_an_active_campaign_on_the_cluster_is_the_local_campaign_case_by_case(py
     assert len(rows[0]) == 8 and all(len(ps) == len(keep) for _, ps in rows[0]), rows[0]
     assert len({dict(ps)["avs.params"] for _, ps in rows[0]}) > 1  # the bandit moved
     assert rows[1] == rows[0]
+
+
+def test_a_worker_takes_the_runs_stack_settings_with_the_spec(tmp_path, monkeypatch):
+    """--avs-stack-timeout and --avs-stack-spin reach the process that runs the case."""
+    from pytest_avscenario.stack import client
+
+    monkeypatch.setattr(client, "_settings", {"timeout_s": 5.0, "spin_s": None})
+    module = tmp_path / "test_m.py"
+    module.write_text("def test_x(case):\n    pass\n")
+    spec = remote.TestSpec(str(module), str(tmp_path), "test_x", ("case",), None, None,
+                           stack={"timeout_s": 17.0, "spin_s": 0.0})
+    data = remote.pack_spec(spec)
+    fields = remote.CaseFields(nodeid="test_m.py::test_x[halton-000]", params={}, index=0, seed=1,
+                               sampler="halton", origin="sampled", test="test_m.py::test_x")
+    outcome = remote.run_remote(data, remote.spec_digest(data), str(module), str(tmp_path), fields)
+    assert outcome.error is None, outcome.error
+    assert client._settings == {"timeout_s": 17.0, "spin_s": 0.0}

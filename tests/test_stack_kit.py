@@ -102,15 +102,22 @@ def test_a_campaign_gives_the_same_verdicts_served_as_in_process(pytester):
               "--avs-shrink-budget=0", "--avs-reference-driver=none", "--avs-gifs=0",
               "--avs-case-pictures=0", "-p", "no:xdist", "-p", "no:cacheprovider"]
     rows = {}
-    for name, driver in (("here", "autopilot"),
-                         ("served", f"osi+spawn:{sys.executable} -m pytest_avscenario.stack.autopilot")):
+    served = f"osi+spawn:{sys.executable} -m pytest_avscenario.stack.autopilot"
+    # served with both sides blocking, and with both spinning before they block (the
+    # plugin's wait and the kit's, which the plugin hands the spin): the same cases
+    for name, driver, spin in (("here", "autopilot", "0"), ("served", served, "0"),
+                               ("spinning", served, "300")):
         start = time.monotonic()
-        result = pytester.runpytest(f"--avs-driver={driver}", f"--avs-report={name}", *common)
+        result = pytester.runpytest(f"--avs-driver={driver}", f"--avs-report={name}",
+                                    f"--avs-stack-spin={spin}", *common)
         assert result.ret in (0, 1), result.stdout.str()[-2000:]
         assert time.monotonic() - start < 60
         rows[name] = [json.loads(line) for line in
                       (pytester.path / name / "errors.jsonl").read_text().splitlines()]
-    assert len(rows["here"]) == len(rows["served"]) == 4
+    assert len(rows["here"]) == len(rows["served"]) == len(rows["spinning"]) == 4
+    for a, b in zip(rows["served"], rows["spinning"]):  # bit for bit: the same exchanges
+        assert (a["item"], a["params"], a["verdict"], a["error"], a["rho"]) == \
+            (b["item"], b["params"], b["verdict"], b["error"], b["rho"])
     for a, b in zip(rows["here"], rows["served"]):
         assert (a["item"], a["params"], a["verdict"], a["error"]) == \
             (b["item"], b["params"], b["verdict"], b["error"])

@@ -437,3 +437,89 @@ def test_the_kit_sees_a_map_lane_s_width_where_the_ego_is():
     s, here, served = np.array(seen).T
     assert here[-1] > here[0] + 3.0
     assert np.abs(served - here).max() < 1e-3
+
+
+# -- waiting: --avs-stack-spin ------------------------------------------------------------------
+@pytest.mark.parametrize("cpus, workers, spins", [(2, None, True), (2, "2", False), (4, "2", True),
+                                                   (1, None, False), (8, "3", True), (8, "5", False)])
+def test_auto_spins_only_with_two_cpus_for_each_process_running_cases(monkeypatch, cpus, workers, spins):
+    monkeypatch.setattr(client.os, "sched_getaffinity", lambda pid: set(range(cpus)))
+    if workers is None:
+        monkeypatch.delenv("PYTEST_XDIST_WORKER_COUNT", raising=False)
+    else:
+        monkeypatch.setenv("PYTEST_XDIST_WORKER_COUNT", workers)
+    assert client.auto_spin_s() == (client.AUTO_SPIN_S if spins else 0.0)
+
+
+def test_a_dask_worker_gets_the_stack_settings_of_the_run(monkeypatch):
+    """--avs-stack-timeout and the spin travel with the test's spec: a local cluster's
+    workers share this machine (auto decides by their number), a remote one's do not spin."""
+    monkeypatch.setattr(client.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    monkeypatch.setattr(client, "_settings", {"timeout_s": 12.5, "spin_s": None})
+    assert client.settings_for(2) == {"timeout_s": 12.5, "spin_s": client.AUTO_SPIN_S}
+    assert client.settings_for(3) == {"timeout_s": 12.5, "spin_s": 0.0}
+    assert client.settings_for(None) == {"timeout_s": 12.5, "spin_s": 0.0}
+    client.configure(spin_s=50e-6)
+    assert client.settings_for(None) == {"timeout_s": 12.5, "spin_s": 50e-6}
+
+
+@pytest.mark.parametrize("value", ["abc", "-1", "2000000", "nan"])
+def test_a_bad_stack_spin_is_refused_at_start_up(pytester, value):
+    pytester.makepyfile(test_raw=SCENARIO)
+    result = pytester.runpytest(f"--avs-stack-spin={value}", "-p", "no:xdist")
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--avs-stack-spin: stack_spin must be 'auto' or a number of "
+                                 "microseconds from 0 to 1000000*"])
+
+
+def test_a_spawned_stack_is_handed_the_spin_and_the_kit_takes_it(pytester):
+    """osi+spawn: puts the run's spin into $AVS_OSI_SPIN_US; the kit's serve() reads it."""
+    pytester.makepyfile(test_raw=SCENARIO)
+    pytester.path.joinpath("stack.py").write_text(
+        "import os, sys\n"
+        "from pytest_avscenario.stack import kit, zmtp\n"
+        "made = []\n"
+        "class Seen(zmtp.Replier):\n"
+        "    def __init__(self, *a, **k):\n"
+        "        super().__init__(*a, **k)\n"
+        "        made.append(self.spin_s)\n"
+        "        open(sys.argv[1], 'a').write(f\"{os.environ.get('AVS_OSI_SPIN_US')} {self.spin_s!r}\\n\")\n"
+        "zmtp.Replier = Seen\n"
+        "kit.serve('autopilot', os.environ['AVS_OSI_ADDRESS'])\n")
+    seen = pytester.path / "seen.txt"
+    result = pytester.runpytest(f"--avs-driver=osi+spawn:{sys.executable} stack.py {seen}",
+                                "--avs-stack-spin=250", "--avs-db=none", "--avs-report=none",
+                                "--avs-shrink-budget=0", "-p", "no:xdist", "-p", "no:cacheprovider")
+    assert result.ret in (0, 1), result.stdout.str()[-2000:]
+    assert seen.read_text().split() == ["250", "0.00025"]
+
+
+def test_a_spinning_wait_still_ends_at_its_deadline(tmp_path):
+    """The spin is bounded by the wait's deadline: a stack that never answers is still a
+    timeout at the deadline, and a REP with nothing to read still returns at its timeout."""
+    import threading
+    import time
+    from pytest_avscenario.stack import zmtp
+
+    address = f"ipc://{tmp_path}/spin.sock"
+    rep = zmtp.Replier(address, spin_s=30.0)
+    got: list = []
+    server = threading.Thread(target=lambda: got.append(rep.receive(timeout_s=20)))
+    server.start()  # greets the requester, reads its request and never answers
+    req = zmtp.Requester(address, spin_s=30.0)
+    try:
+        assert req.connect(time.monotonic() + 10)
+        req.send([b"hello"])
+        start = time.monotonic()
+        with pytest.raises(TimeoutError):
+            req.receive(time.monotonic() + 0.2)
+        assert time.monotonic() - start < 10  # the deadline, not the 30-s spin
+        server.join(20)
+        assert got == [[b"hello"]]
+        start = time.monotonic()
+        assert rep.receive(timeout_s=0.2) is None
+        assert time.monotonic() - start < 10
+    finally:
+        req.close()
+        server.join(20)
+        rep.close()

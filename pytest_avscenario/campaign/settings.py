@@ -108,6 +108,19 @@ def _positive_seconds(raw: Any) -> float:
     return value
 
 
+def _spin(raw: Any) -> str | float:
+    if str(raw).strip().lower() == "auto":
+        return "auto"
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        value = math.nan
+    if isinstance(raw, bool) or not math.isfinite(value) or not 0 <= value <= 1e6:
+        raise ValueError(f"must be 'auto' or a number of microseconds from 0 to 1000000, "
+                         f"got {_show(raw)}")
+    return value
+
+
 def _export(raw: Any) -> int | str:
     value = str(raw).strip().lower()
     if value in ("all", "none"):
@@ -299,6 +312,14 @@ OPTIONS = (
            "step before the case is an error (default 5)",
            "seconds an OSI stack may take to answer one step (default 5)",
            _positive_seconds),
+    Option("stack-spin", "auto|MICROSECONDS",
+           "how long each wait for a stack out of process's answer keeps the CPU (polling, "
+           "yielding to other work) before it blocks, and so does a kit the plugin spawns "
+           "waiting for the next request: 'auto' (default) is 300 when this machine has at "
+           "least two CPUs for each process running cases, else 0; 0 never spins",
+           "microseconds a wait for an OSI stack spins before it blocks (auto: 300 when there "
+           "are two CPUs a process running cases, else 0)",
+           _spin),
     Option("dt", "SECONDS|auto",
            "simulation step of world.run() calls that give no dt=: 'auto' (default) is the "
            "step the ego's driver declares (a highway-env agent or sb3:PATH@ENV: its "

@@ -36,6 +36,7 @@ import itertools
 import json
 import logging
 import os
+import sys
 import time
 from concurrent.futures import CancelledError
 from dataclasses import dataclass
@@ -171,6 +172,17 @@ class DaskExecutor(Executor):
                     workers=[worker], allow_other_workers=False, priority=_URGENT + 1))
         except Exception:  # only a head start: cases import what they need anyway
             pass
+
+    def _stack_settings(self) -> dict | None:
+        """The stack settings the workers take (``--avs-stack-timeout``, ``--avs-stack-spin``)
+        when a stack out of process is in use here (its client module loaded: a driver spec
+        resolved at start-up, or an ``OSIStack`` made by the test or its conftest)."""
+        client = sys.modules.get("pytest_avscenario.stack.client")
+        if client is None:
+            return None
+        # a local cluster's workers share this machine; a remote one's are not known
+        return client.settings_for(None if self.address is not None
+                                   else (self.n_workers or self._cores()))
 
     @staticmethod
     def _cores() -> int:
@@ -316,7 +328,8 @@ class DaskExecutor(Executor):
         if hit is None:
             spec = TestSpec(module_path=job.module_path, rootdir=job.rootdir, function=job.function,
                             argnames=tuple(job.argnames), monitor_set=job.monitor_set,
-                            driver=job.driver, dt=job.world_dt, dt_from=job.world_dt_from)
+                            driver=job.driver, dt=job.world_dt, dt_from=job.world_dt_from,
+                            stack=self._stack_settings())
             data = pack_spec(spec)
             hit = (data, spec_digest(data))
             if isinstance(cache_key[-1], (str, type(None))):  # objects may die and reuse their id

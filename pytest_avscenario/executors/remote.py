@@ -53,6 +53,8 @@ class TestSpec:
     driver: Any
     dt: float | None = None  # [s] the world's step setting (None: the driver's own step)
     dt_from: str = ""
+    # a stack out of process's settings (stack.client.settings_for), when this run uses one
+    stack: dict | None = None
 
 
 @dataclass
@@ -126,6 +128,10 @@ def run_remote(spec_bytes: bytes, digest: str, module_path: str, rootdir: str,
         return CaseOutcome(params=dict(fields.params), verdict="error", worker_pid=os.getpid(),
                            error=(f"{fields.nodeid} requests {', '.join(unknown)}: only "
                                   "case, world and avs_driver exist on a remote worker"))
+    if spec.stack:
+        from ..stack.client import configure
+
+        configure(**spec.stack)  # --avs-stack-timeout and --avs-stack-spin, as on the client
     case = Case(fields.params, index=fields.index, seed=fields.seed, sampler=fields.sampler,
                 origin=fields.origin, test=fields.test)
     driver, nodeid = spec.driver, fields.nodeid

@@ -11,6 +11,7 @@ path relative to the ini file, xdist's ``-n``, the cached seed) is checked here.
 from __future__ import annotations
 
 import secrets
+import sys
 from typing import Any, Mapping
 
 import pytest
@@ -147,10 +148,14 @@ def read_settings(config: pytest.Config) -> Settings:
             f"{found['driver'].source}: {driver!r} is one stack for one process, but "
             f"{'--avs-executor=dask' if executor == 'dask' else 'pytest-xdist (-n)'} runs cases "
             "in several: use 'osi+spawn:COMMAND' (a stack per process) or run them in one")
-    if "stack_timeout" in found:
-        from ..stack.client import configure
+    if "stack_timeout" in found or "stack_spin" in found \
+            or "pytest_avscenario.stack.client" in sys.modules:
+        # every run sets both (a second run in this process must not keep the first's)
+        from ..stack.client import DEFAULT_TIMEOUT_S, configure
 
-        configure(timeout_s=value("stack_timeout"))
+        spin = value("stack_spin", "auto")
+        configure(timeout_s=value("stack_timeout", DEFAULT_TIMEOUT_S),
+                  spin_s=spin if spin == "auto" else spin * 1e-6)
     _imported_driver(found.get("driver"))
     if value("export") not in (None, "none"):
         _export_installed(found["export"])

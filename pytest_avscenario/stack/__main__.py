@@ -22,10 +22,15 @@ def main(argv: list[str] | None = None, default_driver: str = "autopilot") -> in
     p.add_argument("--answer", default="desired_state", choices=["desired_state", "trajectory"],
                    help="the MotionRequest sent: a desired state one step ahead (default) or a "
                         "desired trajectory")
+    p.add_argument("--spin", type=float, default=None, metavar="US",
+                   help="microseconds each wait for a request keeps the CPU before it blocks "
+                        "(default $AVS_OSI_SPIN_US, which --avs-driver osi+spawn: sets, else 0)")
     args = p.parse_args(argv)
+    if args.spin is not None and not 0 <= args.spin < float("inf"):
+        p.error(f"--spin {args.spin:g}: a number of microseconds >= 0")
     if not args.address:
         p.error("give an ADDRESS or set AVS_OSI_ADDRESS")
-    serve(args.driver, args.address, answer=args.answer)
+    serve(args.driver, args.address, answer=args.answer, spin_us=args.spin)
     return 0
 
 

@@ -40,14 +40,59 @@ DEFAULT_TIMEOUT_S = 5.0  # [s] per exchange; --avs-stack-timeout sets it (see co
 STARTUP_TIMEOUT_S = 60.0  # [s] for a spawned stack's first answer (its imports)
 _POLL_S = 0.05  # [s] how often a spawned stack's process is checked while it is awaited
 
-_settings = {"timeout_s": DEFAULT_TIMEOUT_S}
+#: [s] how long a wait for the next message spins before it blocks under ``--avs-stack-spin
+#: auto`` when the machine has a CPU to spare for it (see :func:`auto_spin_s`)
+AUTO_SPIN_S = 300e-6
+
+# the process's settings: timeout [s]; spin [s], None until decided ("auto")
+_settings: dict[str, Any] = {"timeout_s": DEFAULT_TIMEOUT_S, "spin_s": None}
 
 
-def configure(timeout_s: float | None = None) -> None:
+def configure(timeout_s: float | None = None, spin_s: float | str | None = None) -> None:
     """Set the process-wide default per-exchange timeout [s] (the plugin's
-    ``--avs-stack-timeout``); an ``OSIStack(timeout_s=...)`` given one keeps its own."""
+    ``--avs-stack-timeout``; an ``OSIStack(timeout_s=...)`` given one keeps its own) and the
+    spin before each blocking wait [s] (``--avs-stack-spin``; ``"auto"``: :func:`auto_spin_s`,
+    decided at the first exchange)."""
     if timeout_s is not None:
         _settings["timeout_s"] = float(timeout_s)
+    if spin_s is not None:
+        _settings["spin_s"] = None if spin_s == "auto" else float(spin_s)
+
+
+def auto_spin_s(processes: int | None = None) -> float:
+    """The spin of ``--avs-stack-spin auto``: :data:`AUTO_SPIN_S` when the CPUs this process
+    may run on are at least twice the processes that run cases at once (each with a stack
+    beside it, each side spinning while the other works), else 0 — a spinning process would
+    take the CPU its own stack or another worker needs. ``processes``: by default the
+    pytest-xdist workers of this run (``PYTEST_XDIST_WORKER_COUNT``), else 1."""
+    if processes is None:
+        try:
+            processes = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+        except ValueError:
+            processes = 1
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cpus = os.cpu_count() or 1
+    return AUTO_SPIN_S if cpus >= 2 * processes else 0.0
+
+
+def spin_s() -> float:
+    """[s] this process's spin before each blocking wait for a stack's answer."""
+    value = _settings["spin_s"]
+    if value is None:
+        value = _settings["spin_s"] = auto_spin_s()
+    return value
+
+
+def settings_for(processes: int | None) -> dict[str, float]:
+    """This process's stack settings for :func:`configure` in another process that runs its
+    cases (a Dask worker), one of ``processes`` running cases at once on its machine (None:
+    not known, e.g. a remote cluster: ``auto`` does not spin there)."""
+    value = _settings["spin_s"]
+    if value is None:
+        value = 0.0 if processes is None else auto_spin_s(processes)
+    return {"timeout_s": _settings["timeout_s"], "spin_s": value}
 
 
 @dataclass(frozen=True)
@@ -163,7 +208,7 @@ class _Channel:
                     raise _Gone(why)
 
     def _connect(self, deadline: float, alive: Any) -> None:
-        req = zmtp.Requester(self.address)
+        req = zmtp.Requester(self.address, spin_s=spin_s())
         next_check = time.monotonic() + _POLL_S
         while not req.connect(deadline):
             now = time.monotonic()
@@ -216,6 +261,7 @@ class _Spawned:
         self.log_path = f"{folder}/avs-osi-{os.getpid()}-{id(self):x}-{self.starts}.log"
         args = shlex.split(self.command.replace("{address}", self.address))
         env = dict(os.environ, AVS_OSI_ADDRESS=self.address)
+        env[wire.SPIN_ENV] = f"{spin_s() * 1e6:g}"
         with open(self.log_path, "wb") as log:
             try:
                 self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=log,

@@ -380,22 +380,38 @@ def handle(frames: list[bytes], session: Session | None, policy: Any,
         return wire.pack(wire.ERROR, f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"), session
 
 
+def _spin_from_env() -> float:
+    """[µs] the spin a spawning plugin handed over (``wire.SPIN_ENV``), else 0."""
+    raw = os.environ.get(wire.SPIN_ENV, "")
+    try:
+        value = float(raw) if raw else 0.0
+    except ValueError:
+        value = 0.0
+    return value if 0 <= value < float("inf") else 0.0
+
+
 def serve(policy: Any, address: str, *, answer: str = "desired_state",
-          requests: int | None = None) -> None:
+          requests: int | None = None, spin_us: float | None = None) -> None:
     """Answer the plugin at ``address`` (``tcp://…`` or ``ipc://…``, bound here) with
     ``policy``: anything ``world.ego(driver=...)`` accepts that answers ``act(observation)``
     (a name such as ``"autopilot"``, an object with ``act``, a callable). ``answer`` is the
     MotionRequest sent: ``"desired_state"`` (one step ahead: the plugin applies the driver's
     command exactly) or ``"trajectory"`` (where the command held for ten steps takes the ego:
-    the plugin's trajectory controller follows it). Runs until the process is stopped (or
-    after ``requests`` requests, for tests)."""
+    the plugin's trajectory controller follows it). ``spin_us``: how long each wait for a
+    request keeps the CPU before it blocks [µs]; by default what a plugin that spawned this
+    stack hands it (``$AVS_OSI_SPIN_US``, from ``--avs-stack-spin``), else 0. Runs until the
+    process is stopped (or after ``requests`` requests, for tests)."""
     from .zmtp import Replier
 
     if answer not in ANSWERS:
         raise ValueError(f"serve(answer={answer!r}): use one of {', '.join(ANSWERS)}")
+    if spin_us is None:
+        spin_us = _spin_from_env()
+    if not (isinstance(spin_us, (int, float)) and 0 <= spin_us < float("inf")):
+        raise ValueError(f"serve(spin_us={spin_us!r}): a number of microseconds >= 0")
 
     # ZeroMQ's REP spoken on the socket itself (.zmtp): no I/O thread to wake each way
-    sock = Replier(address)
+    sock = Replier(address, spin_s=spin_us * 1e-6)
     session = None
     n = 0
     # a stack the plugin spawned (it hands the address in AVS_OSI_ADDRESS) ends with the

@@ -24,6 +24,10 @@ __all__ = ["PROTOCOL", "REVISION", "ProtocolError", "ns", "timestamp_ns", "set_t
 PROTOCOL = b"avs-osi/1"
 REVISION = 2  # the protocol's own revision, checked in the handshake (2: lanes in the first
 #              SensorView after a Reset only)
+#: the environment variable in which ``osi+spawn:`` hands the stack it starts the plugin's
+#: spin [µs] (``--avs-stack-spin``): the kit spins as long waiting for each request; any
+#: other stack may ignore it (docs/osi-protocol.md, "Waiting")
+SPIN_ENV = "AVS_OSI_SPIN_US"
 
 #: message kinds (the second frame)
 RESET, READY, SENSOR_VIEW, TRAFFIC_UPDATE, MOTION_REQUEST, ERROR = (

@@ -25,6 +25,7 @@ import select
 import socket
 import struct
 import time
+from typing import Any
 
 __all__ = ["Requester", "Replier", "ZMTPError", "Closed", "open_address"]
 
@@ -130,6 +131,22 @@ def _host_port(address: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
+def _spin(poll: Any, until: float) -> None:
+    """Wait for input without giving the CPU up: ``poll(0)`` until it reports something or
+    the monotonic clock passes ``until``, yielding to any other runnable thread between looks
+    (so a process that shares this CPU runs at once). Then the caller's blocking wait returns
+    at once or waits as usual.
+
+    Why: on a machine whose idle CPUs halt (a virtual machine's vCPU given back to its host), a
+    process that blocks resumes slowly and cold; in lockstep each side blocks once a step.
+    A bounded spin keeps the CPU while the answer is due (bench/README.md)."""
+    now, yield_ = time.monotonic, os.sched_yield
+    while now() < until:
+        if poll(0):
+            return
+        yield_()
+
+
 class _Connection:
     """One greeted ZMTP connection: whole messages in, whole messages out."""
 
@@ -145,6 +162,7 @@ class _Connection:
         self.greeted = False
         self.peer_type = b""
         self.local = sock.family == socket.AF_UNIX  # ipc://
+        self.spin_s = 0.0  # [s] how long a wait with a deadline spins before it blocks (_spin)
         self._poll = select.poll()
         self._poll.register(self.fd, select.POLLIN)
 
@@ -161,6 +179,8 @@ class _Connection:
         message it has begun arrives). ``TimeoutError`` when nothing came, :class:`Closed` on
         EOF."""
         if deadline is not None:
+            if self.spin_s:
+                _spin(self._poll.poll, min(deadline, time.monotonic() + self.spin_s))
             while True:
                 left = deadline - time.monotonic()
                 if left <= 0:
@@ -346,8 +366,9 @@ class Requester:
     envelope). :meth:`connect`, :meth:`send` and :meth:`receive` are its steps for callers
     that check something between waits (the plugin watches a spawned stack's process)."""
 
-    def __init__(self, address: str) -> None:
+    def __init__(self, address: str, spin_s: float = 0.0) -> None:
         self.address = address
+        self.spin_s = spin_s  # [s] each wait for an answer spins this long before it blocks
         self.conn: _Connection | None = None
 
     def connect(self, deadline: float) -> bool:
@@ -370,6 +391,7 @@ class Requester:
         except BaseException:
             conn.close()
             raise
+        conn.spin_s = self.spin_s
         self.conn = conn
         return True
 
@@ -420,9 +442,10 @@ class Replier:
     a time, each answer to the peer that asked. ``ipc://`` paths are replaced if a file is
     in the way, as libzmq does."""
 
-    def __init__(self, address: str, handshake_timeout_s: float = 5.0) -> None:
+    def __init__(self, address: str, handshake_timeout_s: float = 5.0, spin_s: float = 0.0) -> None:
         self.address = address
         self.handshake_timeout_s = handshake_timeout_s
+        self.spin_s = spin_s  # [s] each wait for a request spins this long before it blocks
         if address.startswith("ipc://"):
             path = _ipc_path(address)
             if not path.startswith("\0"):
@@ -460,6 +483,9 @@ class Replier:
                 if got is not None:
                     return got
         poll, listen_fd = self.poller.poll, self._listen_fd
+        if self.spin_s:
+            until = time.monotonic() + self.spin_s
+            _spin(poll, until if deadline is None else min(deadline, until))
         while True:
             ms = -1 if deadline is None else max(0, int((deadline - time.monotonic()) * 1000 + 0.999))
             events = poll(ms)
