@@ -522,7 +522,7 @@ def bench_case(repeats: int) -> dict:
             here, here_cpu = out["constant command in process"]
         if kind in ("in process", "constant command in process"):
             if kind != "in process":
-                print(f"   {kind}: {here * 1e3:6.1f} ms wall, {here_cpu * 1e3:.1f} ms CPU per case")
+                print(f"   {kind}: {there * 1e3:6.1f} ms wall, {there_cpu * 1e3:.1f} ms CPU per case")
             continue
         print(f"   served over {kind}: {there * 1e3:6.1f} ms wall = {there / here:.2f}x in process "
               f"(+{(there - here) / 120 * 1e6:.0f} µs a step); CPU of both processes "
