@@ -17,10 +17,9 @@ per transport, default 2000). All in one run, each against a process of its own:
    pytest_avscenario.stack``, run as a spawned stack is) turns it into the Observation,
    asks the autopilot and answers a MotionRequest, the plugin decodes it into (acceleration,
    steering). Against the same observe + autopilot in process. Variants, interleaved in
-   chunks: ipc and tcp as the plugin runs them serially here (ZMTP on the socket both sides,
-   each wait spinning as ``--avs-stack-spin auto`` decides for one process on this machine),
-   ipc with both sides blocking at once (``--avs-stack-spin 0``: as under ``-n 2`` on two
-   CPUs), ipc with libzmq on both sides (the plugin's and the kit's sockets before ``zmtp``:
+   chunks: ipc and tcp as the plugin runs them (ZMTP on the socket both sides, each wait
+   blocking at once: the default), ipc with both sides spinning before they block
+   (``--avs-stack-spin auto`` for one process on this machine), ipc with libzmq on both sides (the plugin's and the kit's sockets before ``zmtp``:
    the A/B anchor), ipc to a kit on a libzmq REP (what a stack written with libzmq costs),
    and ipc with every thread of both processes on CPU 0 (no spin: ``auto`` on one CPU).
 2. Per case: the vehicle-following case of example_tests/test_02 (nominal parameters, 12 s
@@ -29,8 +28,8 @@ per transport, default 2000). All in one run, each against a process of its own:
    median per case over repeats after a warm-up. And the least a second process costs
    whatever the stack: the same case with a constant command (-1 m/s², straight), in
    process and served over ipc by a minimal stack (the SensorView parsed, the host's state
-   read, one kept MotionRequest overwritten; no Observation, no driver); the two
-   trajectories are identical.
+   read, one kept MotionRequest overwritten; no Observation, no driver), blocking and
+   spinning; the trajectories are identical.
 3. The protocol's own work in this process, CPU per call in a hot loop: the SensorView built
    afresh and kept (``frame.SensorViews``), the kit's answer, the decode, against observe +
    autopilot in process; and ZMTP's framing of a request and its answer on both sides (a
@@ -138,6 +137,8 @@ while True:
 """
 CONSTANT = (-1.0, 0.0)  # [m/s², rad] the minimal stack's command
 MINIMAL = "ipc by a minimal stack (the constant command)"
+MINIMAL_SPUN = MINIMAL + ", spinning"
+SPUN = "ipc, spinning (--avs-stack-spin auto)"
 SPIN_S = 200e-6  # [s] the bounded spin of section 0
 
 
@@ -243,14 +244,13 @@ def variants(tag: str) -> list[tuple[str, str, str, bool, float]]:
     """(label, address, sides, pinned, spin) of sections 1 and 2: ``sides`` is "zmtp" (the
     plugin and the kit as they run), "libzmq" (both on libzmq REQ/REP: before stack/zmtp.py)
     or "libzmq stack" (the plugin's ZMTP to the kit's loop on a libzmq REP); ``spin`` [s] is
-    the wait's spin on both sides (``--avs-stack-spin``): what ``auto`` gives on this machine
-    for a serial run (the plugin's default), or none."""
+    the wait's spin on both sides (``--avs-stack-spin``): none (the default), or what
+    ``auto`` gives on this machine for a serial run."""
     a = _addresses(tag)
-    auto = client.auto_spin_s(1)
-    return [("ipc", a["ipc"], "zmtp", False, auto), ("tcp", a["tcp"], "zmtp", False, auto),
-            ("ipc, no spin", _addresses(tag + "-block")["ipc"], "zmtp", False, 0.0),
+    return [("ipc", a["ipc"], "zmtp", False, 0.0), ("tcp", a["tcp"], "zmtp", False, 0.0),
+            (SPUN, _addresses(tag + "-spin")["ipc"], "zmtp", False, client.auto_spin_s(1)),
             ("ipc, libzmq both sides (before)", _addresses(tag + "-libzmq")["ipc"], "libzmq", False, 0.0),
-            ("ipc, libzmq stack", _addresses(tag + "-mixed")["ipc"], "libzmq stack", False, auto),
+            ("ipc, libzmq stack", _addresses(tag + "-mixed")["ipc"], "libzmq stack", False, 0.0),
             ("ipc, one CPU", _addresses(tag + "-pinned")["ipc"], "zmtp", True, 0.0)]
 
 
@@ -486,15 +486,13 @@ def bench_case(repeats: int) -> dict:
                          "pid": proc.pid, "pinned": pinned, "walls": [], "cpus": [], "spin": spin})
         runs.append({"kind": "constant command in process", "driver": lambda: (lambda obs: CONSTANT),
                      "pid": None, "pinned": False, "walls": [], "cpus": []})
-        address = _addresses("case-minimal")["ipc"]
-        proc = _start(["-c", MINIMAL_STACK % (CONSTANT,), address],
-                      {wire.SPIN_ENV: f"{client.auto_spin_s(1) * 1e6:g}"})
-        procs.append(proc)
-        channel_for(address, "zmtp")
-        runs.append({"kind": MINIMAL,
-                     "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
-                     "pid": proc.pid, "pinned": False, "walls": [], "cpus": [],
-                     "spin": client.auto_spin_s(1)})
+        for kind, spin in ((MINIMAL, 0.0), (MINIMAL_SPUN, client.auto_spin_s(1))):
+            address = _addresses("case-minimal")["ipc"]
+            proc = _start(["-c", MINIMAL_STACK % (CONSTANT,), address], {wire.SPIN_ENV: f"{spin * 1e6:g}"})
+            procs.append(proc)
+            channel_for(address, "zmtp")
+            runs.append({"kind": kind, "driver": (lambda a=address: OSIStack(a, timeout_s=60)),
+                         "pid": proc.pid, "pinned": False, "walls": [], "cpus": [], "spin": spin})
         for i in range(repeats + 2):
             for r in runs[i % len(runs):] + runs[:i % len(runs)]:  # rotated, as in bench_step
                 if r["pinned"]:
@@ -518,7 +516,7 @@ def bench_case(repeats: int) -> dict:
     here, here_cpu = out["in process"]
     print(f"   in process: {here * 1e3:6.1f} ms wall, {here_cpu * 1e3:.1f} ms CPU per case")
     for kind, (there, there_cpu) in out.items():
-        if kind == MINIMAL:
+        if kind in (MINIMAL, MINIMAL_SPUN):
             here, here_cpu = out["constant command in process"]
         if kind in ("in process", "constant command in process"):
             if kind != "in process":
@@ -615,9 +613,9 @@ def main() -> None:
     print(f"GOAL the following case over ipc <= {GOAL_CASE_RATIO:g}x in process: "
           f"{there / here:.2f}x wall {verdict(there / here <= GOAL_CASE_RATIO)}; "
           f"{there_cpu / here_cpu:.2f}x CPU {verdict(there_cpu / here_cpu <= GOAL_CASE_RATIO)}")
-    wall, cpu = step["ipc, no spin"]
-    there, there_cpu = case["ipc, no spin"]
-    print(f"     (without the spin, both sides blocking at once: a step {wall:.1f} µs wall "
+    wall, cpu = step[SPUN]
+    there, there_cpu = case[SPUN]
+    print(f"     (with --avs-stack-spin auto, both sides spinning before they block: a step {wall:.1f} µs wall "
           f"{verdict(wall <= GOAL_STEP_US)}, {cpu:.1f} µs CPU; the case {there / here:.2f}x wall "
           f"{verdict(there / here <= GOAL_CASE_RATIO)}, {there_cpu / here_cpu:.2f}x CPU)")
     wall, cpu = step["ipc, libzmq both sides (before)"]
@@ -630,9 +628,10 @@ def main() -> None:
           f"{verdict(wall <= GOAL_STEP_US)}, {cpu:.1f} µs CPU; the case {there / here:.2f}x wall "
           f"{verdict(there / here <= GOAL_CASE_RATIO)}, {there_cpu / here_cpu:.2f}x CPU)")
     (here, here_cpu), (there, there_cpu) = case["constant command in process"], case[MINIMAL]
+    spun, spun_cpu = case[MINIMAL_SPUN]
     print(f"     (the least a second process costs, whatever the stack: a constant command served "
           f"by a minimal stack {there / here:.2f}x wall, {there_cpu / here_cpu:.2f}x CPU the "
-          f"same command in process)")
+          f"same command in process; spinning {spun / here:.2f}x wall, {spun_cpu / here_cpu:.2f}x CPU)")
 
 
 if __name__ == "__main__":

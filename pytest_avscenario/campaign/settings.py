@@ -315,10 +315,11 @@ OPTIONS = (
     Option("stack-spin", "auto|MICROSECONDS",
            "how long each wait for a stack out of process's answer keeps the CPU (polling, "
            "yielding to other work) before it blocks, and so does a kit the plugin spawns "
-           "waiting for the next request: 'auto' (default) is 300 when this machine has at "
-           "least two CPUs for each process running cases, else 0; 0 never spins",
-           "microseconds a wait for an OSI stack spins before it blocks (auto: 300 when there "
-           "are two CPUs a process running cases, else 0)",
+           "waiting for the next request: 0 (default) blocks at once; 'auto' is 300 when this "
+           "machine has at least two CPUs for each process running cases, else 0. Pays only "
+           "where those CPUs are otherwise idle",
+           "microseconds a wait for an OSI stack spins before it blocks (default 0; auto: 300 "
+           "when there are two CPUs a process running cases, else 0)",
            _spin),
     Option("dt", "SECONDS|auto",
            "simulation step of world.run() calls that give no dt=: 'auto' (default) is the "

@@ -153,7 +153,7 @@ def read_settings(config: pytest.Config) -> Settings:
         # every run sets both (a second run in this process must not keep the first's)
         from ..stack.client import DEFAULT_TIMEOUT_S, configure
 
-        spin = value("stack_spin", "auto")
+        spin = value("stack_spin", 0.0)
         configure(timeout_s=value("stack_timeout", DEFAULT_TIMEOUT_S),
                   spin_s=spin if spin == "auto" else spin * 1e-6)
     _imported_driver(found.get("driver"))

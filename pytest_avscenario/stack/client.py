@@ -44,8 +44,9 @@ _POLL_S = 0.05  # [s] how often a spawned stack's process is checked while it is
 #: auto`` when the machine has a CPU to spare for it (see :func:`auto_spin_s`)
 AUTO_SPIN_S = 300e-6
 
-# the process's settings: timeout [s]; spin [s], None until decided ("auto")
-_settings: dict[str, Any] = {"timeout_s": DEFAULT_TIMEOUT_S, "spin_s": None}
+# the process's settings: timeout [s]; spin [s] (0: block at once, the default; None:
+# "auto", decided at the first exchange)
+_settings: dict[str, Any] = {"timeout_s": DEFAULT_TIMEOUT_S, "spin_s": 0.0}
 
 
 def configure(timeout_s: float | None = None, spin_s: float | str | None = None) -> None:
