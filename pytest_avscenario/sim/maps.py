@@ -151,6 +151,8 @@ def _shape_class() -> type:
                                       clen / self.length)
                 self._memo: tuple | None = None
                 self._grid: dict | None = None  # see _local_near: cells filled on first use
+                self._hints = (-1, -1)  # segments of recent feet, see _local_warm
+                self._clear: list | None = None  # see _turning, made on first use
                 # for what other modules compute from this lane alone (the autopilot's route
                 # samples): the lane never changes and is shared by every world on the map
                 self.memo: dict = {}
@@ -228,9 +230,129 @@ def _shape_class() -> type:
             def _local(self, px: float, py: float) -> tuple[float, float]:
                 # On each segment, the point of the centre line from which the position lies
                 # square to the reference line: f = (p - c_k).tau / (dc.tau); of the segments
-                # that hold it (0 <= f <= 1), the nearest. The block whose bounding circle is
-                # nearest is searched first, then only blocks that could hold a nearer foot:
-                # the same answer as a scan of every segment, whatever was asked before.
+                # that hold it (0 <= f <= 1), the nearest. First near a recent foot (see
+                # _local_warm), else the search below; the same answer whatever was asked
+                # before.
+                got = self._local_warm(px, py)
+                if got is None:
+                    got = self._local_search(px, py)
+                    k = bisect.bisect_right(self._ssl, got[0]) - 1
+                    self._hints = (min(max(k, 0), self._nseg - 1), self._hints[0])
+                return got
+
+            def _local_warm(self, px: float, py: float) -> tuple[float, float] | None:
+                # An agent moves less than a metre or two a step: its foot is on or near the
+                # segment k of a recent one (two are kept: two agents take turns on a lane).
+                # The foot on k at distance d is the answer when nothing else can be as near:
+                # the two segments touching k are measured, and everything else of the centre
+                # line (with the straight extensions past its ends) keeps at least clear[k]
+                # from segment k (see _turning), so more than d from the point when
+                # 2 d < clear[k]. None when no hint proves its answer (then the search).
+                clear = self._clear
+                if clear is None:
+                    clear = self._turning()
+                xl, yl, tx, ty = self._xl, self._yl, self._txl, self._tyl
+                along, dcx, dcy, sl = self._alongl, self._dcx, self._dcy, self._ssl
+                last = self._nseg - 1
+                hints = self._hints
+                for slot in (0, 1):
+                    k = hints[slot]
+                    if k < 0:
+                        continue
+                    ex, ey = px - xl[k], py - yl[k]
+                    f = (ex * tx[k] + ey * ty[k]) / along[k]
+                    if (f > 1.0 and k < last) or (f < 0.0 and k > 0):
+                        # moved on: the segment at the arc length the hint's line gives
+                        j = bisect.bisect_right(sl, sl[k] + f * (sl[k + 1] - sl[k])) - 1
+                        k = 0 if j < 0 else (last if j > last else j)
+                        ex, ey = px - xl[k], py - yl[k]
+                        f = (ex * tx[k] + ey * ty[k]) / along[k]
+                        if f > 1.0 and k < last:
+                            k += 1
+                        elif f < 0.0 and k > 0:
+                            k -= 1
+                        else:
+                            k = -1
+                        if k >= 0:
+                            ex, ey = px - xl[k], py - yl[k]
+                            f = (ex * tx[k] + ey * ty[k]) / along[k]
+                        else:
+                            k = j if 0 <= j <= last else (0 if j < 0 else last)
+                    if not 0.0 <= f <= 1.0:
+                        continue
+                    dx, dy = ex - f * dcx[k], ey - f * dcy[k]
+                    d2 = dx * dx + dy * dy
+                    c = clear[k]
+                    if 4.0 * d2 >= c * c or c <= 0.0:
+                        continue
+                    for j in (k - 1, k + 1):
+                        if not 0 <= j <= last:
+                            continue
+                        ex, ey = px - xl[j], py - yl[j]
+                        fj = (ex * tx[j] + ey * ty[j]) / along[j]
+                        ray = not 0.0 <= fj <= 1.0
+                        if ray and ((fj < 0.0 and j != 0) or (fj > 1.0 and j != last)):
+                            continue  # not held there
+                        ex, ey = ex - fj * dcx[j], ey - fj * dcy[j]
+                        dj = ex * ex + ey * ey
+                        if dj < d2 or (dj == d2 and j < k):
+                            if ray:  # past an end of the lane: the search's to answer
+                                return None
+                            d2, k, f, dx, dy = dj, j, fj, ex, ey
+                    if k != hints[0]:
+                        self._hints = (k, hints[1] if slot == 0 else hints[0])
+                    return sl[k] + f * (sl[k + 1] - sl[k]), tx[k] * dy - ty[k] * dx
+                return None
+
+            def _turning(self) -> list[float]:
+                # clear[k] [m]: how close anything of the centre line that does not touch
+                # segment k comes to it, from below. Segments of k's block and the blocks
+                # either side run, from k on, in directions within the spread of those
+                # blocks' directions (cos c), so their points lie at least c times the
+                # touching segment's length from k's; further blocks lie beyond their
+                # bounding circles, and the straight extensions before the first and past
+                # the last segment (when not within those blocks) beyond their distance from
+                # the circle of k's block. Less a micrometre for rounding; made on first use.
+                n = self._nseg
+                dcx, dcy = np.asarray(self._dcx), np.asarray(self._dcy)
+                ang = np.unwrap(np.arctan2(dcy, dcx))
+                starts = np.arange(0, n, _BLOCK)
+                nb = len(starts)
+                lo, hi = np.minimum.reduceat(ang, starts), np.maximum.reduceat(ang, starts)
+                lo3 = np.minimum(np.minimum(lo, np.r_[lo[:1], lo[:-1]]), np.r_[lo[1:], lo[-1:]])
+                hi3 = np.maximum(np.maximum(hi, np.r_[hi[:1], hi[:-1]]), np.r_[hi[1:], hi[-1:]])
+                spread = hi3 - lo3
+                cos3 = np.where(spread < math.radians(80), np.cos(spread), 0.0)
+                length = np.hypot(dcx, dcy)
+                touch = np.minimum(np.r_[math.inf, length[:-1]], np.r_[length[1:], math.inf])
+                blk = np.arange(n) // _BLOCK
+                near = cos3[blk] * touch
+                # blocks two or more apart, by their circles
+                bc, br = self._bc, self._br
+                gap = np.hypot(bc[:, None, 0] - bc[None, :, 0], bc[:, None, 1] - bc[None, :, 1]) \
+                    - br[:, None] - br[None, :]
+                idx = np.arange(nb)
+                gap[np.abs(idx[:, None] - idx[None, :]) <= 1] = math.inf
+                far = gap.min(axis=1) if nb else np.empty(0)
+                # the extensions: rays from the first point back and from the last point on
+                for seg, start, sign, outside in ((0, 0, -1.0, idx >= 2),
+                                                  (n - 1, n, 1.0, idx <= nb - 3)):
+                    if not outside.any():
+                        continue
+                    u = np.array([dcx[seg], dcy[seg]]) * sign / max(length[seg], 1e-12)
+                    p0 = np.array([self._xl[start], self._yl[start]])
+                    t = np.maximum((bc - p0) @ u, 0.0)
+                    foot = p0 + t[:, None] * u
+                    ray = np.hypot(*(bc - foot).T) - br
+                    far = np.where(outside, np.minimum(far, ray), far)
+                clear = np.minimum(near, far[blk]) - 1e-6
+                self._clear = clear.tolist()
+                return self._clear
+
+            def _local_search(self, px: float, py: float) -> tuple[float, float]:
+                # The block whose bounding circle is nearest is searched first, then only
+                # blocks that could hold a nearer foot: the same answer as a scan of every
+                # segment.
                 if len(self._bl) > 8:
                     got = self._local_near(px, py)
                     if got is not None:
