@@ -129,6 +129,23 @@ def test_a_plan_field_set_anew_changes_the_states_at_once_even_at_the_same_time(
         [("green", "amber", "red")[c] for c in lights.codes("5", np.arange(0, 60, 0.1))]
 
 
+def test_states_asked_step_by_step_are_the_codes_and_hold_until_the_time_given():
+    """A state is computed again only once it may have changed (the time ``states`` gives);
+    stepping through two cycles in 0.1-s and odd steps, every state is the codes' one."""
+    lights = TrafficLights(map_signals(load(TOWN06))).configure(offset=3.3)
+    sids = sorted(lights.controller_of)[:6]
+    for dt in (0.1, 0.037):
+        t = np.arange(0.0, 70.0, dt)
+        want = {sid: [("green", "amber", "red")[c] for c in lights.codes(sid, t)] for sid in sids}
+        for i, x in enumerate(t):
+            got, until = lights.states(sids, float(x))
+            assert got == [want[sid][i] for sid in sids], (dt, x)
+            assert until > x or until == x  # (x itself when a cycle's wrap is next)
+            later = t[(t > x) & (t < until)]
+            assert all(want[sid][j] == got[k] for k, sid in enumerate(sids)
+                       for j in np.flatnonzero(np.isin(t, later)))
+
+
 def test_worlds_on_one_map_share_its_light_tables_and_recorded_stops():
     """What follows from the map's signals alone (the lights, their controllers and stops,
     and each light's recorded stop list) is made once per map and process."""

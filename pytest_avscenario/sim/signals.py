@@ -427,8 +427,6 @@ class TrafficLights:
         self.offsets: dict[str, float] = {}
         self.offset = 0.0
         self.phase_share = 0.0
-        self._memo_t: float | None = None
-        self._memo: dict[str, str] = {}
 
     #: the fields of the plan: setting one drops the states and constants worked out so far
     _PLAN = frozenset({"green", "amber", "all_red", "offsets", "offset", "phase_share"})
@@ -437,7 +435,7 @@ class TrafficLights:
         object.__setattr__(self, name, value)
         if name in TrafficLights._PLAN:
             object.__setattr__(self, "_consts", {})
-            object.__setattr__(self, "_memo_t", None)
+            object.__setattr__(self, "_valid", {})  # signal -> (state, from, until) [s]
 
     def configure(self, *, green: float | None = None, amber: float | None = None,
                   all_red: float | None = None, cycle: float | None = None,
@@ -543,26 +541,46 @@ class TrafficLights:
 
     def state(self, signal: str, t: float) -> str:
         """The state of ``signal`` at ``t`` [s] ("green", "amber", "red"); as :meth:`codes`."""
-        if t != self._memo_t:  # every agent asks about the same few lights each step
-            self._memo_t, self._memo = t, {}
-        got = self._memo.get(signal)
-        if got is None:
-            got = self._memo[signal] = self._state(signal, t)
-        return got
+        got = self._valid.get(signal)
+        if got is not None and got[1] <= t < got[2]:
+            return got[0]
+        state, until = self._state(signal, t)
+        self._valid[signal] = (state, t, until)
+        return state
 
-    def _state(self, signal: str, t: float) -> str:
+    def states(self, signals: Iterable[str], t: float) -> tuple[list[str], float]:
+        """The states of ``signals`` at ``t`` [s], and a time [s] before which none of them
+        changes (a driver's observation is made again only then)."""
+        out = []
+        until = math.inf
+        valid = self._valid
+        for sid in signals:
+            out.append(self.state(sid, t))
+            u = valid[sid][2]
+            if u < until:
+                until = u
+        return out, until
+
+    def _state(self, signal: str, t: float) -> tuple[str, float]:
+        # (the state, and a time before which it stays: the phase grows with t as t does, so
+        # until the next threshold less a microsecond — rounding is a million times less —
+        # the same arithmetic gives the same state)
         c = self._consts.get(signal)
         if c is None:
             c = self._consts[signal] = self._constants(signal)
         if c is None:
-            return GREEN
+            return GREEN, math.inf
         off, shift, cyc, top, green_end, amber_end = c
         tau = math.fmod(t + off - shift, cyc)
         if tau < 0:
             tau += cyc
         if tau > top:
-            tau = 0.0
-        return GREEN if tau < green_end else AMBER if tau < amber_end else RED
+            return GREEN, t  # (as at phase 0; the cycle's wrap is next)
+        if tau < green_end:
+            return GREEN, t + (green_end - tau) - 1e-6
+        if tau < amber_end:
+            return AMBER, t + (amber_end - tau) - 1e-6
+        return RED, t + (top - tau) - 1e-6
 
     def _constants(self, signal: str) -> tuple[float, ...] | None:
         """The plan's numbers :meth:`_state` uses for ``signal`` (None: no controller), each
