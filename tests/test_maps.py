@@ -10,6 +10,7 @@ import pytest
 
 from pytest_avscenario.sim import World
 from pytest_avscenario.sim import opendrive as od
+from pytest_avscenario.sim.errors import SimError
 from pytest_avscenario.sim.opendrive import MapError
 
 DATA = Path(__file__).parent / "data" / "maps"
@@ -224,6 +225,19 @@ def test_lane_coordinates_near_a_long_curved_lane_are_the_scan_of_every_segment(
             if d2 < 1e9:
                 assert got == (s_all, r_all), (lane.id, s, r)
     assert near > 50
+
+
+def test_a_route_found_whole_is_not_measured_again_and_a_broken_one_still_raises():
+    w = World(0, name="t")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    route = town.route("0/0/1", "3/0/1")
+    w.ego(town.lane("0/0/1").at(40.0), speed=6.0, route=route)
+    assert tuple(route.lanes) in town.whole_routes
+    assert World(1, name="t").map(DATA / "fabriksgatan.xodr").whole_routes is town.whole_routes
+    w2 = World(2, name="t")
+    town2 = w2.map(DATA / "fabriksgatan.xodr")
+    with pytest.raises(SimError, match="route is broken"):
+        w2.ego(town2.lane("0/0/1").at(40.0), route=[town2.lane("0/0/1"), town2.lane("3/0/1")])
 
 
 def _segment_gaps(g, k):

@@ -171,9 +171,14 @@ def _shape_class() -> type:
                                  yl[k] + f * (yl[k + 1] - yl[k]) + lateral * math.cos(h)])
 
             def heading_at(self, longitudinal: float) -> float:
-                k, f = self._at(float(longitudinal))
+                # (_at written out: drivers ask this of their lane every step)
+                s, sl = float(longitudinal), self._sl
+                k = bisect.bisect_right(sl, s) - 1
+                k = min(max(k, 0), len(sl) - 2)
+                f = (s - sl[k]) / (sl[k + 1] - sl[k])
                 f = min(max(f, 0.0), 1.0)
-                return self._hl[k] + f * (self._hl[k + 1] - self._hl[k])
+                hl = self._hl
+                return hl[k] + f * (hl[k + 1] - hl[k])
 
             def width_at(self, longitudinal: float) -> float:
                 if self._wconst is not None:
@@ -588,6 +593,7 @@ class _Built:
     lanes: list[RoadLane]
     by_id: dict[str, RoadLane]
     index: MapLaneIndex
+    whole_routes: set = field(default_factory=set)
 
 
 _BUILT: dict[tuple, _Built] = {}
@@ -673,6 +679,9 @@ class MapRoad:
         self.crosswalks: list = []
         self.stop_lines: list = []
         self.path = self.data.path
+        #: routes (tuples of lanes) whose joints were found to meet, shared by every world on
+        #: the map (its lanes never change)
+        self.whole_routes: set = built.whole_routes
 
     def make_index(self) -> MapLaneIndex:
         return self._built.index.fresh()
