@@ -267,22 +267,19 @@ def _shape_class() -> type:
                     ex, ey = px - xl[k], py - yl[k]
                     f = (ex * tx[k] + ey * ty[k]) / along[k]
                     if (f > 1.0 and k < last) or (f < 0.0 and k > 0):
-                        # moved on: the segment at the arc length the hint's line gives
+                        # moved on: to the segment at the arc length the hint's line gives,
+                        # and one further if the foot is not on that one
                         j = bisect.bisect_right(sl, sl[k] + f * (sl[k + 1] - sl[k])) - 1
                         k = 0 if j < 0 else (last if j > last else j)
-                        ex, ey = px - xl[k], py - yl[k]
-                        f = (ex * tx[k] + ey * ty[k]) / along[k]
-                        if f > 1.0 and k < last:
-                            k += 1
-                        elif f < 0.0 and k > 0:
-                            k -= 1
-                        else:
-                            k = -1
-                        if k >= 0:
+                        for _ in range(2):
                             ex, ey = px - xl[k], py - yl[k]
                             f = (ex * tx[k] + ey * ty[k]) / along[k]
-                        else:
-                            k = j if 0 <= j <= last else (0 if j < 0 else last)
+                            if f > 1.0 and k < last:
+                                k += 1
+                            elif f < 0.0 and k > 0:
+                                k -= 1
+                            else:
+                                break
                     if not 0.0 <= f <= 1.0:
                         continue
                     dx, dy = ex - f * dcx[k], ey - f * dcy[k]
@@ -311,47 +308,45 @@ def _shape_class() -> type:
 
             def _turning(self) -> list[float]:
                 # clear[k] [m]: how close anything of the centre line that does not touch
-                # segment k comes to it, from below. Segments of k's block and the blocks
-                # either side run, from k on, in directions within the spread of those
-                # blocks' directions (cos c), so their points lie at least c times the
-                # touching segment's length from k's; further blocks lie beyond their
-                # bounding circles, and the straight extensions before the first and past
-                # the last segment (when not within those blocks) beyond their distance from
-                # the circle of k's block. Less a micrometre for rounding; made on first use.
+                # segment k comes to it, from below (less a micrometre for rounding). The
+                # segments of k's block and the blocks either side run, from k on, in
+                # directions within the spread of those blocks' directions (cos c), so their
+                # points lie at least c times the touching segment's length from k's; further
+                # blocks lie beyond their bounding circles, and the straight extensions past
+                # the lane's ends (when not within those blocks) beyond their distance from
+                # the circle of k's block. Made on first use.
                 n = self._nseg
                 dcx, dcy = np.asarray(self._dcx), np.asarray(self._dcy)
-                ang = np.unwrap(np.arctan2(dcy, dcx))
+                ang = np.arctan2(dcy, dcx)
+                if n > 1:  # unwrapped: each turn from one segment to the next within +-pi
+                    turn = np.diff(ang)
+                    turn -= (2 * math.pi) * np.round(turn / (2 * math.pi))
+                    ang[1:] = ang[0] + np.cumsum(turn)
                 starts = np.arange(0, n, _BLOCK)
-                nb = len(starts)
                 lo, hi = np.minimum.reduceat(ang, starts), np.maximum.reduceat(ang, starts)
-                lo3 = np.minimum(np.minimum(lo, np.r_[lo[:1], lo[:-1]]), np.r_[lo[1:], lo[-1:]])
-                hi3 = np.maximum(np.maximum(hi, np.r_[hi[:1], hi[:-1]]), np.r_[hi[1:], hi[-1:]])
-                spread = hi3 - lo3
+                spread = _either_side(hi, np.maximum) - _either_side(lo, np.minimum)
                 cos3 = np.where(spread < math.radians(80), np.cos(spread), 0.0)
                 length = np.hypot(dcx, dcy)
-                touch = np.minimum(np.r_[math.inf, length[:-1]], np.r_[length[1:], math.inf])
                 blk = np.arange(n) // _BLOCK
-                near = cos3[blk] * touch
+                near = cos3[blk] * _beside(length)
                 # blocks two or more apart, by their circles
                 bc, br = self._bc, self._br
+                nb = len(br)
                 gap = np.hypot(bc[:, None, 0] - bc[None, :, 0], bc[:, None, 1] - bc[None, :, 1]) \
                     - br[:, None] - br[None, :]
                 idx = np.arange(nb)
                 gap[np.abs(idx[:, None] - idx[None, :]) <= 1] = math.inf
-                far = gap.min(axis=1) if nb else np.empty(0)
+                far = gap.min(axis=1)
                 # the extensions: rays from the first point back and from the last point on
                 for seg, start, sign, outside in ((0, 0, -1.0, idx >= 2),
                                                   (n - 1, n, 1.0, idx <= nb - 3)):
-                    if not outside.any():
-                        continue
-                    u = np.array([dcx[seg], dcy[seg]]) * sign / max(length[seg], 1e-12)
-                    p0 = np.array([self._xl[start], self._yl[start]])
-                    t = np.maximum((bc - p0) @ u, 0.0)
-                    foot = p0 + t[:, None] * u
-                    ray = np.hypot(*(bc - foot).T) - br
-                    far = np.where(outside, np.minimum(far, ray), far)
-                clear = np.minimum(near, far[blk]) - 1e-6
-                self._clear = clear.tolist()
+                    if outside.any():
+                        u = np.array([dcx[seg], dcy[seg]]) * (sign / max(length[seg], 1e-12))
+                        rel = bc - (self._xl[start], self._yl[start])
+                        t = np.maximum(rel @ u, 0.0)
+                        ray = np.hypot(rel[:, 0] - t * u[0], rel[:, 1] - t * u[1]) - br
+                        far = np.where(outside, np.minimum(far, ray), far)
+                self._clear = (np.minimum(near, far[blk]) - 1e-6).tolist()
                 return self._clear
 
             def _local_search(self, px: float, py: float) -> tuple[float, float]:
@@ -483,6 +478,22 @@ def _shape_class() -> type:
 
 
 _SHAPE: Any = None
+
+
+def _either_side(a: np.ndarray, op: Any) -> np.ndarray:
+    """``op`` (numpy.minimum or maximum) of each entry of ``a`` and its two neighbours."""
+    out = a.copy()
+    op(out[1:], a[:-1], out=out[1:])
+    op(out[:-1], a[1:], out=out[:-1])
+    return out
+
+
+def _beside(a: np.ndarray) -> np.ndarray:
+    """The lesser of each entry's two neighbours in ``a`` (inf past the ends)."""
+    out = np.full(len(a), math.inf)
+    out[1:] = a[:-1]
+    np.minimum(out[:-1], a[1:], out=out[:-1])
+    return out
 
 
 def __getattr__(name: str) -> Any:
