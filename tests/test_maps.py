@@ -240,6 +240,20 @@ def test_a_route_found_whole_is_not_measured_again_and_a_broken_one_still_raises
         w2.ego(town2.lane("0/0/1").at(40.0), route=[town2.lane("0/0/1"), town2.lane("3/0/1")])
 
 
+def test_a_default_route_is_worked_out_once_per_map_unless_a_world_links_its_own():
+    town = World(0, name="t").map(DATA / "fabriksgatan.xodr")
+    other = World(1, name="t").map(DATA / "fabriksgatan.xodr")
+    lane = town.lane("0/0/1")
+    first = town.default_route(lane).lanes
+    assert len(first) >= 2 and other.default_route(other.lane("0/0/1")).lanes is first
+    # a world that links a lane on its own gets its own route; the others keep the map's
+    turn = [l for l in town.successors(first[0]) if l is not first[1]]
+    assert turn
+    town.world.lane_index.link(first[0], turn[0])
+    assert town.default_route(lane).lanes[:2] == (first[0], turn[0])
+    assert other.default_route(other.lane("0/0/1")).lanes is first
+
+
 def _segment_gaps(g, k):
     """Brute force: the least distance from merged segment k of lane ``g`` to every segment
     not touching it and to the straight extensions past both ends (dense points)."""

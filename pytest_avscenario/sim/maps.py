@@ -592,7 +592,16 @@ class MapLaneIndex(LaneIndex):
         twin.stop_marks = {}
         twin.straight_on = dict(self.straight_on)
         twin.drops = dict(self.drops)
+        twin.relinked = False
         return twin
+
+    #: whether this world declared a link of its own (:meth:`link`): its routes straight on
+    #: are then no longer the map's, which every other world shares
+    relinked = True
+
+    def link(self, lane: Lane, nxt: Lane) -> None:
+        self.relinked = True
+        super().link(lane, nxt)
 
 
 @dataclass
@@ -605,6 +614,7 @@ class _Built:
     by_id: dict[str, RoadLane]
     index: MapLaneIndex
     whole_routes: set = field(default_factory=set)
+    routes: dict = field(default_factory=dict)  # lane index -> its default route's lanes
 
 
 _BUILT: dict[tuple, _Built] = {}
@@ -747,7 +757,15 @@ class MapRoad:
     def default_route(self, lane: Lane) -> Route:
         """Straight on from ``lane`` (the least turning way through each junction), up to
         64 lanes."""
-        return Route(tuple(self.world.lane_index.continue_route(lane, limit=64)))
+        index = self.world.lane_index
+        # the map's own routes straight on are worked out once per lane and process
+        shared = self._built.routes if not getattr(index, "relinked", True) else None
+        got = shared.get(lane.index) if shared is not None else None
+        if got is None:
+            got = tuple(index.continue_route(lane, limit=64))
+            if shared is not None:
+                shared[lane.index] = got
+        return Route(got)
 
     def route(self, *via: Any) -> Route:
         """The shortest way (by length) from the first lane through each of ``via`` in turn
