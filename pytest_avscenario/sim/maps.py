@@ -343,7 +343,7 @@ def _shape_class() -> type:
                     if outside.any():
                         u = np.array([dcx[seg], dcy[seg]]) * (sign / max(length[seg], 1e-12))
                         rel = bc - (self._xl[start], self._yl[start])
-                        t = np.maximum(rel @ u, 0.0)
+                        t = np.maximum(rel[:, 0] * u[0] + rel[:, 1] * u[1], 0.0)
                         ray = np.hypot(rel[:, 0] - t * u[0], rel[:, 1] - t * u[1]) - br
                         far = np.where(outside, np.minimum(far, ray), far)
                 self._clear = (np.minimum(near, far[blk]) - 1e-6).tolist()
