@@ -306,6 +306,23 @@ def test_other_cars_stop_at_the_red_too(tmp_path):
     assert 196.0 < front < 200.0 and tr.speed[i, -1] < 0.3
 
 
+def test_light_stops_are_what_lights_ahead_reads(tmp_path):
+    w = World(3, driver="idm", name="signals")
+    road = w.map(str(signalled_road(tmp_path)))
+    w.signals(offset=8.0)
+    lane = road.lane("1/0/-1")
+    w.ego(lane, s=20.0, speed=5.0)
+    car = w.car(lane, s=150.0, speed=12.0)
+    w.run(3.0)
+    lights, ahead = w.light_stops(car)
+    assert lights is w.traffic_lights and ahead
+    assert w.lights_ahead(car) == [(acc - car.route_s, lights.state(sid, w.t), sid)
+                                   for _, _, acc, sid in ahead]
+    plain = World(0, name="t")
+    ego = plain.ego(plain.straight_road(lanes=1, length=200).lane(0), s=10.0)
+    assert plain.light_stops(ego) == (None, [])
+
+
 def test_signals_need_a_road_with_lights(tmp_path):
     w = World(0, name="signals")
     w.straight_road()

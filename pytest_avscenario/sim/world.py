@@ -346,6 +346,16 @@ class World:
         state = lights.state
         return [(acc - rs, state(sid, t), sid) for _, _, acc, sid in ahead]
 
+    def light_stops(self, agent: Any, horizon: float = 150.0) -> tuple[Any, list]:
+        """(the road's :class:`~.signals.TrafficLights`, the stops ahead of ``agent`` as
+        ``(route index, s, distance from the start of its lane [m], signal)``) — what
+        :meth:`lights_ahead` reads, for a driver that asks a light's state only when it needs
+        it; (None, []) on a road without lights."""
+        lights = self._lights if self._lights is not None else self.traffic_lights
+        if not lights:
+            return None, []
+        return lights, self._stops_ahead(lights, agent, horizon)
+
     @staticmethod
     def _stops_ahead(lights: Any, agent: Any, horizon: float) -> list:
         """``lights.ahead`` of ``agent``'s route from its lane on, kept until it moves to
