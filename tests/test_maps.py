@@ -276,8 +276,9 @@ def _segment_gaps(g, k):
 
 def test_the_foot_search_near_a_recent_foot_is_the_scan_and_its_clearance_a_lower_bound():
     """Two agents driving a curved Town06 lane (steps of 0.3-2.5 m, within 0.2 m of its centre
-    line, as the drivers keep) are mostly answered near their last feet without a search; every answer is the scan's, and
-    the clearance each segment's answer relies on is below the brute-force distance."""
+    line, as the drivers keep) are mostly answered near their last feet without a search;
+    every answer is the scan's, and the clearance each segment's answer relies on is below
+    the brute-force distance."""
     town = World(0, name="t").map(Path(__file__).parents[1] / "example_tests" / "maps"
                                   / "Town06.xodr")
     curved = [l for l in town.all_lanes if l.geometry._line is None and l.geometry._nseg > 20]

@@ -151,7 +151,7 @@ def _shape_class() -> type:
                                       clen / self.length)
                 self._memo: tuple | None = None
                 self._grid: dict | None = None  # see _local_near: cells filled on first use
-                self._hints = (-1, -1)  # segments of recent feet, see _local_warm
+                self._hints = (0, -1)  # recent feet's segments (_local_warm); agents enter at 0
                 self._clear: list | None = None  # see _turning, made on first use
                 # for what other modules compute from this lane alone (the autopilot's route
                 # samples): the lane never changes and is shared by every world on the map
