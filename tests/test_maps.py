@@ -10,6 +10,7 @@ import pytest
 
 from pytest_avscenario.sim import World
 from pytest_avscenario.sim import opendrive as od
+from pytest_avscenario.sim.errors import SimError
 from pytest_avscenario.sim.opendrive import MapError
 
 DATA = Path(__file__).parent / "data" / "maps"
@@ -224,6 +225,86 @@ def test_lane_coordinates_near_a_long_curved_lane_are_the_scan_of_every_segment(
             if d2 < 1e9:
                 assert got == (s_all, r_all), (lane.id, s, r)
     assert near > 50
+
+
+def test_a_route_found_whole_is_not_measured_again_and_a_broken_one_still_raises():
+    w = World(0, name="t")
+    town = w.map(DATA / "fabriksgatan.xodr")
+    route = town.route("0/0/1", "3/0/1")
+    w.ego(town.lane("0/0/1").at(40.0), speed=6.0, route=route)
+    assert tuple(route.lanes) in town.whole_routes
+    assert World(1, name="t").map(DATA / "fabriksgatan.xodr").whole_routes is town.whole_routes
+    w2 = World(2, name="t")
+    town2 = w2.map(DATA / "fabriksgatan.xodr")
+    with pytest.raises(SimError, match="route is broken"):
+        w2.ego(town2.lane("0/0/1").at(40.0), route=[town2.lane("0/0/1"), town2.lane("3/0/1")])
+
+
+def test_a_default_route_is_worked_out_once_per_map_unless_a_world_links_its_own():
+    town = World(0, name="t").map(DATA / "fabriksgatan.xodr")
+    other = World(1, name="t").map(DATA / "fabriksgatan.xodr")
+    lane = town.lane("0/0/1")
+    first = town.default_route(lane).lanes
+    assert len(first) >= 2 and other.default_route(other.lane("0/0/1")).lanes is first
+    # a world that links a lane on its own gets its own route; the others keep the map's
+    turn = [l for l in town.successors(first[0]) if l is not first[1]]
+    assert turn
+    town.world.lane_index.link(first[0], turn[0])
+    assert town.default_route(lane).lanes[:2] == (first[0], turn[0])
+    assert other.default_route(other.lane("0/0/1")).lanes is first
+
+
+def _segment_gaps(g, k):
+    """Brute force: the least distance from merged segment k of lane ``g`` to every segment
+    not touching it and to the straight extensions past both ends (dense points)."""
+    xy = np.array([g._xl, g._yl]).T
+    u = np.linspace(0.0, 1.0, 41)[:, None]
+    mine = xy[k] + u * (xy[k + 1] - xy[k])
+    n = g._nseg
+    pts = [xy[j] + u * (xy[j + 1] - xy[j]) for j in range(n) if abs(j - k) >= 2]
+    if k >= 2:  # the extension before the first segment (touching k only when k <= 1)
+        d0 = (xy[0] - xy[1]) / np.hypot(*(xy[0] - xy[1]))
+        pts.append(xy[0] + np.linspace(0.0, 60.0, 601)[:, None] * d0)
+    if k <= n - 3:
+        d1 = (xy[n] - xy[n - 1]) / np.hypot(*(xy[n] - xy[n - 1]))
+        pts.append(xy[n] + np.linspace(0.0, 60.0, 601)[:, None] * d1)
+    if not pts:
+        return math.inf
+    other = np.concatenate(pts)
+    return float(np.hypot(*(mine[:, None, :] - other[None, :, :]).transpose(2, 0, 1)).min())
+
+
+def test_the_foot_search_near_a_recent_foot_is_the_scan_and_its_clearance_a_lower_bound():
+    """Two agents driving a curved Town06 lane (steps of 0.3-2.5 m, within 0.2 m of its centre
+    line, as the drivers keep) are mostly answered near their last feet without a search;
+    every answer is the scan's, and the clearance each segment's answer relies on is below
+    the brute-force distance."""
+    town = World(0, name="t").map(Path(__file__).parents[1] / "example_tests" / "maps"
+                                  / "Town06.xodr")
+    curved = [l for l in town.all_lanes if l.geometry._line is None and l.geometry._nseg > 20]
+    rng = np.random.default_rng(11)
+    warm = asked = 0
+    for lane in curved[::25]:
+        g = lane.geometry
+        s1, s2, r1, r2 = -2.0, float(rng.uniform(5, 30)), 0.05, -0.1
+        while s1 < g.length + 3:
+            for s, r in ((s1, r1), (s2, r2)):
+                x, y = (float(v) for v in g.position(s, r))
+                got = g._local_warm(x, y)
+                asked += 1
+                if got is not None:
+                    warm += 1
+                    d2, s_all, r_all = g._foot(x, y, 0, g._nseg)
+                    assert got == (s_all, r_all), (lane.id, s, r)
+                    assert got == g._local_search(x, y)
+                g._local(x, y)
+            s1 += float(rng.uniform(0.3, 2.5))
+            s2 += float(rng.uniform(0.3, 2.5))
+            r1 = float(np.clip(r1 + rng.normal(0, 0.03), -0.2, 0.2))
+            r2 = float(np.clip(r2 + rng.normal(0, 0.03), -0.2, 0.2))
+        for k in rng.choice(g._nseg, size=min(4, g._nseg), replace=False):
+            assert g._clear[k] <= _segment_gaps(g, int(k)), (lane.id, k)
+    assert asked > 500 and warm > 0.7 * asked, (warm, asked)
 
 
 @pytest.mark.parametrize("driver", ["autopilot", "careful"])

@@ -273,6 +273,21 @@ def test_a_long_route_is_built_only_as_far_as_the_case_drives():
     assert len(path.x) == len(path.tx) == len(path.curvature) == len(path.S)
 
 
+def test_a_route_lanes_offset_is_planned_when_asked_and_none_off_the_route():
+    from pytest_avscenario.sim import World
+    from pytest_avscenario.sim.drivers.route_path import RoutePath
+
+    town = World(0, name="t").map(TOWN06)
+    route = town.default_route(town.lanes(min_length=100)[3])
+    geoms = tuple(l.geometry for l in route.lanes)
+    path, whole = RoutePath(geoms), RoutePath(geoms)
+    assert len(geoms) > 10 and len(path._offsets) < len(geoms)  # planned as far as built
+    k = len(geoms) - 2
+    assert path.offset(k) == whole.offsets[k] and len(path._offsets) == k + 1
+    assert [path.offset(i) for i in range(len(geoms))] == list(whole.offsets)
+    assert path.offset(-1) is None and path.offset(len(geoms)) is None
+
+
 @pytest.mark.parametrize("options", [{}, {"lateral_accel": 1e-4}])
 def test_a_case_built_piece_by_piece_drives_as_with_the_whole_route_built_up_front(
         monkeypatch, options):

@@ -114,6 +114,58 @@ def test_the_phase_plan_takes_turns_and_shifts_with_the_offset(tmp_path):
         lights.configure(cycle=5)
 
 
+def test_a_plan_field_set_anew_changes_the_states_at_once_even_at_the_same_time(tmp_path):
+    """States are kept per time and the plan's numbers per light; assigning a field of the
+    plan (as configure and amber_at do) drops both."""
+    lights = TrafficLights(map_signals(load(signalled_road(tmp_path))))
+    assert lights.state("5", 11.0) == "amber"
+    lights.green = 12.0
+    assert lights.state("5", 11.0) == "green"
+    lights.offset = 2.0
+    assert lights.state("5", 11.0) == "amber"
+    lights.amber_at("5", 20.0)
+    assert lights.state("5", 19.9) == "green" and lights.state("5", 20.0) == "amber"
+    assert [lights.state("5", x) for x in np.arange(0, 60, 0.1)] == \
+        [("green", "amber", "red")[c] for c in lights.codes("5", np.arange(0, 60, 0.1))]
+
+
+def test_states_asked_step_by_step_are_the_codes_and_hold_until_the_time_given():
+    """A state is computed again only once it may have changed (the time ``states`` gives);
+    stepping through two cycles in 0.1-s and odd steps, every state is the codes' one."""
+    lights = TrafficLights(map_signals(load(TOWN06))).configure(offset=3.3)
+    sids = sorted(lights.controller_of)[:6]
+    for dt in (0.1, 0.037):
+        t = np.arange(0.0, 70.0, dt)
+        want = {sid: [("green", "amber", "red")[c] for c in lights.codes(sid, t)] for sid in sids}
+        for i, x in enumerate(t):
+            got, until = lights.states(sids, float(x))
+            assert got == [want[sid][i] for sid in sids], (dt, x)
+            assert until > x or until == x  # (x itself when a cycle's wrap is next)
+            later = t[(t > x) & (t < until)]
+            assert all(want[sid][j] == got[k] for k, sid in enumerate(sids)
+                       for j in np.flatnonzero(np.isin(t, later)))
+
+
+def test_worlds_on_one_map_share_its_light_tables_and_recorded_stops():
+    """What follows from the map's signals alone (the lights, their controllers and stops,
+    and each light's recorded stop list) is made once per map and process."""
+    tr, lights = [], []
+    for seed in (0, 1):
+        w = World(seed, name="t", driver="autopilot")
+        town = w.map(TOWN06)
+        w.ego(town.lanes(min_length=100)[5].at(10.0), speed=10.0)
+        lights.append(w.traffic_lights)
+        tr.append(w.run(3.0))
+    a, b = lights
+    assert a is not b and a.stops is b.stops and a.controller_of is b.controller_of
+    first, second = tr[0].meta["lights"], tr[1].meta["lights"]
+    assert first and [e["id"] for e in first] == [e["id"] for e in second]
+    assert first[0] is not second[0] and first[0]["stops"] is second[0]["stops"]
+    assert first[0]["stops"][0] == {"lane": first[0]["stops"][0]["lane"],
+                                    **{k: first[0]["stops"][0][k]
+                                       for k in ("s", "x", "y", "heading", "width")}}
+
+
 def test_controllers_of_one_junction_are_never_green_together():
     lights = TrafficLights(map_signals(load(TOWN06))).configure(offset=7.0)
     t = np.arange(0.0, 120.0, 0.1)
@@ -252,6 +304,23 @@ def test_other_cars_stop_at_the_red_too(tmp_path):
     i = tr.names.index(car.name)
     front = tr.x[i, -1] + 2.5
     assert 196.0 < front < 200.0 and tr.speed[i, -1] < 0.3
+
+
+def test_light_stops_are_what_lights_ahead_reads(tmp_path):
+    w = World(3, driver="idm", name="signals")
+    road = w.map(str(signalled_road(tmp_path)))
+    w.signals(offset=8.0)
+    lane = road.lane("1/0/-1")
+    w.ego(lane, s=20.0, speed=5.0)
+    car = w.car(lane, s=150.0, speed=12.0)
+    w.run(3.0)
+    lights, ahead = w.light_stops(car)
+    assert lights is w.traffic_lights and ahead
+    assert w.lights_ahead(car) == [(acc - car.route_s, lights.state(sid, w.t), sid)
+                                   for _, _, acc, sid in ahead]
+    plain = World(0, name="t")
+    ego = plain.ego(plain.straight_road(lanes=1, length=200).lane(0), s=10.0)
+    assert plain.light_stops(ego) == (None, [])
 
 
 def test_signals_need_a_road_with_lights(tmp_path):

@@ -321,17 +321,20 @@ class _Agent:
         no light stops it. It stops on red, and on amber when it can stop at
         ``comfort_decel`` [m/s^2] (see :func:`.signals.must_stop`); having gone on at amber
         (or too close to stop on red) it keeps going through that light."""
-        ahead = self.world.lights_ahead(self)
+        world = self.world
+        lights, ahead = world.light_stops(self)
         if not ahead:
             return None
         went = self.__dict__.get("_light_went")
         if went is None:
             went = self._light_went = set()
         v = max(float(self.speed), 0.0)
-        for d, state, sid in ahead:
-            front = d - self.LENGTH / 2
+        rs, t = float(self.route_s), world.t
+        for _, _, acc, sid in ahead:  # (world.lights_ahead's distances, states asked as needed)
+            front = (acc - rs) - self.LENGTH / 2
             if front < 0.0:
                 continue  # the front is past the line: it has gone
+            state = lights.state(sid, t)
             if state == GREEN:
                 went.discard(sid)
                 continue

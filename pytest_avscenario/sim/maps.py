@@ -151,6 +151,8 @@ def _shape_class() -> type:
                                       clen / self.length)
                 self._memo: tuple | None = None
                 self._grid: dict | None = None  # see _local_near: cells filled on first use
+                self._hints = (0, -1)  # recent feet's segments (_local_warm); agents enter at 0
+                self._clear: list | None = None  # see _turning, made on first use
                 # for what other modules compute from this lane alone (the autopilot's route
                 # samples): the lane never changes and is shared by every world on the map
                 self.memo: dict = {}
@@ -169,9 +171,14 @@ def _shape_class() -> type:
                                  yl[k] + f * (yl[k + 1] - yl[k]) + lateral * math.cos(h)])
 
             def heading_at(self, longitudinal: float) -> float:
-                k, f = self._at(float(longitudinal))
+                # (_at written out: drivers ask this of their lane every step)
+                s, sl = float(longitudinal), self._sl
+                k = bisect.bisect_right(sl, s) - 1
+                k = min(max(k, 0), len(sl) - 2)
+                f = (s - sl[k]) / (sl[k + 1] - sl[k])
                 f = min(max(f, 0.0), 1.0)
-                return self._hl[k] + f * (self._hl[k + 1] - self._hl[k])
+                hl = self._hl
+                return hl[k] + f * (hl[k + 1] - hl[k])
 
             def width_at(self, longitudinal: float) -> float:
                 if self._wconst is not None:
@@ -228,9 +235,124 @@ def _shape_class() -> type:
             def _local(self, px: float, py: float) -> tuple[float, float]:
                 # On each segment, the point of the centre line from which the position lies
                 # square to the reference line: f = (p - c_k).tau / (dc.tau); of the segments
-                # that hold it (0 <= f <= 1), the nearest. The block whose bounding circle is
-                # nearest is searched first, then only blocks that could hold a nearer foot:
-                # the same answer as a scan of every segment, whatever was asked before.
+                # that hold it (0 <= f <= 1), the nearest. First near a recent foot (see
+                # _local_warm), else the search below; the same answer whatever was asked
+                # before.
+                got = self._local_warm(px, py)
+                if got is None:
+                    got = self._local_search(px, py)
+                    k = bisect.bisect_right(self._ssl, got[0]) - 1
+                    self._hints = (min(max(k, 0), self._nseg - 1), self._hints[0])
+                return got
+
+            def _local_warm(self, px: float, py: float) -> tuple[float, float] | None:
+                # An agent moves less than a metre or two a step: its foot is on or near the
+                # segment k of a recent one (two are kept: two agents take turns on a lane).
+                # The foot on k at distance d is the answer when nothing else can be as near:
+                # the two segments touching k are measured, and everything else of the centre
+                # line (with the straight extensions past its ends) keeps at least clear[k]
+                # from segment k (see _turning), so more than d from the point when
+                # 2 d < clear[k]. None when no hint proves its answer (then the search).
+                clear = self._clear
+                if clear is None:
+                    clear = self._turning()
+                xl, yl, tx, ty = self._xl, self._yl, self._txl, self._tyl
+                along, dcx, dcy, sl = self._alongl, self._dcx, self._dcy, self._ssl
+                last = self._nseg - 1
+                hints = self._hints
+                for slot in (0, 1):
+                    k = hints[slot]
+                    if k < 0:
+                        continue
+                    ex, ey = px - xl[k], py - yl[k]
+                    f = (ex * tx[k] + ey * ty[k]) / along[k]
+                    if (f > 1.0 and k < last) or (f < 0.0 and k > 0):
+                        # moved on: to the segment at the arc length the hint's line gives,
+                        # and one further if the foot is not on that one
+                        j = bisect.bisect_right(sl, sl[k] + f * (sl[k + 1] - sl[k])) - 1
+                        k = 0 if j < 0 else (last if j > last else j)
+                        for _ in range(2):
+                            ex, ey = px - xl[k], py - yl[k]
+                            f = (ex * tx[k] + ey * ty[k]) / along[k]
+                            if f > 1.0 and k < last:
+                                k += 1
+                            elif f < 0.0 and k > 0:
+                                k -= 1
+                            else:
+                                break
+                    if not 0.0 <= f <= 1.0:
+                        continue
+                    dx, dy = ex - f * dcx[k], ey - f * dcy[k]
+                    d2 = dx * dx + dy * dy
+                    c = clear[k]
+                    if 4.0 * d2 >= c * c or c <= 0.0:
+                        continue
+                    for j in (k - 1, k + 1):
+                        if not 0 <= j <= last:
+                            continue
+                        ex, ey = px - xl[j], py - yl[j]
+                        fj = (ex * tx[j] + ey * ty[j]) / along[j]
+                        ray = not 0.0 <= fj <= 1.0
+                        if ray and ((fj < 0.0 and j != 0) or (fj > 1.0 and j != last)):
+                            continue  # not held there
+                        ex, ey = ex - fj * dcx[j], ey - fj * dcy[j]
+                        dj = ex * ex + ey * ey
+                        if dj < d2 or (dj == d2 and j < k):
+                            if ray:  # past an end of the lane: the search's to answer
+                                return None
+                            d2, k, f, dx, dy = dj, j, fj, ex, ey
+                    if k != hints[0]:
+                        self._hints = (k, hints[1] if slot == 0 else hints[0])
+                    return sl[k] + f * (sl[k + 1] - sl[k]), tx[k] * dy - ty[k] * dx
+                return None
+
+            def _turning(self) -> list[float]:
+                # clear[k] [m]: how close anything of the centre line that does not touch
+                # segment k comes to it, from below (less a micrometre for rounding). The
+                # segments of k's block and the blocks either side run, from k on, in
+                # directions within the spread of those blocks' directions (cos c), so their
+                # points lie at least c times the touching segment's length from k's; further
+                # blocks lie beyond their bounding circles, and the straight extensions past
+                # the lane's ends (when not within those blocks) beyond their distance from
+                # the circle of k's block. Made on first use.
+                n = self._nseg
+                dcx, dcy = np.asarray(self._dcx), np.asarray(self._dcy)
+                ang = np.arctan2(dcy, dcx)
+                if n > 1:  # unwrapped: each turn from one segment to the next within +-pi
+                    turn = np.diff(ang)
+                    turn -= (2 * math.pi) * np.round(turn / (2 * math.pi))
+                    ang[1:] = ang[0] + np.cumsum(turn)
+                starts = np.arange(0, n, _BLOCK)
+                lo, hi = np.minimum.reduceat(ang, starts), np.maximum.reduceat(ang, starts)
+                spread = _either_side(hi, np.maximum) - _either_side(lo, np.minimum)
+                cos3 = np.where(spread < math.radians(80), np.cos(spread), 0.0)
+                length = np.hypot(dcx, dcy)
+                blk = np.arange(n) // _BLOCK
+                near = cos3[blk] * _beside(length)
+                # blocks two or more apart, by their circles
+                bc, br = self._bc, self._br
+                nb = len(br)
+                gap = np.hypot(bc[:, None, 0] - bc[None, :, 0], bc[:, None, 1] - bc[None, :, 1]) \
+                    - br[:, None] - br[None, :]
+                idx = np.arange(nb)
+                gap[np.abs(idx[:, None] - idx[None, :]) <= 1] = math.inf
+                far = gap.min(axis=1)
+                # the extensions: rays from the first point back and from the last point on
+                for seg, start, sign, outside in ((0, 0, -1.0, idx >= 2),
+                                                  (n - 1, n, 1.0, idx <= nb - 3)):
+                    if outside.any():
+                        u = np.array([dcx[seg], dcy[seg]]) * (sign / max(length[seg], 1e-12))
+                        rel = bc - (self._xl[start], self._yl[start])
+                        t = np.maximum(rel[:, 0] * u[0] + rel[:, 1] * u[1], 0.0)
+                        ray = np.hypot(rel[:, 0] - t * u[0], rel[:, 1] - t * u[1]) - br
+                        far = np.where(outside, np.minimum(far, ray), far)
+                self._clear = (np.minimum(near, far[blk]) - 1e-6).tolist()
+                return self._clear
+
+            def _local_search(self, px: float, py: float) -> tuple[float, float]:
+                # The block whose bounding circle is nearest is searched first, then only
+                # blocks that could hold a nearer foot: the same answer as a scan of every
+                # segment.
                 if len(self._bl) > 8:
                     got = self._local_near(px, py)
                     if got is not None:
@@ -358,6 +480,22 @@ def _shape_class() -> type:
 _SHAPE: Any = None
 
 
+def _either_side(a: np.ndarray, op: Any) -> np.ndarray:
+    """``op`` (numpy.minimum or maximum) of each entry of ``a`` and its two neighbours."""
+    out = a.copy()
+    op(out[1:], a[:-1], out=out[1:])
+    op(out[:-1], a[1:], out=out[:-1])
+    return out
+
+
+def _beside(a: np.ndarray) -> np.ndarray:
+    """The lesser of each entry's two neighbours in ``a`` (inf past the ends)."""
+    out = np.full(len(a), math.inf)
+    out[1:] = a[:-1]
+    np.minimum(out[:-1], a[1:], out=out[:-1])
+    return out
+
+
 def __getattr__(name: str) -> Any:
     if name == "MapLaneShape":
         return _shape_class()
@@ -454,7 +592,16 @@ class MapLaneIndex(LaneIndex):
         twin.stop_marks = {}
         twin.straight_on = dict(self.straight_on)
         twin.drops = dict(self.drops)
+        twin.relinked = False
         return twin
+
+    #: whether this world declared a link of its own (:meth:`link`): its routes straight on
+    #: are then no longer the map's, which every other world shares
+    relinked = True
+
+    def link(self, lane: Lane, nxt: Lane) -> None:
+        self.relinked = True
+        super().link(lane, nxt)
 
 
 @dataclass
@@ -466,6 +613,8 @@ class _Built:
     lanes: list[RoadLane]
     by_id: dict[str, RoadLane]
     index: MapLaneIndex
+    whole_routes: set = field(default_factory=set)
+    routes: dict = field(default_factory=dict)  # lane index -> its default route's lanes
 
 
 _BUILT: dict[tuple, _Built] = {}
@@ -551,6 +700,9 @@ class MapRoad:
         self.crosswalks: list = []
         self.stop_lines: list = []
         self.path = self.data.path
+        #: routes (tuples of lanes) whose joints were found to meet, shared by every world on
+        #: the map (its lanes never change)
+        self.whole_routes: set = built.whole_routes
 
     def make_index(self) -> MapLaneIndex:
         return self._built.index.fresh()
@@ -605,7 +757,15 @@ class MapRoad:
     def default_route(self, lane: Lane) -> Route:
         """Straight on from ``lane`` (the least turning way through each junction), up to
         64 lanes."""
-        return Route(tuple(self.world.lane_index.continue_route(lane, limit=64)))
+        index = self.world.lane_index
+        # the map's own routes straight on are worked out once per lane and process
+        shared = self._built.routes if not getattr(index, "relinked", True) else None
+        got = shared.get(lane.index) if shared is not None else None
+        if got is None:
+            got = tuple(index.continue_route(lane, limit=64))
+            if shared is not None:
+                shared[lane.index] = got
+        return Route(got)
 
     def route(self, *via: Any) -> Route:
         """The shortest way (by length) from the first lane through each of ``via`` in turn

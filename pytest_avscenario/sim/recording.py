@@ -233,13 +233,19 @@ def map_sidewalks(data: Any, lanes: dict[str, Any]) -> dict[str, Any]:
     narrowest along it, and ``widths`` the width at each point where it varies)."""
     every = _SIDEWALKS.get(id(data))
     if every is None or every[0] is not data:  # once per map and process: its lanes never change
-        every = (data, _sidewalks(data), {})
+        walks = _sidewalks(data)
+        by_section: dict[tuple, list[int]] = {}
+        for i, walk in enumerate(walks):
+            by_section.setdefault(walk[1], []).append(i)
+        every = (data, walks, {}, by_section)
         _SIDEWALKS[id(data)] = every
     listed = every[2]  # a sidewalk's points as lists, made at its first recording and shared
     sections = {(l.road, l.section) for l in (data.lanes.get(k) for k in lanes) if l is not None}
+    by_section = every[3]
     out: dict[str, Any] = {}
-    for i, (k, section, width, xy, widths) in enumerate(every[1]):
-        if section in sections and k not in lanes:
+    for i in sorted(i for section in sections for i in by_section.get(section, ())):
+        k, section, width, xy, widths = every[1][i]
+        if k not in lanes:
             pts = listed.get(i)
             if pts is None:
                 pts = listed[i] = (xy.tolist(), None if widths is None else widths.tolist())
@@ -249,7 +255,7 @@ def map_sidewalks(data: Any, lanes: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-_SIDEWALKS: dict[int, tuple[Any, list, dict]] = {}
+_SIDEWALKS: dict[int, tuple[Any, list, dict, dict]] = {}
 
 
 def _sidewalks(data: Any) -> list[tuple[str, tuple, float, np.ndarray, np.ndarray | None]]:

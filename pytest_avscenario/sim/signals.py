@@ -382,38 +382,60 @@ def must_stop(state: str, d: float, v: float, comfort_decel: float, max_decel: f
     return need <= max_decel
 
 
+def _light_tables(signals: MapSignals) -> tuple[dict, dict, dict, dict]:
+    """(lights by id, controller of each light, each controller's (junction, turn, turns),
+    stops by lane id: ``[(s, light)]`` sorted by s) of ``signals``."""
+    lights = {sid: s for sid, s in signals.signals.items() if s.kind == TRAFFIC_LIGHT}
+    controller_of: dict[str, str] = {}
+    phase: dict[str, tuple[str, int, int]] = {}  # controller -> (group, j, n)
+    for g, cids in signals.groups.items():
+        for j, cid in enumerate(cids):
+            phase[cid] = (g, j, len(cids))
+            for sid in signals.controllers[cid].signals:
+                controller_of.setdefault(sid, cid)
+    stops: dict[str, list[tuple[float, str]]] = {}
+    for sid, sg in lights.items():
+        if sid not in controller_of:
+            continue
+        for p in sg.stops:
+            stops.setdefault(p.lane, []).append((p.s, sid))
+    for v in stops.values():
+        v.sort()
+    return lights, controller_of, phase, stops
+
+
 class TrafficLights:
     """The lights of one world and their fixed-time plan (see the module doc).
 
     ``stops`` maps a lane id to its ``[(s [m], signal id)]`` stop positions (traffic lights
     only), sorted by s. ``state(signal, t)`` is "green", "amber" or "red"; ``codes(signal, t)``
-    the same for an array of times as 0/1/2.
+    the same for an array of times as 0/1/2. ``lights``, ``controller_of``, ``phase`` and
+    ``stops`` are shared by every world on the map (read them, do not change them); the plan
+    (``green``, ``amber``, ``all_red``, ``offset``, ``offsets``, ``phase_share``) is set
+    through :meth:`configure` and :meth:`amber_at`, or by assigning a field.
     """
 
     def __init__(self, signals: MapSignals) -> None:
         self.map = signals
-        self.lights = {sid: s for sid, s in signals.signals.items() if s.kind == TRAFFIC_LIGHT}
-        self.controller_of: dict[str, str] = {}
-        self.phase: dict[str, tuple[str, int, int]] = {}  # controller -> (group, j, n)
-        for g, cids in signals.groups.items():
-            for j, cid in enumerate(cids):
-                self.phase[cid] = (g, j, len(cids))
-                for sid in signals.controllers[cid].signals:
-                    self.controller_of.setdefault(sid, cid)
-        self.stops: dict[str, list[tuple[float, str]]] = {}
-        for sid, sg in self.lights.items():
-            if sid not in self.controller_of:
-                continue
-            for p in sg.stops:
-                self.stops.setdefault(p.lane, []).append((p.s, sid))
-        for v in self.stops.values():
-            v.sort()
+        # what follows from the map's signals alone is made once per map and process and
+        # shared by every world on it (read-only: a world's plan lives in the fields below)
+        got = signals.memo.get("lights")
+        if got is None:
+            got = signals.memo["lights"] = _light_tables(signals)
+        self.lights, self.controller_of, self.phase, self.stops = got
         self.green, self.amber, self.all_red = DEFAULT_GREEN, DEFAULT_AMBER, DEFAULT_ALL_RED
         self.offsets: dict[str, float] = {}
         self.offset = 0.0
         self.phase_share = 0.0
-        self._memo_t: float | None = None
-        self._memo: dict[str, str] = {}
+
+    #: the fields of the plan: setting one drops the states and constants worked out so far
+    _PLAN = frozenset({"green", "amber", "all_red", "offsets", "offset", "phase_share"})
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+        if name in TrafficLights._PLAN:
+            object.__setattr__(self, "_consts", {})
+            object.__setattr__(self, "_valid", {})  # signal -> (state, from, until) [s]
 
     def configure(self, *, green: float | None = None, amber: float | None = None,
                   all_red: float | None = None, cycle: float | None = None,
@@ -436,7 +458,6 @@ class TrafficLights:
                                f"{'> 0' if positive else '>= 0'}", test=test)
             return x
 
-        self._memo_t = None  # the plan changes: states computed so far are stale
         if amber is not None:
             self.amber = num("amber", amber, False)
         if all_red is not None:
@@ -479,9 +500,9 @@ class TrafficLights:
             raise SimError(f"amber_at({signal!r}): no traffic light {signal!r} with a controller; "
                            f"the lights are {sorted(self.controller_of)[:8]}...")
         g, j, _ = self.phase[cid]
-        self._memo_t = None
         self.offsets[g] = float(np.mod(self.green + j * self.slot - float(t), self.cycle_of(g))) \
             - self.phase_share * self.cycle_of(g)
+        self.offsets = self.offsets  # the plan changed (in place): drop what was worked out
         return self
 
     def first_on(self, lanes: Iterable[Any]) -> str | None:
@@ -520,25 +541,58 @@ class TrafficLights:
 
     def state(self, signal: str, t: float) -> str:
         """The state of ``signal`` at ``t`` [s] ("green", "amber", "red"); as :meth:`codes`."""
-        if t != self._memo_t:  # every agent asks about the same few lights each step
-            self._memo_t, self._memo = t, {}
-        got = self._memo.get(signal)
-        if got is None:
-            got = self._memo[signal] = self._state(signal, t)
-        return got
+        got = self._valid.get(signal)
+        if got is not None and got[1] <= t < got[2]:
+            return got[0]
+        state, until = self._state(signal, t)
+        self._valid[signal] = (state, t, until)
+        return state
 
-    def _state(self, signal: str, t: float) -> str:
-        cid = self.controller_of.get(signal)
-        if cid is None:
-            return GREEN
-        g, j, n = self.phase[cid]
-        cyc = self.cycle_of(g)
-        tau = math.fmod(t + self._offset(g) - j * self.slot, cyc)
+    def states(self, signals: Iterable[str], t: float) -> tuple[list[str], float]:
+        """The states of ``signals`` at ``t`` [s], and a time [s] before which none of them
+        changes (a driver's observation is made again only then)."""
+        out = []
+        until = math.inf
+        valid = self._valid
+        for sid in signals:
+            out.append(self.state(sid, t))
+            u = valid[sid][2]
+            if u < until:
+                until = u
+        return out, until
+
+    def _state(self, signal: str, t: float) -> tuple[str, float]:
+        # (the state, and a time before which it stays: the phase grows with t as t does, so
+        # until the next threshold less a microsecond — rounding is a million times less —
+        # the same arithmetic gives the same state)
+        c = self._consts.get(signal)
+        if c is None:
+            c = self._consts[signal] = self._constants(signal)
+        if c is None:
+            return GREEN, math.inf
+        off, shift, cyc, top, green_end, amber_end = c
+        tau = math.fmod(t + off - shift, cyc)
         if tau < 0:
             tau += cyc
-        if tau > cyc - 1e-9:
-            tau = 0.0
-        return GREEN if tau < self.green - 1e-9 else AMBER if tau < self.green + self.amber - 1e-9 else RED
+        if tau > top:
+            return GREEN, t  # (as at phase 0; the cycle's wrap is next)
+        if tau < green_end:
+            return GREEN, t + (green_end - tau) - 1e-6
+        if tau < amber_end:
+            return AMBER, t + (amber_end - tau) - 1e-6
+        return RED, t + (top - tau) - 1e-6
+
+    def _constants(self, signal: str) -> tuple[float, ...] | None:
+        """The plan's numbers :meth:`_state` uses for ``signal`` (None: no controller), each
+        computed as :meth:`codes` computes it; kept until the plan changes (every step asks
+        for the states of the same few lights)."""
+        cid = self.controller_of.get(signal)
+        if cid is None:
+            return None
+        g, j, n = self.phase[cid]
+        cyc = self.cycle_of(g)
+        return (self._offset(g), j * self.slot, cyc, cyc - 1e-9, self.green - 1e-9,
+                self.green + self.amber - 1e-9)
 
     def on_lane(self, lane_id: str) -> list[tuple[float, str]]:
         return self.stops.get(lane_id, [])
@@ -564,7 +618,9 @@ class TrafficLights:
         ``lanes`` (the whole junction, so pictures show all its heads): per light a
         ``light.<id>`` series of state codes over ``t``, and the meta entries ``{"id",
         "controller", "x", "y", "heading", "stops": [{"lane", "s", "x", "y", "heading",
-        "width"}]}``."""
+        "width"}]}``. A light's ``stops`` list is made once per map and process and shared by
+        every recording (read it, do not change it), as :func:`.recording.road_meta` shares a
+        lane's points; each entry's own dict is new."""
         by_lane, entries = self._recordable()
         groups = set()
         for lane in lanes:
@@ -574,18 +630,33 @@ class TrafficLights:
         mine = [(sid, e) for sid, g, e in entries if g in groups]
         if not mine:
             return {}, []
-        codes = self._codes_many([sid for sid, _ in mine], t).astype(float)
-        series = {f"light.{sid}": row for (sid, _), row in zip(mine, codes)}
-        meta = [{"id": sid, "controller": cid, "x": x, "y": y, "heading": h,
-                 "stops": [{"lane": lane, "s": s, "x": px, "y": py, "heading": ph, "width": w}
-                           for lane, s, px, py, ph, w in stops]}
-                for sid, (cid, x, y, h, stops) in mine]
+        sids = tuple(sid for sid, _ in mine)
+        t = np.asarray(t, dtype=float)
+        # every case of a campaign records the same times under the same plan: the codes are
+        # worked out once per map, times and plan (a copy as floats goes into each recording)
+        memo = self.map.memo.setdefault("codes", {})
+        key = (sids, t.tobytes(), self._plan_key())
+        codes = memo.get(key)
+        if codes is None:
+            if len(memo) >= 16:
+                memo.clear()
+            codes = memo[key] = self._codes_many(list(sids), t)
+        codes = codes.astype(float)
+        series = {name: row for (_, (_, _, _, _, _, name)), row in zip(mine, codes)}
+        meta = [{"id": sid, "controller": cid, "x": x, "y": y, "heading": h, "stops": stops}
+                for sid, (cid, x, y, h, stops, _) in mine]
         return series, meta
+
+    def _plan_key(self) -> tuple:
+        """Every field of the plan, as a key."""
+        return (self.green, self.amber, self.all_red, self.offset, self.phase_share,
+                tuple(sorted(self.offsets.items())))
 
     def _recordable(self) -> tuple[dict[str, set], list[tuple[str, str, tuple]]]:
         """(lane id -> the junctions whose lights rule it, [(signal, junction, its meta entry
-        as plain values)] in the lights' order): what :meth:`record` writes of the map's
-        lights, made once (the lights and their stops never change; the plan does)."""
+        as plain values with its stops' list, its series' name)] in the lights' order): what
+        :meth:`record` writes of the map's lights, made once (the lights and their stops never
+        change; the plan does)."""
         got = self.map.memo.get("record")
         if got is None:
             by_lane: dict[str, set] = {}
@@ -599,9 +670,11 @@ class TrafficLights:
                     by_lane.setdefault(p.lane, set()).add(g)
                 entries.append((sid, g, (cid, round(sg.x, 3), round(sg.y, 3),
                                          round(sg.heading, 4),
-                                         tuple((p.lane, round(p.s, 4), round(p.x, 3),
-                                                round(p.y, 3), round(p.heading, 4),
-                                                round(p.width, 3)) for p in sg.stops))))
+                                         [{"lane": p.lane, "s": round(p.s, 4),
+                                           "x": round(p.x, 3), "y": round(p.y, 3),
+                                           "heading": round(p.heading, 4),
+                                           "width": round(p.width, 3)} for p in sg.stops],
+                                         f"light.{sid}")))
             got = self.map.memo["record"] = (by_lane, entries)
         return got
 

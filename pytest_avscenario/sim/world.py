@@ -346,6 +346,16 @@ class World:
         state = lights.state
         return [(acc - rs, state(sid, t), sid) for _, _, acc, sid in ahead]
 
+    def light_stops(self, agent: Any, horizon: float = 150.0) -> tuple[Any, list]:
+        """(the road's :class:`~.signals.TrafficLights`, the stops ahead of ``agent`` as
+        ``(route index, s, distance from the start of its lane [m], signal)``) — what
+        :meth:`lights_ahead` reads, for a driver that asks a light's state only when it needs
+        it; (None, []) on a road without lights."""
+        lights = self._lights if self._lights is not None else self.traffic_lights
+        if not lights:
+            return None, []
+        return lights, self._stops_ahead(lights, agent, horizon)
+
     @staticmethod
     def _stops_ahead(lights: Any, agent: Any, horizon: float) -> list:
         """``lights.ahead`` of ``agent``'s route from its lane on, kept until it moves to
@@ -489,11 +499,17 @@ class World:
             raise SimError(f"placed on {spot.lane.id!r}, which is not on its route "
                            f"{[l.id for l in lanes]} nor beside its first lane",
                            test=self.name, agent=agent)
-        for a, b in zip(lanes, lanes[1:]):
-            gap = _joint_gap(a, b)
-            if gap > 1.0:
-                raise SimError(f"route is broken: {b.id!r} starts {gap:.1f} m from the end of "
-                               f"{a.id!r}", test=self.name, agent=agent)
+        # (a map's lanes never change: a route of them found whole is not measured again)
+        whole = getattr(self.road, "whole_routes", None)
+        key = tuple(lanes) if whole is not None else None
+        if key is None or key not in whole:
+            for a, b in zip(lanes, lanes[1:]):
+                gap = _joint_gap(a, b)
+                if gap > 1.0:
+                    raise SimError(f"route is broken: {b.id!r} starts {gap:.1f} m from the end "
+                                   f"of {a.id!r}", test=self.name, agent=agent)
+            if key is not None and len(whole) < 4096:
+                whole.add(key)
         return lanes, lanes.index(spot.lane) if spot.lane in lanes else 0
 
     @staticmethod
@@ -880,16 +896,20 @@ class World:
         if not ahead:
             return ()
         t = self.t
-        state = lights.state
-        states = [state(sid, t) for _, _, _, sid in ahead]
         # the lights' states change every few seconds: the observation's tuple is made again
-        # only when one changed or the stops ahead did (its items are frozen, so shared)
+        # only when one changed or the stops ahead did (its items are frozen, so shared), and
+        # the states are asked again only when one may have changed
         seen = ego.__dict__.get("_lights_seen")
-        if seen is not None and seen[0] is ahead and seen[1] == states:
+        if seen is not None and seen[0] is ahead and seen[3] <= t < seen[4]:
             return seen[2]
-        out = tuple(_frozen(TrafficLight, {"route_index": j, "s": s, "state": st, "signal": sid})
-                    for (j, s, _, sid), st in zip(ahead, states))
-        ego._lights_seen = (ahead, states, out)
+        states, until = lights.states([sid for _, _, _, sid in ahead], t)
+        if seen is not None and seen[0] is ahead and seen[1] == states:
+            out = seen[2]
+        else:
+            out = tuple(_frozen(TrafficLight, {"route_index": j, "s": s, "state": st,
+                                               "signal": sid})
+                        for (j, s, _, sid), st in zip(ahead, states))
+        ego._lights_seen = (ahead, states, out, t, until)
         return out
 
     def view(self) -> Any:

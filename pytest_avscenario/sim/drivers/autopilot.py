@@ -191,8 +191,9 @@ class Autopilot:
             self.last_reason = "no route"
             return self._finish(-o.comfort_decel, 0.0, v, dt)
         L, W = ego.length, ego.width
-        if 0 <= obs.route_index < len(path.offsets):
-            s_ego = path.offsets[obs.route_index] + obs.s
+        off = path.offset(obs.route_index)
+        if off is not None:
+            s_ego = off + obs.s
         else:
             s_ego = path.project(ego.x, ego.y)[0]
 
@@ -216,9 +217,10 @@ class Autopilot:
         stops: list[tuple[float, str]] = []  # (front-bumper distance to stop [m], why)
         crosswalks = []
         for line in obs.stop_lines:
-            if not 0 <= line.route_index < len(path.offsets):
+            off = path.offset(line.route_index)
+            if off is None:
                 continue
-            s_line = path.offsets[line.route_index] + line.s
+            s_line = off + line.s
             if line.kind == "crosswalk":
                 crosswalks.append(s_line)
         if seen.n:
@@ -317,9 +319,12 @@ class Autopilot:
         out = []
         nearest = True
         for line in obs.stop_lines:
-            if line.kind == "crosswalk" or not 0 <= line.route_index < len(path.offsets):
+            if line.kind == "crosswalk":
                 continue
-            d = path.offsets[line.route_index] + line.s - (s_ego + 0.5 * L)
+            off = path.offset(line.route_index)
+            if off is None:
+                continue
+            d = off + line.s - (s_ego + 0.5 * L)
             if d < -L:
                 continue  # passed
             key = (line.route_index, round(line.s, 2))
@@ -370,9 +375,10 @@ class Autopilot:
         o = self.options
         out = []
         for light in lights:
-            if not 0 <= light.route_index < len(path.offsets):
+            off = path.offset(light.route_index)
+            if off is None:
                 continue
-            front = path.offsets[light.route_index] + light.s - (s_ego + 0.5 * L)
+            front = off + light.s - (s_ego + 0.5 * L)
             if front < 0.0:
                 continue
             if light.state == GREEN:

@@ -419,6 +419,17 @@ class RoutePath:
             self._kmax += np.concatenate([ak, np.zeros(pad)]).reshape(-1, _KBLOCK) \
                 .max(axis=1).tolist()
 
+    def offset(self, k: int) -> float | None:
+        """``offsets[k]`` [m], or None when ``k`` is not the index of a route lane (one call
+        where ``0 <= k < len(offsets)`` and ``offsets[k]`` take three, every step)."""
+        got = self._offsets
+        if 0 <= k < len(got):
+            return got[k]
+        if 0 <= k < len(self._route):
+            self._plan(k + 1)
+            return self._offsets[k]
+        return None
+
     @property
     def n(self) -> int:
         """Number of grid points of the whole path (builds it all)."""
