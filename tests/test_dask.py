@@ -472,3 +472,35 @@ def test_a_worker_takes_the_runs_stack_settings_with_the_spec(tmp_path, monkeypa
     outcome = remote.run_remote(data, remote.spec_digest(data), str(module), str(tmp_path), fields)
     assert outcome.error is None, outcome.error
     assert client._settings == {"timeout_s": 17.0, "spin_s": 0.0}
+
+
+HANGING_STACK = """
+from pytest_avscenario import scenario, Uniform
+
+@scenario(gap=Uniform(30, 50), samples=3, sampler="halton", monitors=[])
+def test_drive(case, world):
+    road = world.straight_road(lanes=1, length=300)
+    world.ego(road.lane(0), s=10.0, speed=8.0)
+    world.car(road.lane(0), s=10.0 + case.gap, speed=9.0)
+    world.run(seconds=1)
+"""
+
+
+def test_the_stack_timeout_holds_on_the_cluster_s_workers(pytester, cluster_address):
+    """--avs-stack-timeout reaches the worker that spawns and asks the stack: a stack that
+    hangs at step 3 of one case makes that case an error after 0.5 s, not the default 5."""
+    pytest.importorskip("zmq")
+    pytest.importorskip("osi3")
+    _wait_for_both_workers(cluster_address)
+    raw = Path(__file__).resolve().parent / "data" / "osi_raw_stack.py"
+    pytester.makepyfile(test_hang=HANGING_STACK)
+    driver = (f"osi+spawn:{sys.executable} {raw} {{address}} --answer motion --fault hang "
+              "--case-suffix=-001] --at-step 3")
+    result = pytester.runpytest("--avs-driver", driver, "--avs-stack-timeout=0.5", "--avs-db=none",
+                                "--avs-report=none", "--avs-shrink-budget=0", "--avs-executor=dask",
+                                f"--avs-dask-address={cluster_address}", "-p", "no:xdist",
+                                "-p", "no:cacheprovider", "-rA")
+    outcomes = result.parseoutcomes()
+    assert outcomes.get("passed") == 2, result.stdout.str()[-3000:]
+    result.stdout.fnmatch_lines(["*step 3 (t=0.30 s): no answer to the SensorView within 0.5 s "
+                                 "(--avs-stack-timeout)*"])
