@@ -335,10 +335,7 @@ class World:
         """The traffic lights on ``agent``'s route ahead within ``horizon`` [m]: ``(distance
         [m] from its centre to the stop position (negative once passed, until it leaves that
         lane), state now, signal id)``, nearest first; [] on a road without lights."""
-        lights = self._lights if self._lights is not None else self.traffic_lights
-        if not lights:
-            return []
-        ahead = self._stops_ahead(lights, agent, horizon)
+        lights, ahead = self.light_stops(agent, horizon)
         if not ahead:
             return []
         rs = float(agent.route_s)
